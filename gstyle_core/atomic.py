@@ -40,3 +40,15 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def refuse_overwrite(output: str | os.PathLike, force: bool, inputs: list[str | os.PathLike] = ()) -> None:
+    """Raise a one-line error if ``output`` exists (unless ``force``) or is one of the ``inputs`` (always)."""
+    from .errors import GStyleError
+
+    out = Path(output)
+    for src in inputs:
+        if Path(src).exists() and out.exists() and out.resolve() == Path(src).resolve():
+            raise GStyleError(f"refusing to overwrite the input file {out}")
+    if out.exists() and not force:
+        raise GStyleError(f"{out} exists; pass --force to overwrite it")

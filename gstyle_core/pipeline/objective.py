@@ -1,0 +1,72 @@
+"""The stylization objective as the engine uses it: networks built once, content features cached per view."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import numpy as np
+import torch
+
+from .settings import StylizeSettings
+
+
+def _bchw(img: np.ndarray | torch.Tensor) -> torch.Tensor:
+    return torch.as_tensor(img, dtype=torch.float32).permute(2, 0, 1)[None].contiguous()
+
+
+def resize_image(img: np.ndarray, long_side: int) -> np.ndarray:
+    """Resize an [H, W, 3] float image so its longer side is ``long_side`` pixels (aspect kept)."""
+    from PIL import Image
+
+    h, w = img.shape[:2]
+    s = long_side / max(h, w)
+    size = (max(1, int(round(w * s))), max(1, int(round(h * s))))
+    pil = Image.fromarray((np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8))
+    return np.asarray(pil.resize(size, Image.LANCZOS), np.float32) / 255.0
+
+
+class StyleObjective:
+    """λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV on a render [H, W, 3] of one view.
+
+    The style image is resized so that its longer side matches the working resolution's longer side (the scale at
+    which brush strokes are matched). CLIP ViT-B/32 is used when its weights are found; otherwise the documented
+    coarse-VGG substitute (``clip_status`` says which).
+    """
+
+    def __init__(self, style: np.ndarray, settings: StylizeSettings, vgg=None) -> None:
+        from ..style.clip import ClipStyleLoss, CoarseStyleLoss, load_clip
+        from ..style.losses import StyleLoss, StyleTarget
+        from ..style.vgg import load_vgg
+
+        dtype = torch.bfloat16 if settings.vgg_dtype == "bfloat16" else torch.float32
+        self.vgg = vgg if vgg is not None else load_vgg(dtype=dtype, channels_last=dtype == torch.bfloat16)
+        long_side = settings.working_width
+        style_small = _bchw(resize_image(style, max(64, long_side)))
+        self.target = StyleTarget.from_image(self.vgg, style_small)
+        clip_term = None
+        if settings.weights.clip > 0:
+            encoder, self.clip_status = load_clip(settings.clip_weights)
+            if encoder is not None:
+                clip_term = ClipStyleLoss(encoder, _bchw(resize_image(style, 448)),
+                                          generator=torch.Generator().manual_seed(settings.seed))
+            else:
+                clip_term = CoarseStyleLoss(self.vgg, style_small)
+        else:
+            self.clip_status = "CLIP term off (λ_CLIP = 0)"
+        self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=asdict(settings.weights))
+        self._settings = settings
+
+    @property
+    def calls(self) -> dict[str, int]:
+        """Network runs so far (``vgg``, ``clip``)."""
+        return self.loss.calls
+
+    def set_weights(self, weights) -> None:
+        """Change λ weights (a ``StyleWeights``); a CLIP weight needs the CLIP term to have been built."""
+        w = asdict(weights)
+        if w["clip"] > 0 and self.loss.clip_term is None:
+            w["clip"] = 0.0
+        self.loss.weights = w
+
+    def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int) -> tuple[torch.Tensor, dict]:
+        return self.loss(image.permute(2, 0, 1)[None], content.permute(2, 0, 1)[None])

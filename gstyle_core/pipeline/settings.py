@@ -1,0 +1,106 @@
+"""Stylization settings, the paper's defaults per scene kind, and CPU presets.
+
+The paper's budgets (max(5·n_views, 2000) refit iterations, 10 pre-processing rounds for 360° scenes, 15 epochs
+at 1024 px) are GPU budgets. The presets scale them for a 2-core CPU; ``final`` follows the paper's counts except
+the working resolution. What each costs and buys is measured by ``bench/tradeoff.py`` and written in the README.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+
+
+@dataclass
+class StyleWeights:
+    """λ weights of L = λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV."""
+
+    clip: float = 10.0
+    nnfm: float = 100.0
+    content: float = 0.05
+    tv: float = 1e-4
+
+
+@dataclass
+class StylizeSettings:
+    """Everything a run needs besides the scene, cameras and style image."""
+
+    preset: str = "preview"
+    scene_kind: str = "auto"  # "forward" | "360" | "auto" (from the cameras)
+    weights: StyleWeights = field(default_factory=StyleWeights)
+    working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
+    epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
+    min_steps: int = 0
+    lr_start: float = 1e-1
+    lr_end: float = 1e-2
+    preprocess_rounds: int = 1
+    preprocess_gamma: float = 1.0  # γ of round r: gamma · gamma_growth^r (360°: 1.1 · 1.125^r)
+    preprocess_gamma_growth: float = 1.0
+    preprocess_children: int = 4
+    preprocess_scale_divisor: float = 8.0
+    preprocess_cap: float = 0.05  # at most this fraction of Gaussians split per round
+    elongation_limit: float = 1.5
+    refit_iterations: int = 100  # per pre-processing round and after each colour-gradient split
+    split_rate: float = 0.05  # fraction of Gaussians split by accumulated ‖∂L/∂c_s‖
+    split_at_epochs: tuple[float, ...] = (3.0,)  # split at these multiples of n_views steps
+    split_children: int = 4
+    split_scale_divisor: float = 16.0
+    grad_accumulate_from_epoch: float = 2.0
+    max_gaussians: int = 2_000_000
+    max_views: int = 24  # at most this many training views (evenly chosen)
+    vgg_dtype: str = "float32"  # or "bfloat16"
+    clip_weights: str | None = None
+    colour_match_after: bool = True
+    seed: int = 0
+
+    def to_dict(self) -> dict:
+        """Plain dict for JSON summaries and checkpoints."""
+        return asdict(self)
+
+
+# Paper defaults that depend on the scene kind (gstyle-method.md).
+KIND_DEFAULTS = {
+    "forward": dict(
+        lr_start=1e-1, lr_end=1e-2, preprocess_gamma=1.0, preprocess_gamma_growth=1.0, preprocess_children=4,
+        preprocess_scale_divisor=8.0, preprocess_cap=0.05, split_rate=0.05, split_at_epochs=(3.0,),
+        split_scale_divisor=16.0, nnfm=100.0,
+    ),
+    "360": dict(
+        lr_start=1e-2, lr_end=5e-3, preprocess_gamma=1.1, preprocess_gamma_growth=1.125, preprocess_children=8,
+        preprocess_scale_divisor=6.4, preprocess_cap=0.10, split_rate=0.02, split_at_epochs=(3.0, 7.0),
+        split_scale_divisor=8.0, nnfm=10.0,
+    ),
+}
+
+# CPU budgets. Rounds/iterations for "final" follow the paper (rounds: 5 forward-facing, 10 for 360°).
+PRESETS = {
+    "preview": dict(working_width=192, epochs=6.0, min_steps=60, preprocess_rounds=1, refit_iterations=60,
+                    max_views=16),
+    "balanced": dict(working_width=256, epochs=10.0, min_steps=150, preprocess_rounds=2, refit_iterations=200,
+                     max_views=24),
+    "final": dict(working_width=512, epochs=15.0, min_steps=450, preprocess_rounds=-1, refit_iterations=-1,
+                  max_views=10_000),
+}
+
+
+def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_views: int = 1,
+                     **overrides) -> StylizeSettings:
+    """Settings for a preset and a scene kind ("forward" or "360"), then explicit ``overrides`` (None = keep)."""
+    if preset not in PRESETS:
+        raise ValueError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
+    if scene_kind not in KIND_DEFAULTS:
+        raise ValueError(f"unknown scene kind {scene_kind!r} (forward or 360)")
+    kind = dict(KIND_DEFAULTS[scene_kind])
+    nnfm = kind.pop("nnfm")
+    s = StylizeSettings(preset=preset, scene_kind=scene_kind, weights=StyleWeights(nnfm=nnfm), **kind)
+    p = dict(PRESETS[preset])
+    if p["preprocess_rounds"] < 0:
+        p["preprocess_rounds"] = 5 if scene_kind == "forward" else 10
+    if p["refit_iterations"] < 0:
+        p["refit_iterations"] = max(5 * n_views, 2000)
+    s = replace(s, **p)
+    weight_keys = {"clip", "nnfm", "content", "tv"}
+    w = {k[len("lambda_"):]: v for k, v in overrides.items() if k.startswith("lambda_") and v is not None}
+    if w:
+        s.weights = replace(s.weights, **{k: float(v) for k, v in w.items() if k in weight_keys})
+    rest = {k: v for k, v in overrides.items() if not k.startswith("lambda_") and v is not None}
+    return replace(s, **rest)

@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Set up (idempotent) and run the test suite headless. Extra arguments go to pytest.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+export GSTYLE_CACHE=${GSTYLE_CACHE:-$PWD/.cache/gstyle}
+.venv/bin/ruff check gstyle_core app tests bench
+env -u DISPLAY .venv/bin/python -m pytest -q -p no:cacheprovider "$@"
