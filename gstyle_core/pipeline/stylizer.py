@@ -19,6 +19,7 @@ Then ``done``. There are no threads here: callers (CLI, app worker, tests) decid
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -143,6 +144,9 @@ class Stylizer:
 
     def set_params(self, **kw: float) -> None:
         """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), split_rate or lr; next step on."""
+        unknown = set(kw) - {"split_rate", "lr"} - {f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
+        if unknown:
+            raise ValueError(f"unknown parameters: {', '.join(sorted(unknown))}")
         weights = {k[len("lambda_"):]: float(v) for k, v in kw.items() if k.startswith("lambda_") and v is not None}
         if weights:
             self.settings.weights = replace(self.settings.weights, **weights)
@@ -154,9 +158,6 @@ class Stylizer:
             ratio = self.settings.lr_end / self.settings.lr_start
             self.settings.lr_start = float(kw["lr"])
             self.settings.lr_end = float(kw["lr"]) * ratio
-        unknown = set(kw) - {"split_rate", "lr"} - {f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
-        if unknown:
-            raise ValueError(f"unknown parameters: {', '.join(sorted(unknown))}")
 
     def snapshot(self) -> dict[str, Any]:
         """Arrays a viewer needs (numpy copies): geometry, stylized and ground-truth colours, versions."""
@@ -441,6 +442,8 @@ class Stylizer:
             "geometry_version": self.geometry_version,
             "colour_version": self.colour_version,
             "colour_transform": self.colour_transform,
+            "adam": copy.deepcopy(self._opt.state_dict()) if self._opt is not None else None,
+            "generator": self._gen.get_state(),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -463,7 +466,12 @@ class Stylizer:
         self.colour_version = state["colour_version"] + 1
         self.colour_transform = state["colour_transform"]
         self._caches.invalidate()
+        self._gen.set_state(state["generator"])
         self._opt = None
+        if state.get("adam") is not None:
+            self.c_s = self.c_s.detach().requires_grad_(True)
+            self._opt = torch.optim.Adam([self.c_s], lr=self._lr())
+            self._opt.load_state_dict(state["adam"])
         self._trainer = None
         self._refit_left = state["refit_left"]
         if state["in_refit"] and self._refit_left > 0:
