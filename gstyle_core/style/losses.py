@@ -1,0 +1,230 @@
+"""The G-Style stylization loss: λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV.
+
+* NNFM (ARF): render and style VGG features relu3_1, relu3_2, relu3_3 concatenated (768 channels); every
+  render feature vector is compared with its nearest style vector by cosine distance; the loss is the
+  mean of those distances. The nearest-neighbour search runs without gradients in chunks; the gradient
+  flows through the render side only (the style side is a constant).
+* Content: mean squared difference of the same VGG features of the render and of the colour-matched
+  ground-truth view, computed per layer and summed over the three layers (as the reference code does).
+* TV: total variation of the full-resolution render, **summed** squared differences of vertical and
+  horizontal neighbours. This follows the G-Style reference code (``calculate_total_variation_loss``: sum
+  of squared differences), which its λ_TV = 1e-4 is paired with; ``kind="abs"`` gives the L1 variant.
+* CLIP: see :mod:`gstyle_core.style.clip` (or its coarse-VGG substitute).
+
+A term whose weight is 0 is not computed at all; when both λ_NNFM and λ_C are 0 VGG never runs, when λ_CLIP
+is 0 the CLIP term never runs. ``StyleLoss.calls`` counts network runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, replace
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+FEATURE_LAYERS = ("relu3_1", "relu3_2", "relu3_3")
+_NORM_EPS = 1e-8
+
+
+@dataclass(frozen=True)
+class StyleWeights:
+    """Loss weights; defaults are G-Style's for forward-facing scenes (λ_NNFM 10 for 360° scenes)."""
+
+    clip: float = 10.0
+    nnfm: float = 100.0
+    content: float = 0.05
+    tv: float = 1e-4
+
+    @classmethod
+    def for_scene_kind(cls, kind: str) -> StyleWeights:
+        """``"forward"`` (forward-facing) or ``"360"`` defaults of the reference."""
+        if kind not in ("forward", "360"):
+            raise ValueError(f"scene kind must be 'forward' or '360', got {kind!r}")
+        return cls() if kind == "forward" else cls(nnfm=10.0)
+
+
+def concat_features(feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor) -> torch.Tensor:
+    """relu3_1|relu3_2|relu3_3 concatenated along channels → [B, 768, h, w]. A tensor is returned as is."""
+    if isinstance(feats, torch.Tensor):
+        return feats
+    if isinstance(feats, Mapping):
+        feats = [feats[name] for name in FEATURE_LAYERS]
+    return torch.cat(list(feats), dim=1)
+
+
+def normalise_vectors(x: torch.Tensor, dim: int) -> torch.Tensor:
+    """Unit vectors along ``dim``; zero vectors stay (finite) zero vectors."""
+    return x / ((x * x).sum(dim, keepdim=True) + _NORM_EPS).sqrt()
+
+
+class StyleTarget:
+    """Style image → unit-normalised VGG feature matrix [C, M] (computed once), optionally at several
+    scales of the style image (features of all scales are pooled into one set of candidates)."""
+
+    def __init__(self, matrix: torch.Tensor, scales: tuple[float, ...] = (1.0,)) -> None:
+        if matrix.ndim != 2:
+            raise ValueError(f"style feature matrix must be [C, M], got {tuple(matrix.shape)}")
+        self.matrix = matrix.detach()
+        self.scales = scales
+
+    @classmethod
+    def from_image(cls, vgg: nn.Module, style_image: torch.Tensor, scales: Iterable[float] = (1.0,),
+                   max_vectors: int | None = None, generator: torch.Generator | None = None) -> StyleTarget:
+        """Run ``vgg`` on ``style_image`` [1,3,H,W] (RGB [0,1]) at each scale; ``max_vectors`` keeps a random
+        subset of the candidates to bound memory (None keeps all)."""
+        scales = tuple(scales)
+        columns = []
+        with torch.no_grad():
+            for scale in scales:
+                img = style_image
+                if scale != 1.0:
+                    size = (max(8, round(img.shape[-2] * scale)), max(8, round(img.shape[-1] * scale)))
+                    img = F.interpolate(img, size=size, mode="bilinear", align_corners=False, antialias=scale < 1)
+                feats = concat_features(vgg(img))
+                columns.append(feats.permute(1, 0, 2, 3).flatten(1))  # [C, B*h*w]
+        matrix = torch.cat(columns, dim=1)
+        if max_vectors is not None and matrix.shape[1] > max_vectors:
+            keep = torch.randperm(matrix.shape[1], generator=generator)[:max_vectors]
+            matrix = matrix[:, keep]
+        return cls(normalise_vectors(matrix.float(), dim=0), scales)
+
+    @classmethod
+    def from_features(cls, style_feats: torch.Tensor) -> StyleTarget:
+        """From raw features [C, hs, ws] or [1, C, hs, ws]."""
+        if style_feats.ndim == 4:
+            style_feats = style_feats.permute(1, 0, 2, 3)
+        return cls(normalise_vectors(style_feats.detach().flatten(1).float(), dim=0))
+
+
+def _style_matrix(style: StyleTarget | torch.Tensor) -> torch.Tensor:
+    if isinstance(style, StyleTarget):
+        return style.matrix
+    if style.ndim == 2:  # already a normalised [C, M] matrix
+        return style.detach()
+    return StyleTarget.from_features(style).matrix
+
+
+def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chunk: int = 4096) -> torch.Tensor:
+    """Mean over render vectors of min over style vectors of (1 − cos). ``render_feats`` [B,C,h,w];
+    ``style`` a :class:`StyleTarget`, raw features [C,hs,ws] or a normalised matrix [C,M]. The
+    nearest-neighbour search runs in chunks of ``chunk`` render vectors, without gradients."""
+    style_matrix = _style_matrix(style).to(render_feats.device)
+    if render_feats.ndim != 4 or render_feats.shape[1] != style_matrix.shape[0]:
+        raise ValueError(f"render features {tuple(render_feats.shape)} do not match style channels "
+                         f"{style_matrix.shape[0]}")
+    if style_matrix.shape[1] == 0:
+        raise ValueError("the style target has no feature vectors")
+    render_vectors = normalise_vectors(render_feats.float().permute(0, 2, 3, 1).flatten(0, 2), dim=1)  # [N, C]
+    with torch.no_grad():
+        nearest = torch.cat([(block @ style_matrix).argmax(dim=1)
+                             for block in render_vectors.detach().split(max(1, chunk))])
+    matched = style_matrix.t()[nearest]  # [N, C], constant
+    return (1.0 - (render_vectors * matched).sum(dim=1)).mean()
+
+
+def content_loss(render_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor,
+                 gt_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor) -> torch.Tensor:
+    """Mean squared feature difference; for per-layer dicts/lists, the sum over layers of each layer's mean."""
+    if isinstance(render_feats, torch.Tensor):
+        return F.mse_loss(render_feats, gt_feats.detach())
+    if isinstance(render_feats, Mapping):
+        pairs = [(render_feats[name], gt_feats[name]) for name in FEATURE_LAYERS]
+    else:
+        pairs = list(zip(render_feats, gt_feats, strict=True))
+    return sum(F.mse_loss(r, g.detach()) for r, g in pairs)
+
+
+def tv_loss(img: torch.Tensor, kind: str = "squared") -> torch.Tensor:
+    """Total variation of ``img`` [B,3,H,W], **summed** over pixels, channels and the batch:
+    Σ (Δ_x)² + Σ (Δ_y)² (``kind="squared"``, the G-Style reference) or Σ|Δ_x| + Σ|Δ_y| (``kind="abs"``)."""
+    dx = img[..., :, 1:] - img[..., :, :-1]
+    dy = img[..., 1:, :] - img[..., :-1, :]
+    if kind == "squared":
+        return (dx * dx).sum() + (dy * dy).sum()
+    if kind == "abs":
+        return dx.abs().sum() + dy.abs().sum()
+    raise ValueError(f"tv kind must be 'squared' or 'abs', got {kind!r}")
+
+
+def resize_to_width(img: torch.Tensor, width: int | None) -> torch.Tensor:
+    """Bilinear (antialiased) resize so the width is ``width`` px, keeping the aspect ratio (None: as is)."""
+    if width is None or img.shape[-1] == width:
+        return img
+    height = max(1, round(img.shape[-2] * width / img.shape[-1]))
+    return F.interpolate(img, size=(height, width), mode="bilinear", align_corners=False,
+                         antialias=width < img.shape[-1])
+
+
+class StyleLoss(nn.Module):
+    """The combined loss. ``forward(render [1,3,H,W], gt [1,3,H,W] | None) -> (total, {term: value})``.
+
+    ``vgg`` and ``style_target`` serve NNFM and content; ``clip_term`` is a :class:`ClipStyleLoss` or a
+    :class:`CoarseStyleLoss` (or None: the CLIP weight must then be 0). ``working_width`` resizes the render
+    (and gt) before the networks, like the reference's 1024-px stylization size; TV uses the full render.
+    Terms with weight 0 are skipped entirely and reported as 0.
+    """
+
+    def __init__(self, vgg: nn.Module | None, style_target: StyleTarget | None,
+                 clip_term: nn.Module | None = None, weights: StyleWeights | Mapping[str, float] | None = None,
+                 working_width: int | None = None, nnfm_chunk: int = 4096) -> None:
+        super().__init__()
+        self.vgg = vgg
+        self.style_target = style_target
+        self.clip_term = clip_term
+        self.working_width = working_width
+        self.nnfm_chunk = nnfm_chunk
+        self.calls = {"vgg": 0, "clip": 0}
+        self._weights = StyleWeights()
+        self.weights = weights if weights is not None else StyleWeights()
+
+    @property
+    def weights(self) -> StyleWeights:
+        return self._weights
+
+    @weights.setter
+    def weights(self, value: StyleWeights | Mapping[str, float]) -> None:
+        if isinstance(value, Mapping):
+            unknown = set(value) - set(asdict(self._weights))
+            if unknown:
+                raise ValueError(f"unknown loss weight(s): {sorted(unknown)}")
+            value = replace(self._weights, **{k: float(v) for k, v in value.items()})
+        for name, weight in asdict(value).items():
+            if not weight >= 0.0:
+                raise ValueError(f"loss weight {name} must be >= 0, got {weight}")
+        if (value.nnfm > 0 or value.content > 0) and self.vgg is None:
+            raise ValueError("NNFM/content weights need a VGG network")
+        if value.nnfm > 0 and self.style_target is None:
+            raise ValueError("the NNFM weight needs a style target")
+        if value.clip > 0 and self.clip_term is None:
+            raise ValueError("the CLIP weight needs a CLIP term (or its coarse-VGG substitute)")
+        self._weights = value
+
+    def forward(self, render: torch.Tensor, gt: torch.Tensor | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+        w = self._weights
+        zero = render.new_zeros(())
+        terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero}
+        small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip) else render
+        if w.nnfm > 0 or w.content > 0:
+            feats = self.vgg(small)
+            self.calls["vgg"] += 1
+            if w.nnfm > 0:
+                terms["nnfm"] = nnfm_loss(concat_features(feats), self.style_target, self.nnfm_chunk)
+            if w.content > 0:
+                if gt is None:
+                    raise ValueError("the content term needs the ground-truth view (gt)")
+                with torch.no_grad():
+                    gt_small = gt if gt.shape[-2:] == small.shape[-2:] else F.interpolate(
+                        gt, size=small.shape[-2:], mode="bilinear", align_corners=False, antialias=True)
+                    gt_feats = self.vgg(gt_small)
+                self.calls["vgg"] += 1
+                terms["content"] = content_loss(feats, gt_feats)
+        if w.clip > 0:
+            terms["clip"] = self.clip_term(small)
+            self.calls[getattr(self.clip_term, "network", "clip")] += 1
+        if w.tv > 0:
+            terms["tv"] = tv_loss(render)
+        total = (w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"]
+                 + w.tv * terms["tv"])
+        return total, {name: float(value.detach()) for name, value in terms.items()}
