@@ -1,0 +1,13 @@
+"""Scene readers and writers: 3DGS .ply, PlayCanvas compressed .ply, .splat and .spz in; .ply and .splat out.
+
+``load_scene(path) -> (GaussianScene, LoadReport)`` detects the format from the bytes;
+``save_scene(scene, path, fmt=None, keep_sh=True)`` writes atomically; ``validate_and_repair`` documents and
+applies the checks every loader's output goes through.
+"""
+
+from .loader import load_scene
+from .report import LoadReport
+from .saver import save_scene
+from .validate import validate_and_repair
+
+__all__ = ["LoadReport", "load_scene", "save_scene", "validate_and_repair"]

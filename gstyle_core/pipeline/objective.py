@@ -41,7 +41,7 @@ class StyleObjective:
         dtype = torch.bfloat16 if settings.vgg_dtype == "bfloat16" else torch.float32
         self.vgg = vgg if vgg is not None else load_vgg(dtype=dtype, channels_last=dtype == torch.bfloat16)
         long_side = settings.working_width
-        style_small = _bchw(resize_image(style, max(64, long_side)))
+        style_small = _bchw(resize_image(style, max(64, int(long_side * settings.style_scale))))
         self.target = StyleTarget.from_image(self.vgg, style_small)
         clip_term = None
         if settings.weights.clip > 0:
@@ -55,6 +55,7 @@ class StyleObjective:
             self.clip_status = "CLIP term off (λ_CLIP = 0)"
         self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=asdict(settings.weights))
         self._settings = settings
+        self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
 
     @property
     def calls(self) -> dict[str, int]:
@@ -69,4 +70,15 @@ class StyleObjective:
         self.loss.weights = w
 
     def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int) -> tuple[torch.Tensor, dict]:
-        return self.loss(image.permute(2, 0, 1)[None], content.permute(2, 0, 1)[None])
+        render = image.permute(2, 0, 1)[None]
+        gt_feats = None
+        if self.loss.weights.content > 0:
+            gt_feats = self._content_cache.get(view)
+            if gt_feats is None:
+                gt_feats = self.loss.content_features(content.permute(2, 0, 1)[None], render.shape[-2:])
+                self._content_cache[view] = gt_feats
+        return self.loss(render, gt_feats=gt_feats)
+
+    def forget_content(self) -> None:
+        """Drop cached content features (call when the content images change)."""
+        self._content_cache.clear()

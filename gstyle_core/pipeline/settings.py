@@ -28,6 +28,7 @@ class StylizeSettings:
     scene_kind: str = "auto"  # "forward" | "360" | "auto" (from the cameras)
     weights: StyleWeights = field(default_factory=StyleWeights)
     working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
+    style_scale: float = 1.0  # style image long side = this × the working render's long side
     epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
     min_steps: int = 0
     lr_start: float = 1e-1

@@ -1,0 +1,157 @@
+"""Viewer camera maths: orbit around a target, WASD fly, zoom, pan, reset, snap to a scene camera, fov.
+
+Pure numpy, no GL. Pose = eye position + camera-to-world rotation (columns: x right, y down, z forward,
+the OpenCV axes of ``gstyle_core.cameras.Camera``) + the distance to the orbit target along the view axis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gstyle_core.cameras.camera import Camera
+
+MIN_FOV_DEG, MAX_FOV_DEG = 10.0, 120.0
+MIN_DISTANCE = 1e-3
+POLE_MARGIN_DEG = 2.0  # orbit never tilts closer than this to straight up/down
+
+
+def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """3x3 rotation by ``angle`` radians about unit ``axis`` (right-handed, Rodrigues)."""
+    a = np.asarray(axis, np.float64)
+    a = a / np.linalg.norm(a)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
+
+
+def look_rotation(forward: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Camera-to-world rotation looking along ``forward`` with image-up towards ``up`` (OpenCV: y down)."""
+    z = np.asarray(forward, np.float64)
+    z = z / np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, np.float64))  # right = forward x up (y down = -up)
+    if np.linalg.norm(x) < 1e-9:  # looking straight along up: pick any perpendicular right axis
+        x = np.cross(z, [1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.cross(z, [0.0, 1.0, 0.0])
+    x = x / np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.column_stack([x, y, z])
+
+
+@dataclass
+class Pose:
+    """Eye, camera-to-world rotation, orbit distance, vertical field of view."""
+
+    eye: np.ndarray
+    rotation: np.ndarray
+    distance: float
+    fov_y_deg: float
+
+    def copy(self) -> Pose:
+        return Pose(self.eye.copy(), self.rotation.copy(), self.distance, self.fov_y_deg)
+
+
+@dataclass
+class CameraControl:
+    """Interactive camera state; all inputs are plain numbers so the maths is unit-testable."""
+
+    world_up: np.ndarray = field(default_factory=lambda: np.array([0.0, -1.0, 0.0]))
+    orbit_speed: float = 0.005  # radians per pixel of drag
+    fly_speed: float = 1.0  # world units per second (set from the scene size by ``frame``)
+    home: Pose = field(default_factory=lambda: Pose(np.array([0.0, 0.0, -3.0]), np.eye(3), 3.0, 50.0))
+    pose: Pose = field(init=False)
+    version: int = field(default=0, init=False)  # bumped on every change: a cheap "did the view move?"
+
+    def __post_init__(self) -> None:
+        self.world_up = np.asarray(self.world_up, np.float64) / np.linalg.norm(self.world_up)
+        self.pose = self.home.copy()
+
+    # ----------------------------------------------------------------- derived
+    @property
+    def target(self) -> np.ndarray:
+        """Orbit centre: ``distance`` in front of the eye."""
+        return self.pose.eye + self.pose.distance * self.pose.rotation[:, 2]
+
+    def camera(self, width: int, height: int) -> Camera:
+        """A pinhole Camera for an image of this size (square pixels, centred principal point)."""
+        f = 0.5 * height / math.tan(math.radians(self.pose.fov_y_deg) / 2)
+        c2w = np.eye(4)
+        c2w[:3, :3], c2w[:3, 3] = self.pose.rotation, self.pose.eye
+        return Camera(int(width), int(height), f, f, width / 2, height / 2, np.linalg.inv(c2w), "viewer")
+
+    # ----------------------------------------------------------------- setting the pose
+    def frame(self, centre: np.ndarray, radius: float, direction: np.ndarray | None = None,
+              fov_y_deg: float = 50.0) -> None:
+        """Look at a sphere (centre, radius) from ``direction`` (default: horizontal) and make it the home pose."""
+        radius = max(float(radius), 1e-6)
+        if direction is None:
+            direction = look_rotation(np.cross(self.world_up, [1.0, 0.0, 0.0]) if abs(self.world_up[0]) < 0.9
+                                      else np.cross(self.world_up, [0.0, 0.0, 1.0]), self.world_up)[:, 2]
+        forward = np.asarray(direction, np.float64) / np.linalg.norm(direction)
+        distance = 1.1 * radius / math.sin(math.radians(fov_y_deg) / 2)
+        eye = np.asarray(centre, np.float64) - distance * forward
+        self.home = Pose(eye, look_rotation(forward, self.world_up), distance, fov_y_deg)
+        self.fly_speed = radius
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the home pose."""
+        self.pose = self.home.copy()
+        self.version += 1
+
+    def snap_to(self, camera: Camera, target_distance: float | None = None) -> None:
+        """Take a scene camera's pose and vertical field of view; its image-up becomes the orbit up."""
+        c2w = camera.cam_to_world
+        rotation = c2w[:3, :3] / np.linalg.norm(c2w[:3, :3], axis=0)
+        fov = math.degrees(2 * math.atan(0.5 * camera.height / camera.fy))
+        distance = self.pose.distance if target_distance is None else float(target_distance)
+        self.pose = Pose(c2w[:3, 3].copy(), rotation, max(distance, MIN_DISTANCE),
+                         float(np.clip(fov, MIN_FOV_DEG, MAX_FOV_DEG)))
+        self.world_up = -rotation[:, 1]
+        self.version += 1
+
+    def set_fov(self, fov_y_deg: float) -> None:
+        """Vertical field of view in degrees, clamped to [10, 120]."""
+        self.pose.fov_y_deg = float(np.clip(fov_y_deg, MIN_FOV_DEG, MAX_FOV_DEG))
+        self.version += 1
+
+    # ----------------------------------------------------------------- interaction
+    def orbit(self, dx_pixels: float, dy_pixels: float) -> None:
+        """Drag: turn around the target (dx about the world up, dy about the camera's right axis)."""
+        target = self.target
+        yaw = axis_rotation(self.world_up, -dx_pixels * self.orbit_speed)
+        rotation = yaw @ self.pose.rotation
+        right = rotation[:, 0]
+        forward = rotation[:, 2]
+        tilt = math.acos(float(np.clip(forward @ self.world_up, -1, 1)))  # 0 = looking straight up
+        pitch = dy_pixels * self.orbit_speed
+        lo, hi = math.radians(POLE_MARGIN_DEG), math.pi - math.radians(POLE_MARGIN_DEG)
+        pitch = float(np.clip(tilt + pitch, lo, hi) - tilt)
+        rotation = axis_rotation(right, -pitch) @ rotation  # +angle about right lowers the tilt
+        self.pose.rotation = rotation
+        self.pose.eye = target - self.pose.distance * rotation[:, 2]
+        self.version += 1
+
+    def zoom(self, steps: float) -> None:
+        """Scroll: move towards (steps > 0) or away from the target by 10 % per step."""
+        target = self.target
+        self.pose.distance = max(self.pose.distance * 0.9 ** steps, MIN_DISTANCE)
+        self.pose.eye = target - self.pose.distance * self.pose.rotation[:, 2]
+        self.version += 1
+
+    def pan(self, dx_pixels: float, dy_pixels: float, viewport_height: int) -> None:
+        """Move eye and target in the image plane so the point under the cursor follows it."""
+        f = 0.5 * viewport_height / math.tan(math.radians(self.pose.fov_y_deg) / 2)
+        scale = self.pose.distance / f
+        r = self.pose.rotation
+        self.pose.eye = self.pose.eye - scale * (dx_pixels * r[:, 0] + dy_pixels * r[:, 1])
+        self.version += 1
+
+    def fly(self, forward: float, right: float, up: float, seconds: float) -> None:
+        """WASD/QE: move along the view axis, the right axis and the world up by ``fly_speed`` per second."""
+        if forward == right == up == 0:
+            return
+        r = self.pose.rotation
+        step = self.fly_speed * seconds
+        self.pose.eye = self.pose.eye + step * (forward * r[:, 2] + right * r[:, 0] + up * self.world_up)
+        self.version += 1

@@ -1,0 +1,140 @@
+"""``gstyle-studio [SCENE] [--style IMAGE] [--cameras PATH] [--headless] [--frames N] [--screenshot OUT.png]``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from gstyle_core.errors import GStyleError
+
+DEFAULT_SIZE = (1280, 800)
+FALLBACK_SCREENSHOT = Path("out") / "gstyle-studio-headless.png"
+HEADLESS_FRAMES = 3
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``800x600`` -> (800, 600)."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size must look like 800x600, got {text!r}") from None
+    if not (16 <= w <= 8192 and 16 <= h <= 8192):
+        raise argparse.ArgumentTypeError(f"size must be between 16 and 8192 pixels per side, got {text!r}")
+    return w, h
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line interface."""
+    p = argparse.ArgumentParser(prog="gstyle-studio", description="Live G-Style stylization viewer.")
+    p.add_argument("scene", nargs="?", default=None, help="scene .ply/.splat/.spz (default: the bundled demo)")
+    p.add_argument("--style", default=None, help="style image (default: the bundled painting)")
+    p.add_argument("--cameras", default=None, help="cameras (cameras.json, COLMAP/LLFF folder, .npz)")
+    p.add_argument("--preset", choices=["preview", "balanced", "final"], default="preview")
+    p.add_argument("--headless", action="store_true", help="no window: render offscreen (glfw NULL + EGL)")
+    p.add_argument("--frames", type=int, default=None, help="stop after N frames (headless default: 3)")
+    p.add_argument("--screenshot", default=None, help="write the last frame as PNG here")
+    p.add_argument("--size", type=parse_size, default=DEFAULT_SIZE, help="window size, e.g. 800x600")
+    p.add_argument("--fps", type=float, default=60.0, help="frame-rate cap (0 = uncapped; headless: uncapped)")
+    p.add_argument("--view", choices=["stylized", "original", "compare", "ground truth"], default="stylized")
+    p.add_argument("--camera", type=int, default=None, help="start at scene camera N (1-based)")
+    p.add_argument("--engine", dest="engine", action="store_true", default=None,
+                   help="run the stylization engine (default: on in a window, off headless)")
+    p.add_argument("--no-engine", dest="engine", action="store_false")
+    p.add_argument("--hide-ui", action="store_true", help="draw the scene only (no panel)")
+    p.add_argument("--output-dir", default="out", help="where exports, screenshots and the checkpoint go")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console entry point; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    if args.frames is not None and args.frames < 1:
+        print("gstyle-studio: --frames must be at least 1", file=sys.stderr)
+        return 2
+    try:
+        return run(args)
+    except GStyleError as exc:
+        print(f"gstyle-studio: {exc}", file=sys.stderr)
+        return 2
+
+
+def run(args: argparse.Namespace) -> int:
+    """Open the window (or fall back to headless) and run the frame loop."""
+    from .window import DisplayUnavailableError, open_window
+
+    try:
+        window = open_window(*args.size, headless=args.headless)
+    except DisplayUnavailableError as exc:
+        if args.headless:
+            raise
+        shot = Path(args.screenshot) if args.screenshot else FALLBACK_SCREENSHOT
+        print(f"gstyle-studio: cannot open a window ({exc}); rendering headless to {shot} instead")
+        args.headless, args.screenshot, args.engine = True, str(shot), False
+        args.frames = args.frames or HEADLESS_FRAMES
+        window = open_window(*args.size, headless=True)
+    try:
+        return loop(window, args)
+    finally:
+        window.close()
+
+
+def loop(window, args: argparse.Namespace) -> int:
+    """The frame loop: poll, UI, render, cap the frame rate; screenshot at the end when asked."""
+    import glfw
+
+    from .engine_factory import make_stylizer
+    from .studio import StudioApp, load_scene_with_cameras
+
+    headless = window.headless
+    engine_on = (not headless) if args.engine is None else args.engine
+    frames = args.frames if args.frames is not None else (HEADLESS_FRAMES if headless else None)
+    from gstyle_core.render_cli import DEFAULT_STYLE
+
+    loaded = load_scene_with_cameras(args.scene, args.cameras)
+    style = args.style or (str(DEFAULT_STYLE) if Path(DEFAULT_STYLE).is_file() else None)
+    app = StudioApp(window.ctx, loaded=loaded, style_path=style,
+                    engine_factory=make_stylizer if engine_on else None,
+                    engine_config={"cameras": args.cameras, "preset": args.preset},
+                    output_dir=args.output_dir, show_ui=not args.hide_ui)
+    app.view_mode = args.view
+    if args.camera:
+        if not 1 <= args.camera <= len(app.cameras):
+            raise GStyleError(f"--camera must be 1..{len(app.cameras)}, got {args.camera}")
+        app.control.snap_to(app.cameras[args.camera - 1])
+    glfw.set_drop_callback(window.handle, lambda _w, paths: [app.open_path(p) for p in paths[:1]])
+    app.start_engine()
+    cap = 0.0 if headless else args.fps
+    period = 1.0 / cap if cap and cap > 0 else 0.0
+    deadline = time.perf_counter()
+    count = 0
+    try:
+        while not window.should_close():
+            window.begin_frame()
+            screen = window.ctx.screen
+            screen.viewport = (0, 0, *window.framebuffer_size)  # follows window resizes
+            screen.use()
+            app.frame(screen)
+            count += 1
+            last = frames is not None and count >= frames
+            window.end_frame(swap=False)
+            for path in app.screenshot_requests:
+                app.panel.status = f"screenshot {app.save_png(path, app.capture(screen))}"
+            app.screenshot_requests.clear()
+            if last and args.screenshot:
+                saved = app.save_png(args.screenshot, app.capture(screen))
+                print(f"gstyle-studio: wrote {saved}")
+            glfw.swap_buffers(window.handle)
+            if last:
+                break
+            if period:
+                deadline = max(deadline + period, time.perf_counter() - period)
+                time.sleep(max(0.0, deadline - time.perf_counter()))
+    finally:
+        app.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,230 @@
+"""GL splat renderer: owns the GL objects that draw one set of Gaussians with one or more colour layers.
+
+Per-Gaussian data lives in RGBA32F textures (4096 Gaussians per row), fetched in the vertex shader by the
+instance's index; the per-instance attribute is only that index, in back-to-front order. The order is
+re-sorted (numpy argsort of view-space depth) only when the view matrix or the geometry changed, so a static
+camera costs no CPU work per frame. Uploads are split: ``update_colors`` rewrites one colour texture,
+``update_geometry`` the four geometry textures.
+
+Colour layers: any name -> [N, 3] RGB. The special layer ``"sh"`` (present when the scene was given SH
+coefficients) is view dependent: evaluated on the CPU with the rasterizer's own SH code when the camera
+position changed (the original scene in the viewer); the stylized scene uses plain diffuse layers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import moderngl
+import numpy as np
+
+from gstyle_core.cameras.camera import Camera
+
+from .shader_loader import program_sources
+from .splat_data import (
+    TEXTURE_WIDTH,
+    back_to_front_order,
+    check_geometry,
+    colors_from_arrays,
+    geometry_textures,
+    pack_rgba,
+    sh_colors,
+)
+
+SH_LAYER = "sh"
+DIFFUSE_LAYER = "diffuse"
+NEAR = 0.01
+_CORNERS = np.array([-1, -1, 1, -1, -1, 1, 1, 1], np.float32)
+
+
+class SplatRenderer:
+    """Draw Gaussians into a moderngl framebuffer, matching ``gstyle_core.raster.rasterize``'s maths."""
+
+    def __init__(self, ctx: moderngl.Context) -> None:
+        self.ctx = ctx
+        self.program = ctx.program(**program_sources("splat"))
+        self._corners = ctx.buffer(_CORNERS.tobytes())
+        self._index_buffer = ctx.buffer(reserve=4)
+        self._vao = self._make_vao()
+        self._geometry: list[moderngl.Texture] = []
+        self._layers: dict[str, moderngl.Texture] = {}
+        self._means = np.zeros((0, 3), np.float32)
+        self._sh: np.ndarray | None = None
+        self._sh_camera: np.ndarray | None = None
+        self._sorted_for: np.ndarray | None = None
+        self._instances = 0
+        self.geometry_version = 0
+        self.sort_count = 0  # how many times the depth order was recomputed (for tests and stats)
+
+    # ----------------------------------------------------------------- data
+    @property
+    def count(self) -> int:
+        """Number of Gaussians currently loaded."""
+        return int(self._means.shape[0])
+
+    @property
+    def layers(self) -> list[str]:
+        """Names of the colour layers available to ``render``."""
+        return sorted(k for k in self._layers if not k.startswith("__")) + ([SH_LAYER] if self._sh is not None else [])
+
+    def set_scene(self, arrays: Mapping[str, np.ndarray]) -> None:
+        """Replace everything: geometry (means, log_scales, quats, opacity_logits) and colours.
+
+        Colours come from ``colors`` [N,3] or ``sh_dc`` [N,3] (layer "diffuse"); with ``sh_dc`` and a non-empty
+        ``sh_rest`` [N,K,3] the view-dependent layer "sh" is available too.
+        """
+        n = check_geometry(arrays)
+        colors = colors_from_arrays(arrays)
+        for tex in self._layers.values():
+            tex.release()
+        self._layers = {}
+        self._sh = None
+        if "sh_dc" in arrays:
+            rest = np.asarray(arrays.get("sh_rest", np.zeros((n, 0, 3))), np.float32).reshape(n, -1, 3)
+            if rest.shape[1] > 0:
+                self._sh = np.concatenate([np.asarray(arrays["sh_dc"], np.float32)[:, None], rest], axis=1)
+        self.update_geometry(arrays)
+        self.update_colors(colors, DIFFUSE_LAYER)
+
+    def update_geometry(self, arrays: Mapping[str, np.ndarray]) -> None:
+        """Upload new geometry; colour layers whose length no longer matches are dropped."""
+        n = check_geometry(arrays)
+        data = geometry_textures(arrays)
+        if self._geometry and self._geometry[0].size[1] == data[0].shape[0]:
+            for tex, content in zip(self._geometry, data, strict=True):
+                tex.write(content.tobytes())
+        else:
+            for tex in self._geometry:
+                tex.release()
+            self._geometry = [self._texture(content) for content in data]
+        self._means = np.asarray(arrays["means"], np.float32).copy()
+        if self._sh is not None and self._sh.shape[0] != n:
+            self._sh = None
+        for name in [k for k, v in self._layers.items() if getattr(v, "extra", None) != n]:
+            self._layers.pop(name).release()
+        self._sorted_for = None
+        self._sh_camera = None
+        self.geometry_version += 1
+
+    def update_colors(self, colors: np.ndarray, layer: str = DIFFUSE_LAYER) -> None:
+        """Upload RGB [N, 3] colours into a named layer (N must match the geometry)."""
+        colors = np.asarray(colors, np.float32)
+        if colors.shape != (self.count, 3):
+            raise ValueError(f"colours must have shape [{self.count}, 3], got {list(colors.shape)}")
+        if layer == SH_LAYER:
+            raise ValueError(f"layer name {SH_LAYER!r} is reserved for SH colours")
+        content = pack_rgba(np.nan_to_num(colors, nan=0.0, posinf=1.0, neginf=0.0))
+        tex = self._layers.get(layer)
+        if tex is not None and tex.size[1] == content.shape[0]:
+            tex.write(content.tobytes())
+        else:
+            if tex is not None:
+                tex.release()
+            tex = self._texture(content)
+            self._layers[layer] = tex
+        tex.extra = self.count
+
+    # ----------------------------------------------------------------- drawing
+    def render(self, camera: Camera, fbo: moderngl.Framebuffer, background: Sequence[float] = (0.0, 0.0, 0.0),
+               layer: str = DIFFUSE_LAYER, scissor: tuple[int, int, int, int] | None = None,
+               clear: bool = True) -> None:
+        """Draw with ``camera`` into ``fbo``'s viewport (whose size should be camera.width x camera.height).
+
+        ``scissor`` = (x, y, width, height) in GL framebuffer pixels (y up) limits drawing (and clearing).
+        """
+        fbo.use()
+        width, height = target_size(fbo)
+        self.ctx.scissor = scissor
+        if clear:
+            fbo.clear(*[float(c) for c in background[:3]], 1.0)
+        if self.count:
+            self._prepare_view(camera, layer)
+            colour_tex = self._colour_texture(layer)
+            self._bind(camera, width, height, colour_tex)
+            self.ctx.enable(moderngl.BLEND)
+            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+            self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
+            if self._instances:
+                self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=self._instances)
+            self.ctx.disable(moderngl.BLEND)
+        self.ctx.scissor = None
+
+    def release(self) -> None:
+        """Free all GL objects."""
+        for obj in [*self._geometry, *self._layers.values(), self._vao, self._corners, self._index_buffer,
+                    self.program]:
+            obj.release()
+        self._geometry, self._layers = [], {}
+
+    # ----------------------------------------------------------------- internals
+    def _texture(self, content: np.ndarray) -> moderngl.Texture:
+        tex = self.ctx.texture((TEXTURE_WIDTH, content.shape[0]), 4, content.tobytes(), dtype="f4")
+        tex.filter = moderngl.NEAREST, moderngl.NEAREST
+        return tex
+
+    def _make_vao(self) -> moderngl.VertexArray:
+        return self.ctx.vertex_array(self.program, [(self._corners, "2f", "in_corner"),
+                                                    (self._index_buffer, "1i/i", "in_index")])
+
+    def _colour_texture(self, layer: str) -> moderngl.Texture:
+        if layer == SH_LAYER:
+            if self._sh is None:
+                raise ValueError("this scene has no SH coefficients (layer 'sh')")
+            return self._layers["__sh__"]
+        if layer not in self._layers:
+            raise ValueError(f"unknown colour layer {layer!r}; have {', '.join(self.layers) or 'none'}")
+        return self._layers[layer]
+
+    def _prepare_view(self, camera: Camera, layer: str) -> None:
+        """Re-sort and re-evaluate SH only when the view (or the geometry) changed."""
+        view = np.asarray(camera.world_to_cam, np.float64)
+        if self._sorted_for is None or not np.array_equal(view, self._sorted_for):
+            order = back_to_front_order(self._means, view, NEAR)
+            self._instances = int(order.size)
+            if order.nbytes > self._index_buffer.size:
+                self._index_buffer.orphan(max(order.nbytes, 4))
+            if order.size:
+                self._index_buffer.write(order.tobytes())
+            self._sorted_for = view.copy()
+            self.sort_count += 1
+        if layer == SH_LAYER and self._sh is not None:
+            position = camera.position
+            if self._sh_camera is None or not np.array_equal(position, self._sh_camera):
+                rgb = sh_colors(self._sh, self._means, position)
+                self.update_colors(rgb, "__sh__")
+                self._sh_camera = position
+
+    def _bind(self, camera: Camera, width: int, height: int, colour_tex: moderngl.Texture) -> None:
+        prog = self.program
+        for unit, tex in enumerate([*self._geometry, colour_tex]):
+            tex.use(unit)
+        for unit, name in enumerate(("u_geom0", "u_geom1", "u_geom2", "u_geom3", "u_color")):
+            prog[name].value = unit
+        prog["u_tex_width"].value = TEXTURE_WIDTH
+        prog["u_world_to_cam"].write(np.asarray(camera.world_to_cam, np.float32).T.tobytes())
+        prog["u_intrinsics"].value = (float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy))
+        prog["u_image_size"].value = (float(camera.width), float(camera.height))
+        prog["u_viewport_origin"].value = (0.0, 0.0)
+        prog["u_target_size"].value = (float(width), float(height))
+        prog["u_near"].value = NEAR
+
+
+def target_size(fbo: moderngl.Framebuffer) -> tuple[int, int]:
+    """Drawing size of a framebuffer: its viewport (the window's default framebuffer is resized through it)."""
+    x, y, width, height = fbo.viewport
+    return int(width), int(height)
+
+
+def read_rgb(fbo: moderngl.Framebuffer) -> np.ndarray:
+    """Read a framebuffer's viewport as uint8 [H, W, 3], row 0 = top of the image."""
+    width, height = target_size(fbo)
+    data = np.frombuffer(fbo.read(viewport=(0, 0, width, height), components=3, alignment=1),
+                         np.uint8).reshape(height, width, 3)
+    return data[::-1].copy()
+
+
+def read_rgb_float(fbo: moderngl.Framebuffer) -> np.ndarray:
+    """Read a float FBO as float32 [H, W, 3], row 0 = top."""
+    width, height = fbo.size
+    data = np.frombuffer(fbo.read(components=3, alignment=1, dtype="f4"), np.float32).reshape(height, width, 3)
+    return data[::-1].copy()

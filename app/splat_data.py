@@ -1,0 +1,107 @@
+"""CPU-side preparation of per-Gaussian data for the GL splat renderer (pure numpy, no GL)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from gstyle_core.scene import SH_C0, sigmoid
+
+TEXTURE_WIDTH = 4096  # Gaussians per texture row; data lives in RGBA32F textures (no SSBO size limit)
+GEOMETRY_KEYS = ("means", "log_scales", "quats", "opacity_logits")
+
+
+def rotation_matrices(quats: np.ndarray) -> np.ndarray:
+    """[N, 3, 3] rotations from wxyz quaternions of any length (a zero quaternion means identity)."""
+    q = np.asarray(quats, np.float64)
+    norm = np.linalg.norm(q, axis=1, keepdims=True)
+    q = np.where(norm > 0, q / np.where(norm > 0, norm, 1.0), np.array([1.0, 0.0, 0.0, 0.0]))
+    w, x, y, z = q.T
+    return np.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+    ], axis=-1).reshape(-1, 3, 3)
+
+
+def check_geometry(arrays: Mapping[str, np.ndarray]) -> int:
+    """Validate geometry arrays and return N; raises ValueError with a one-line reason."""
+    missing = [k for k in GEOMETRY_KEYS if k not in arrays]
+    if missing:
+        raise ValueError(f"scene arrays lack {', '.join(missing)}")
+    n = int(np.shape(arrays["means"])[0])
+    shapes = {"means": (n, 3), "log_scales": (n, 3), "quats": (n, 4), "opacity_logits": (n,)}
+    for key, shape in shapes.items():
+        if tuple(np.shape(arrays[key])) != shape:
+            raise ValueError(f"{key} must have shape {list(shape)}, got {list(np.shape(arrays[key]))}")
+    return n
+
+
+def texture_rows(n: int) -> int:
+    """Rows of a TEXTURE_WIDTH-wide texture holding n Gaussians (at least 1)."""
+    return max(1, -(-n // TEXTURE_WIDTH))
+
+
+def pack_rgba(columns: np.ndarray) -> np.ndarray:
+    """[N, C<=4] float data -> zero-padded float32 [rows, TEXTURE_WIDTH, 4] texture content."""
+    n = columns.shape[0]
+    out = np.zeros((texture_rows(n) * TEXTURE_WIDTH, 4), np.float32)
+    out[:n, : columns.shape[1]] = columns
+    return out.reshape(-1, TEXTURE_WIDTH, 4)
+
+
+def geometry_textures(arrays: Mapping[str, np.ndarray]) -> list[np.ndarray]:
+    """Four RGBA texture contents: (mean, opacity) and the three columns of M = R S (Sigma_3D = M M^T)."""
+    check_geometry(arrays)
+    means = np.asarray(arrays["means"], np.float32)
+    opacity = sigmoid(np.asarray(arrays["opacity_logits"], np.float32))
+    scales = np.exp(np.asarray(arrays["log_scales"], np.float64))
+    m = rotation_matrices(arrays["quats"]) * scales[:, None, :]
+    bad = ~(np.isfinite(means).all(1) & np.isfinite(m).all((1, 2)) & np.isfinite(opacity))
+    opacity = np.where(bad, 0.0, opacity).astype(np.float32)  # documented repair: non-finite Gaussians vanish
+    means = np.where(bad[:, None], 0.0, means)
+    m = np.where(bad[:, None, None], 0.0, m).astype(np.float32)
+    return [pack_rgba(np.column_stack([means, opacity])),
+            pack_rgba(m[:, :, 0]), pack_rgba(m[:, :, 1]), pack_rgba(m[:, :, 2])]
+
+
+def colors_from_arrays(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Diffuse RGB [N, 3]: ``colors`` if given, else 0.5 + SH_C0 * ``sh_dc``."""
+    if "colors" in arrays:
+        return np.asarray(arrays["colors"], np.float32)
+    if "sh_dc" in arrays:
+        return (0.5 + SH_C0 * np.asarray(arrays["sh_dc"], np.float32)).astype(np.float32)
+    raise ValueError("scene arrays need 'colors' [N,3] or 'sh_dc' [N,3]")
+
+
+def view_depths(means: np.ndarray, world_to_cam: np.ndarray) -> np.ndarray:
+    """Camera-space z of each mean."""
+    r = np.asarray(world_to_cam, np.float64)
+    return np.asarray(means, np.float64) @ r[2, :3] + r[2, 3]
+
+
+def back_to_front_order(means: np.ndarray, world_to_cam: np.ndarray, near: float) -> np.ndarray:
+    """int32 indices of the Gaussians in front of the near plane, farthest first."""
+    z = view_depths(means, world_to_cam)
+    visible = np.flatnonzero(np.isfinite(z) & (z > near))
+    order = visible[np.argsort(-z[visible], kind="stable")]
+    return order.astype(np.int32)
+
+
+def sh_colors(sh: np.ndarray, means: np.ndarray, camera_position: np.ndarray) -> np.ndarray:
+    """View-dependent RGB [N, 3] from SH coefficients [N, (d+1)^2, 3] seen from ``camera_position``.
+
+    Uses the rasterizer's own evaluation (3DGS order/constants, +0.5, clamp at 0), so both renderers agree.
+    """
+    import torch
+
+    from gstyle_core.raster.sh import eval_sh_colors
+    from gstyle_core.scene import sh_degree_from_rest_count
+
+    degree = sh_degree_from_rest_count(sh.shape[1] - 1)
+    with torch.no_grad():
+        rgb = eval_sh_colors(torch.from_numpy(np.ascontiguousarray(sh, np.float32)),
+                             torch.from_numpy(np.ascontiguousarray(means, np.float32)),
+                             torch.tensor(np.asarray(camera_position, np.float32)), degree)
+    return rgb.numpy()

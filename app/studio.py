@@ -1,0 +1,380 @@
+"""The studio: scene + engine state, view modes, input handling and command execution around the renderers."""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import moderngl
+import numpy as np
+from imgui_bundle import imgui
+
+from gstyle_core.atomic import atomic_write_bytes
+from gstyle_core.cameras.camera import Camera
+from gstyle_core.errors import GStyleError
+from gstyle_core.scene import GaussianScene
+
+from .camera_control import CameraControl
+from .panels import Command, PanelState, draw_panel
+from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
+from .worker import WorkerBridge
+
+SCENE_SUFFIXES = (".ply", ".splat", ".spz")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
+DIVIDER_GRAB_PIXELS = 6
+DIVIDER_COLOUR = (1.0, 1.0, 1.0)
+BACKGROUND = (0.0, 0.0, 0.0)
+
+
+@dataclass
+class LoadedScene:
+    """The scene being stylized, with the cameras that came with it (or were generated)."""
+
+    path: str
+    scene: GaussianScene
+    cameras: list[Camera]
+
+
+def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) -> LoadedScene:
+    """Load a scene file (default: the bundled demo) and its cameras (given, else generated)."""
+    from gstyle_core.render_cli import DEMO_SCENE, load_scene_and_cameras
+
+    path = Path(scene_path) if scene_path else DEMO_SCENE
+    if not path.exists():
+        what = "scene file" if scene_path else "bundled demo scene"
+        raise GStyleError(f"{what} not found: {path}")
+    scene, _report, cams = load_scene_and_cameras(scene_path, cameras_path)
+    return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras))
+
+
+def scene_arrays(scene: GaussianScene) -> dict[str, np.ndarray]:
+    """GaussianScene -> the renderer's array dict (with SH)."""
+    return {"means": scene.means, "log_scales": scene.log_scales, "quats": scene.quats,
+            "opacity_logits": scene.opacity_logits, "sh_dc": scene.sh_dc, "sh_rest": scene.sh_rest}
+
+
+def encode_png(rgb: np.ndarray) -> bytes:
+    """uint8 [H, W, 3] -> PNG bytes."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(rgb).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+class StudioApp:
+    """Owns the renderers and the worker bridge; ``frame()`` draws one frame into the current framebuffer."""
+
+    def __init__(self, ctx: moderngl.Context, *, loaded: LoadedScene | None = None, style_path: str | None = None,
+                 engine_factory: Callable[..., Any] | None = None, engine_config: dict[str, Any] | None = None,
+                 output_dir: str | Path = "out", show_ui: bool = True) -> None:
+        self.ctx = ctx
+        self.original = SplatRenderer(ctx)
+        self.stylized = SplatRenderer(ctx)
+        self.control = CameraControl()
+        self.panel = PanelState()
+        self.output_dir = Path(output_dir)
+        self.show_ui = show_ui
+        self.view_mode = "stylized"
+        self.divider = 0.5  # compare split position, fraction of the width
+        self._dragging: str | None = None
+        self._last_mouse: tuple[float, float] | None = None
+        self._scene_fbo: moderngl.Framebuffer | None = None
+        self._style_texture: moderngl.Texture | None = None
+        self._dialog: tuple[str, Any] | None = None
+        self._frame_times: list[float] = []
+        self._last_frame = time.perf_counter()
+        self._snapshots_seen = 0
+        self._geometry_version: Any = None
+        self.engine_factory = engine_factory
+        self.engine_config = dict(engine_config or {})
+        self.bridge: WorkerBridge | None = None
+        self.loaded: LoadedScene | None = None
+        self.cameras: list[Camera] = []
+        self.last_frame_rgb: np.ndarray | None = None
+        self.screenshot_requests: list[Path] = []
+        if loaded is not None:
+            self.set_scene(loaded)
+        if style_path:
+            self.set_style(style_path)
+
+    # ----------------------------------------------------------------- scene, style, engine
+    def set_scene(self, loaded: LoadedScene) -> None:
+        """Show a new scene (original with SH, stylized starting from its diffuse colours), frame the view."""
+        arrays = scene_arrays(loaded.scene)
+        self.original.set_scene(arrays)
+        self.stylized.set_scene({k: v for k, v in arrays.items() if k != "sh_rest"})
+        self.loaded, self.cameras = loaded, list(loaded.cameras)
+        self._geometry_version = None
+        self.panel.scene_path = loaded.path
+        self.panel.gaussians = loaded.scene.count
+        self.panel.camera_count = len(self.cameras)
+        self._frame_scene()
+        self.engine_config["scene"] = loaded.path
+
+    def _frame_scene(self) -> None:
+        from gstyle_core.cameras.generate import finite_points, robust_centre_radius
+
+        centre, radius = robust_centre_radius(finite_points(self.loaded.scene.means))
+        if self.cameras:
+            cam = self.cameras[0]
+            self.control.snap_to(cam, float(np.linalg.norm(cam.position - centre)))
+            self.control.home = self.control.pose.copy()
+            self.control.fly_speed = max(radius, 1e-3)
+        else:
+            self.control.frame(centre, radius)
+
+    def set_style(self, path: str) -> None:
+        """Use a new style image: thumbnail in the panel, engine restarted with it."""
+        from gstyle_core.images import load_style_image
+
+        rgb = load_style_image(path)
+        thumb = np.ascontiguousarray((np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8))
+        if self._style_texture is not None:
+            self._style_texture.release()
+        h, w = thumb.shape[:2]
+        self._style_texture = self.ctx.texture((w, h), 3, thumb.tobytes(), alignment=1)
+        self.panel.style_texture = self._style_texture.glo
+        self.panel.style_size = (w, h)
+        self.panel.style_path = str(path)
+        self.engine_config["style"] = str(path)
+
+    def start_engine(self) -> None:
+        """Spawn the engine worker with the current scene/style config (restarts it if running)."""
+        if self.engine_factory is None:
+            return
+        if self.bridge is None:
+            self.bridge = WorkerBridge(self.engine_factory, self.engine_config,
+                                       checkpoint_path=self.output_dir / "checkpoint.pt")
+            self.bridge.start()
+        else:
+            self.bridge.restart(self.engine_config)
+        self._snapshots_seen = 0
+
+    def close(self) -> None:
+        """Stop the engine (it checkpoints) and free GL objects."""
+        if self.bridge is not None:
+            self.bridge.quit()
+        self.original.release()
+        self.stylized.release()
+
+    # ----------------------------------------------------------------- per frame
+    def frame(self, target: moderngl.Framebuffer, with_ui: bool = True) -> list[Command]:
+        """Update from the engine, handle input, render the scene into ``target`` and (if with_ui) build the UI.
+
+        The caller has started the ImGui frame (when with_ui) and renders ImGui afterwards.
+        """
+        now = time.perf_counter()
+        dt, self._last_frame = now - self._last_frame, now
+        self._frame_times = (self._frame_times + [dt])[-60:]
+        self._apply_engine_updates()
+        self._poll_dialog()
+        commands: list[Command] = []
+        if with_ui:
+            self._handle_input(target_size(target), dt)
+            self._fill_panel()
+            if self.show_ui:
+                commands = draw_panel(self.panel)
+            for cmd in commands:
+                self.execute(cmd)
+        self.render_view(target)
+        return commands
+
+    def render_view(self, target: moderngl.Framebuffer) -> None:
+        """Render the current view mode into ``target`` (its viewport)."""
+        width, height = target_size(target)
+        camera = self.control.camera(width, height)
+        if self.original.count == 0:
+            target.use()
+            target.clear(*BACKGROUND, 1.0)
+            return
+        mode = self.view_mode
+        if mode == "original":
+            self.original.render(camera, target, BACKGROUND, self._original_layer())
+        elif mode == "ground truth" and "gt" in self.stylized.layers:
+            self.stylized.render(camera, target, BACKGROUND, "gt")
+        elif mode == "compare":
+            split = int(round(np.clip(self.divider, 0.0, 1.0) * width))
+            self.stylized.render(camera, target, BACKGROUND, DIFFUSE_LAYER, scissor=(0, 0, split, height))
+            self.original.render(camera, target, BACKGROUND, self._original_layer(),
+                                 scissor=(split, 0, width - split, height))
+            self.ctx.scissor = (max(split - 1, 0), 0, 2, height)
+            target.clear(*DIVIDER_COLOUR, 1.0)
+            self.ctx.scissor = None
+        else:
+            self.stylized.render(camera, target, BACKGROUND, DIFFUSE_LAYER)
+
+    def _original_layer(self) -> str:
+        return SH_LAYER if SH_LAYER in self.original.layers else DIFFUSE_LAYER
+
+    def _apply_engine_updates(self) -> None:
+        if self.bridge is None:
+            return
+        self.bridge.poll()
+        st = self.bridge.state
+        if st.snapshots_received == self._snapshots_seen or not st.snapshot:
+            return
+        self._snapshots_seen = st.snapshots_received
+        snap = st.snapshot
+        try:
+            if snap.get("geometry_version") != self._geometry_version and "means" in snap:
+                self.stylized.update_geometry(snap)
+                self._geometry_version = snap.get("geometry_version")
+            if "colors" in snap and len(snap["colors"]) == self.stylized.count:
+                self.stylized.update_colors(snap["colors"], DIFFUSE_LAYER)
+            if "colors_gt" in snap and len(snap["colors_gt"]) == self.stylized.count:
+                self.stylized.update_colors(snap["colors_gt"], "gt")
+        except ValueError as exc:
+            self.panel.status = f"snapshot ignored: {exc}"
+
+    def _fill_panel(self) -> None:
+        p = self.panel
+        p.fps = len(self._frame_times) / max(sum(self._frame_times), 1e-6)
+        p.view_mode = self.view_mode
+        p.fov_deg = self.control.pose.fov_y_deg
+        p.has_ground_truth = "gt" in self.stylized.layers
+        p.gaussians = self.stylized.count
+        if self.bridge is None:
+            p.running, p.paused = False, False
+            return
+        st = self.bridge.state
+        p.running, p.paused, p.error = st.alive, st.paused, st.error
+        p.loss_history = st.loss_history[-500:]
+        if st.params:
+            p.params.update(st.params)
+        rep = st.last_report
+        if rep:
+            p.phase = "done" if st.done else str(rep.get("phase", "-"))
+            p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
+            p.eta_seconds = (st.step_seconds / max(st.reports_received, 1) * max(p.total_steps - p.step, 0)
+                             if st.reports_received and not st.done else None)
+        if st.exported:
+            p.status = f"exported {st.exported[-1]}"
+
+    # ----------------------------------------------------------------- input
+    def _handle_input(self, size: tuple[int, int], dt: float) -> None:
+        io_ = imgui.get_io()
+        width, height = size
+        mouse = (io_.mouse_pos.x, io_.mouse_pos.y)
+        if not io_.want_capture_mouse:
+            divider_x = self.divider * width
+            if imgui.is_mouse_clicked(0):
+                near_divider = self.view_mode == "compare" and abs(mouse[0] - divider_x) <= DIVIDER_GRAB_PIXELS
+                self._dragging = "divider" if near_divider else "orbit"
+            elif imgui.is_mouse_clicked(1):
+                self._dragging = "pan"
+            if io_.mouse_wheel:
+                self.control.zoom(io_.mouse_wheel)
+        if not (imgui.is_mouse_down(0) or imgui.is_mouse_down(1)):
+            self._dragging = None
+        if self._dragging and self._last_mouse is not None:
+            dx, dy = mouse[0] - self._last_mouse[0], mouse[1] - self._last_mouse[1]
+            if self._dragging == "divider":
+                self.divider = float(np.clip(mouse[0] / max(width, 1), 0.0, 1.0))
+            elif self._dragging == "orbit" and (dx or dy):
+                self.control.orbit(dx, dy)
+            elif self._dragging == "pan" and (dx or dy):
+                self.control.pan(dx, dy, height)
+        self._last_mouse = mouse
+        if not io_.want_capture_keyboard and not io_.key_ctrl:
+            down = imgui.is_key_down
+            forward = float(down(imgui.Key.w)) - float(down(imgui.Key.s))
+            right = float(down(imgui.Key.d)) - float(down(imgui.Key.a))
+            up = float(down(imgui.Key.e)) - float(down(imgui.Key.q))
+            self.control.fly(forward, right, up, min(dt, 0.1))
+
+    # ----------------------------------------------------------------- commands
+    def execute(self, cmd: Command) -> None:
+        """Carry out one panel command."""
+        name, args = cmd.name, cmd.args
+        bridge = self.bridge
+        if name in ("pause", "resume", "step") and bridge is not None:
+            {"pause": bridge.pause, "resume": bridge.resume, "step": bridge.step_once}[name]()
+        elif name == "restart":
+            self.start_engine()
+        elif name == "set_params":
+            self.panel.params.update(args)
+            if bridge is not None:
+                bridge.set_params(**args)
+        elif name == "view_mode":
+            self.view_mode = args["mode"]
+        elif name == "fov":
+            self.control.set_fov(args["degrees"])
+        elif name == "reset_camera":
+            self.control.reset()
+        elif name == "snap_camera" and args["index"] < len(self.cameras):
+            cam = self.cameras[args["index"]]
+            self.control.snap_to(cam)
+            self.panel.status = f"camera {args['index'] + 1}: {cam.name}"
+        elif name == "toggle_help":
+            self.panel.show_help = not self.panel.show_help
+        elif name == "screenshot":
+            self.screenshot_requests.append(self.output_dir / f"screenshot_{time.strftime('%Y%m%d_%H%M%S')}.png")
+        elif name == "export":
+            self.export()
+        elif name in ("open_scene", "open_style"):
+            self._open_dialog(name)
+
+    def export(self, path: str | Path | None = None) -> None:
+        """Export the stylized scene (.ply + .json) through the worker."""
+        if self.bridge is None or not self.bridge.alive:
+            self.panel.status = "export: no engine is running"
+            return
+        path = Path(path) if path else self.output_dir / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}.ply"
+        self.bridge.export(path)
+        self.panel.status = f"exporting {path} ..."
+
+    def open_path(self, path: str) -> None:
+        """Open a dropped or chosen file: a scene (.ply/.splat/.spz) or a style image."""
+        suffix = Path(path).suffix.lower()
+        try:
+            if suffix in SCENE_SUFFIXES:
+                self.set_scene(load_scene_with_cameras(path, None))
+            elif suffix in IMAGE_SUFFIXES:
+                self.set_style(path)
+            else:
+                self.panel.status = f"not a scene or image: {Path(path).name}"
+                return
+        except GStyleError as exc:
+            self.panel.status = f"could not open {Path(path).name}: {exc}"
+            return
+        self.panel.status = f"opened {Path(path).name}"
+        if self.bridge is not None:
+            self.start_engine()
+
+    def _open_dialog(self, kind: str) -> None:
+        try:
+            from imgui_bundle import portable_file_dialogs as pfd
+        except ImportError:
+            self.panel.status = "file dialogs unavailable; drop a file on the window"
+            return
+        if kind == "open_scene":
+            dialog = pfd.open_file("Open scene", "", ["Gaussian scenes", "*.ply *.splat *.spz"])
+        else:
+            dialog = pfd.open_file("Open style image", "", ["Images", "*.png *.jpg *.jpeg *.webp *.bmp"])
+        self._dialog = (kind, dialog)
+
+    def _poll_dialog(self) -> None:
+        if self._dialog is None or not self._dialog[1].ready(0):
+            return
+        _kind, dialog = self._dialog
+        self._dialog = None
+        for path in dialog.result()[:1]:
+            self.open_path(path)
+
+    # ----------------------------------------------------------------- output
+    def save_png(self, path: str | Path, rgb: np.ndarray) -> Path:
+        """Write uint8 [H, W, 3] as PNG atomically."""
+        atomic_write_bytes(path, encode_png(rgb))
+        return Path(path)
+
+    def capture(self, fbo: moderngl.Framebuffer) -> np.ndarray:
+        """Read ``fbo`` as uint8 RGB (row 0 = top); clears a GL error the default framebuffer read may leave."""
+        rgb = read_rgb(fbo)
+        _ = self.ctx.error
+        return rgb
+

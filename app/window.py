@@ -1,0 +1,121 @@
+"""A glfw window with a GL context, moderngl attached and the native ImGui backends (imgui_bundle API A).
+
+Headless: glfw's NULL platform with an EGL context (no X server needed; imgui_bundle's libglfw 3.5 can do it,
+so ``imgui_bundle`` is imported before ``glfw``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+from dataclasses import dataclass
+from typing import Any
+
+# isort: off
+from imgui_bundle import imgui  # first: it points pyglfw at its own libglfw 3.5 (NULL + EGL needs it)
+import glfw
+import moderngl
+# isort: on
+
+from gstyle_core.errors import GStyleError
+
+
+class DisplayUnavailableError(GStyleError):
+    """No window can be opened (no display server, or glfw failed to start)."""
+
+
+def display_available() -> bool:
+    """True if an X11 or Wayland display is configured."""
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+@dataclass
+class Window:
+    """An open window: glfw handle, moderngl context, ImGui context."""
+
+    handle: Any
+    ctx: moderngl.Context
+    headless: bool
+
+    @property
+    def framebuffer_size(self) -> tuple[int, int]:
+        """Framebuffer size in pixels."""
+        w, h = glfw.get_framebuffer_size(self.handle)
+        return max(int(w), 1), max(int(h), 1)
+
+    def should_close(self) -> bool:
+        return bool(glfw.window_should_close(self.handle))
+
+    def begin_frame(self) -> None:
+        """Poll events and start an ImGui frame."""
+        glfw.poll_events()
+        imgui.backends.opengl3_new_frame()
+        imgui.backends.glfw_new_frame()
+        imgui.new_frame()
+
+    def end_frame(self, swap: bool = True) -> None:
+        """Render ImGui into the default framebuffer and (optionally) swap buffers."""
+        imgui.render()
+        self.ctx.screen.use()
+        imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+        if swap:
+            glfw.swap_buffers(self.handle)
+
+    def close(self) -> None:
+        """Shut down ImGui backends and glfw."""
+        imgui.backends.opengl3_shutdown()
+        imgui.backends.glfw_shutdown()
+        try:
+            from imgui_bundle import implot
+
+            implot.destroy_context()
+        except ImportError:
+            pass
+        imgui.destroy_context()
+        glfw.destroy_window(self.handle)
+        glfw.terminate()
+
+
+def open_window(width: int, height: int, title: str = "G-Style Studio", headless: bool = False) -> Window:
+    """Create the window, the GL 3.3+ core context, moderngl and ImGui. Raises DisplayUnavailableError."""
+    if not headless and not display_available():
+        raise DisplayUnavailableError("no display (DISPLAY/WAYLAND_DISPLAY unset)")
+    # init hints outlive glfw.terminate(): set the platform every time
+    glfw.init_hint(glfw.PLATFORM, glfw.PLATFORM_NULL if headless else glfw.ANY_PLATFORM)
+    if not glfw.init():
+        raise DisplayUnavailableError("glfw could not initialise a window system")
+    glfw.default_window_hints()
+    if headless:
+        glfw.window_hint(glfw.CONTEXT_CREATION_API, glfw.EGL_CONTEXT_API)
+        glfw.window_hint(glfw.VISIBLE, glfw.FALSE)
+    glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
+    glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
+    glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+    glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, glfw.TRUE)
+    handle = glfw.create_window(int(width), int(height), title, None, None)
+    if not handle:
+        glfw.terminate()
+        raise DisplayUnavailableError("glfw could not create an OpenGL 3.3 window")
+    glfw.make_context_current(handle)
+    glfw.swap_interval(0)  # the app caps its own frame rate
+    ctx = _attach_moderngl()
+    imgui.create_context()
+    try:
+        from imgui_bundle import implot
+
+        implot.create_context()
+    except ImportError:
+        pass
+    imgui.get_io().set_ini_filename("")
+    imgui.backends.glfw_init_for_opengl(ctypes.cast(handle, ctypes.c_void_p).value, True)
+    imgui.backends.opengl3_init("#version 330")
+    return Window(handle, ctx, headless)
+
+
+def _attach_moderngl() -> moderngl.Context:
+    """Attach moderngl to the current context (a stale standalone default context would confuse create_context)."""
+    try:
+        return moderngl.create_context()
+    except Exception:  # noqa: BLE001 - fall back to the explicit attach path (gl-stack.md pitfall 3)
+        moderngl.init_context()
+        return moderngl.get_context()

@@ -1,0 +1,443 @@
+"""Worker bridge: run a stylization engine in a spawned process and talk to it through queues.
+
+The engine protocol (``gstyle_core.pipeline.Stylizer`` implements it): ``engine = factory(**config)`` built in the
+child, ``engine.step()`` -> report (.phase .step .total_steps .losses .seconds .gaussians .colours_changed
+.geometry_changed .done), ``engine.set_params(**kw)``, ``engine.snapshot()`` -> dict of numpy arrays,
+``engine.state_dict()`` / ``load_state_dict``.
+
+Transport: pickled numpy through ``multiprocessing`` queues (measured by ``bench/bench_worker_transfer.py``:
+fast enough for colour updates of 100k+ Gaussians, see the report). Snapshots carry colours after every step and
+the geometry only when ``geometry_version`` changed. A credit semaphore bounds the snapshots in flight, so a
+fast engine never floods a slow UI: when no credit is free the snapshot is sent later (the newest one).
+The child runs with ``torch.set_num_threads(1)`` and a raised nice value; errors are sent as one line of text
+and the child stays alive so ``restart`` can rebuild the engine.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import multiprocessing as mp
+import os
+import queue
+import sys
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+GEOMETRY_FIELDS = ("means", "log_scales", "quats", "opacity_logits")
+SNAPSHOT_CREDITS = 2
+IDLE_POLL_SECONDS = 0.05
+REPORT_FIELDS = ("phase", "step", "total_steps", "losses", "seconds", "gaussians", "colours_changed",
+                 "geometry_changed", "done", "message")
+
+
+# ====================================================================== messages (child -> UI)
+@dataclass
+class WorkerState:
+    """What the UI knows about the worker, updated by ``WorkerBridge.poll``."""
+
+    alive: bool = False
+    ready: bool = False  # engine built
+    paused: bool = False
+    done: bool = False
+    error: str | None = None
+    last_report: dict[str, Any] | None = None
+    loss_history: list[dict[str, float]] = field(default_factory=list)
+    snapshot: dict[str, Any] = field(default_factory=dict)  # merged: geometry kept until a new one arrives
+    snapshots_received: int = 0
+    reports_received: int = 0
+    step_seconds: float = 0.0  # sum of the reports' step times (for the ETA)
+    geometry_received: int = 0
+    params: dict[str, float] = field(default_factory=dict)
+    exported: list[str] = field(default_factory=list)
+    checkpoint: str | None = None
+    started_at: float = 0.0
+
+
+def report_to_dict(report: Any) -> dict[str, Any]:
+    """Plain dict of a step report (dataclass or any object with the protocol's attributes)."""
+    if dataclasses.is_dataclass(report):
+        out = dataclasses.asdict(report)
+    else:
+        out = {k: getattr(report, k) for k in REPORT_FIELDS if hasattr(report, k)}
+    out["losses"] = {str(k): float(v) for k, v in dict(out.get("losses") or {}).items()}
+    return out
+
+
+def one_line_error(exc: BaseException) -> str:
+    """``Type: message`` on one line (the full traceback goes to the worker's stderr)."""
+    text = " ".join(str(exc).split()) or "(no message)"
+    return f"{type(exc).__name__}: {text}"
+
+
+# ====================================================================== the child process
+class _EngineHost:
+    """Lives in the child: owns the engine, executes commands, sends reports and snapshots."""
+
+    def __init__(self, factory: Callable[..., Any], config: dict[str, Any], events: Any, credits: Any,
+                 checkpoint_path: str | None) -> None:
+        self.factory, self.config, self.events, self.credits = factory, config, events, credits
+        self.checkpoint_path = checkpoint_path
+        self.engine: Any = None
+        self.paused = False
+        self.done = False
+        self.failed = False
+        self.sent_geometry_version: Any = object()
+        self.snapshot_pending = False
+        self.last_report: dict[str, Any] | None = None
+        self.params: dict[str, float] = {}
+
+    def send(self, kind: str, payload: Any = None) -> None:
+        self.events.put((kind, payload))
+
+    def fail(self, exc: BaseException, during: str) -> None:
+        traceback.print_exc()
+        self.failed = True
+        self.paused = True
+        self.snapshot_pending = False  # never ship the state of a failed step: the UI keeps the last good one
+        self.send("error", f"{during}: {one_line_error(exc)}")
+
+    def build(self, config: dict[str, Any] | None = None) -> None:
+        if config is not None:
+            self.config = config
+        self.engine, self.done, self.failed = None, False, False
+        self.sent_geometry_version = object()
+        try:
+            self.engine = self.factory(**self.config)
+            _single_torch_thread()
+            if self.params:
+                self.engine.set_params(**self.params)
+        except Exception as exc:  # noqa: BLE001 - any engine error is reported, never fatal
+            self.fail(exc, "building the engine")
+            return
+        self.send("ready", {"paused": self.paused})
+        self.snapshot_pending = True
+        self.flush_snapshot()
+
+    def step(self) -> None:
+        try:
+            report = report_to_dict(self.engine.step())
+        except Exception as exc:  # noqa: BLE001
+            self.fail(exc, "step")
+            return
+        self.last_report = report
+        self.done = bool(report.get("done"))
+        self.send("report", report)
+        self.snapshot_pending = True
+        self.flush_snapshot()
+
+    def flush_snapshot(self, force: bool = False) -> None:
+        """Send the engine's current snapshot if one is owed and a credit is free (``force``: even without)."""
+        if not self.snapshot_pending or self.engine is None:
+            return
+        credit = bool(self.credits.acquire(block=False))
+        if not credit and not force:
+            return
+        try:
+            snap = dict(self.engine.snapshot())
+        except Exception as exc:  # noqa: BLE001
+            if credit:
+                self.credits.release()
+            self.fail(exc, "snapshot")
+            return
+        if snap.get("geometry_version") == self.sent_geometry_version:
+            for key in GEOMETRY_FIELDS:
+                snap.pop(key, None)
+        else:
+            self.sent_geometry_version = snap.get("geometry_version")
+        self.snapshot_pending = False
+        self.send("snapshot", (credit, snap))
+
+    def handle(self, command: str, arg: Any) -> bool:
+        """Execute one command; False means quit."""
+        if command == "pause":
+            self.paused = True
+            self.flush_snapshot(force=True)  # the last step's colours arrive before the acknowledgement
+            self.send("paused", True)
+        elif command == "resume":
+            self.paused = False
+            self.send("paused", False)
+        elif command == "step":
+            if self.engine is not None and not self.done:
+                self.step()
+        elif command == "restart":
+            self.paused = False
+            self.send("paused", False)
+            self.build(arg)
+        elif command == "set_params":
+            self.set_params(arg)
+        elif command == "export":
+            self.export(arg)
+        elif command == "quit":
+            self.checkpoint()
+            self.send("bye", None)
+            return False
+        return True
+
+    def set_params(self, params: dict[str, float]) -> None:
+        self.params.update(params)
+        if self.engine is None:
+            self.send("params", dict(self.params))
+            return
+        try:
+            self.engine.set_params(**params)
+        except Exception as exc:  # noqa: BLE001
+            self.fail(exc, "set_params")
+            return
+        self.send("params", dict(self.params))
+
+    def export(self, path: str) -> None:
+        if self.engine is None:
+            self.send("error", "export: no engine is running")
+            return
+        try:
+            written = export_engine(self.engine, Path(path), self.last_report, self.params)
+        except Exception as exc:  # noqa: BLE001
+            self.send("error", f"export: {one_line_error(exc)}")
+            return
+        self.send("exported", written)
+
+    def checkpoint(self) -> None:
+        if self.engine is None or not self.checkpoint_path:
+            return
+        try:
+            import torch
+
+            from gstyle_core.atomic import atomic_write
+
+            with atomic_write(self.checkpoint_path, "wb") as fh:
+                torch.save(self.engine.state_dict(), fh)
+            self.send("checkpoint", str(self.checkpoint_path))
+        except Exception as exc:  # noqa: BLE001
+            self.send("error", f"checkpoint: {one_line_error(exc)}")
+
+    def should_step(self) -> bool:
+        return self.engine is not None and not (self.paused or self.done or self.failed)
+
+
+def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, params: dict[str, float]) -> str:
+    """Save the stylized scene as .ply (``gstyle_core.io.save_scene``) and a JSON summary beside it."""
+    from gstyle_core.atomic import atomic_write_text
+    from gstyle_core.errors import GStyleError
+    from gstyle_core.io import save_scene
+    from gstyle_core.scene import GaussianScene, rgb_to_sh_dc
+
+    if path.suffix.lower() != ".ply":
+        raise GStyleError(f"export path must end in .ply, got {path.name}")
+    if hasattr(engine, "stylized_scene"):
+        scene = engine.stylized_scene()
+    else:
+        snap = engine.snapshot()
+        scene = GaussianScene(*(snap[k] for k in GEOMETRY_FIELDS), rgb_to_sh_dc(snap["colors"]))
+    save_scene(scene, path)
+    summary = {"scene": str(path), "gaussians": scene.count, "report": last_report, "params": params,
+               "settings": engine.settings.to_dict() if hasattr(getattr(engine, "settings", None), "to_dict")
+               else None}
+    atomic_write_text(path.with_suffix(".json"), json.dumps(summary, indent=2, default=str))
+    return str(path)
+
+
+def _lower_priority() -> None:
+    """Nice the worker (+10) so the UI thread wins the CPU."""
+    try:
+        os.nice(10)
+    except OSError:
+        pass
+
+
+def _single_torch_thread() -> None:
+    """One torch thread in the worker (measured best on 2 cores, gl-stack.md §3), if the engine uses torch."""
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(1)
+
+
+def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: Any, events: Any, credits: Any,
+                checkpoint_path: str | None, start_paused: bool) -> None:
+    """Entry point of the spawned process."""
+    _lower_priority()
+    host = _EngineHost(factory, config, events, credits, checkpoint_path)
+    host.paused = start_paused
+    host.build()
+    parent = mp.parent_process()
+    running = True
+    while running:
+        try:
+            timeout = 0 if host.should_step() else IDLE_POLL_SECONDS
+            command, arg = commands.get(timeout=timeout) if timeout else commands.get_nowait()
+            running = host.handle(command, arg)
+            continue  # drain all pending commands before the next step
+        except queue.Empty:
+            pass
+        if parent is not None and not parent.is_alive():
+            break
+        host.flush_snapshot()
+        if host.should_step():
+            host.step()
+
+
+# ====================================================================== the UI side
+class WorkerBridge:
+    """Start, command and poll an engine running in a spawned process."""
+
+    def __init__(self, factory: Callable[..., Any], config: dict[str, Any] | None = None, *,
+                 checkpoint_path: str | os.PathLike | None = None, start_paused: bool = False) -> None:
+        self.factory = factory
+        self.config = dict(config or {})
+        self.checkpoint_path = str(checkpoint_path) if checkpoint_path else None
+        self.start_paused = start_paused
+        self.state = WorkerState()
+        self._mp = mp.get_context("spawn")
+        self._process: Any = None
+        self._commands: Any = None
+        self._events: Any = None
+        self._credits: Any = None
+
+    # ----------------------------------------------------------------- lifecycle
+    def start(self) -> None:
+        """Spawn the worker process (the engine is built inside it)."""
+        self._commands, self._events = self._mp.Queue(), self._mp.Queue()
+        self._credits = self._mp.Semaphore(SNAPSHOT_CREDITS)
+        self._process = self._mp.Process(
+            target=worker_main, name="gstyle-engine", daemon=True,
+            args=(self.factory, self.config, self._commands, self._events, self._credits, self.checkpoint_path,
+                  self.start_paused))
+        self._process.start()
+        self.state = WorkerState(alive=True, paused=self.start_paused, started_at=time.monotonic())
+
+    @property
+    def alive(self) -> bool:
+        """True while the worker process runs."""
+        return self._process is not None and self._process.is_alive()
+
+    def quit(self, timeout: float = 10.0) -> None:
+        """Ask the worker to checkpoint and exit; terminate it if it does not within ``timeout``."""
+        if self._process is None:
+            return
+        if self.alive:
+            self._send("quit")
+            deadline = time.monotonic() + timeout
+            while self.alive and time.monotonic() < deadline:
+                self.poll()
+                self._process.join(0.05)
+        self.poll()
+        if self.alive:
+            self._process.terminate()
+            self._process.join(2.0)
+        self.state.alive = False
+        self._process = None
+
+    # ----------------------------------------------------------------- commands
+    def pause(self) -> None:
+        """Stop stepping after the current step; ``state.paused`` turns True when the worker acknowledges."""
+        self._send("pause")
+
+    def resume(self) -> None:
+        """Step continuously (``state.paused`` turns False when the worker acknowledges)."""
+        self._send("resume")
+
+    def toggle_pause(self) -> None:
+        """Pause if running, resume if paused."""
+        self.resume() if self.state.paused else self.pause()
+
+    def step_once(self) -> None:
+        """Run exactly one step (useful while paused)."""
+        self._send("step")
+
+    def restart(self, config: dict[str, Any] | None = None) -> None:
+        """Rebuild the engine (with a new config if given); respawns the process if it died."""
+        if config is not None:
+            self.config = dict(config)
+        if not self.alive:
+            self.start()
+            return
+        self.state.error = None
+        self.state.done = False
+        self.state.paused = False
+        self.state.loss_history.clear()
+        self.state.reports_received, self.state.step_seconds = 0, 0.0
+        self._send("restart", self.config)
+
+    def set_params(self, **params: float) -> None:
+        """Change engine parameters (λ weights, split_rate, lr) from the next step on."""
+        self._send("set_params", dict(params))
+
+    def export(self, path: str | os.PathLike) -> None:
+        """Ask the worker to save the stylized .ply (+ .json summary) at ``path``."""
+        self._send("export", str(path))
+
+    def _send(self, command: str, arg: Any = None) -> None:
+        if self.alive:
+            self._commands.put((command, arg))
+        else:
+            self.state.error = self.state.error or "the engine process is not running; press Restart"
+
+    # ----------------------------------------------------------------- events
+    def poll(self, max_messages: int = 1000) -> list[tuple[str, Any]]:
+        """Apply all pending worker messages to ``state``; returns them (oldest first) as (kind, payload).
+
+        Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
+        exported (path), checkpoint (path), bye.
+        """
+        messages: list[tuple[str, Any]] = []
+        if self._events is None:
+            return messages
+        for _ in range(max_messages):
+            try:
+                kind, payload = self._events.get_nowait()
+            except (queue.Empty, OSError, ValueError):
+                break
+            messages.append((kind, payload))
+            self._apply(kind, payload)
+        self.state.alive = self.alive
+        if self._process is not None and not self.state.alive and self.state.error is None and not any(
+                k == "bye" for k, _ in messages):
+            code = self._process.exitcode
+            if code not in (0, None):
+                self.state.error = f"the engine process exited with code {code}"
+        return messages
+
+    def _apply(self, kind: str, payload: Any) -> None:
+        st = self.state
+        if kind == "ready":
+            st.ready, st.error, st.done = True, None, False
+        elif kind == "report":
+            st.last_report = payload
+            st.reports_received += 1
+            st.step_seconds += float(payload.get("seconds") or 0.0)
+            st.done = bool(payload.get("done"))
+            st.loss_history.append(dict(payload.get("losses") or {}))
+        elif kind == "snapshot":
+            credit, payload = payload
+            if credit:
+                self._credits.release()
+            if "means" in payload:
+                st.geometry_received += 1
+            st.snapshot.update(payload)
+            st.snapshots_received += 1
+        elif kind == "error":
+            st.error = payload
+            st.paused = True
+        elif kind == "paused":
+            st.paused = bool(payload)
+        elif kind == "params":
+            st.params = dict(payload)
+        elif kind == "exported":
+            st.exported.append(payload)
+        elif kind == "checkpoint":
+            st.checkpoint = payload
+
+    def wait_until(self, predicate: Callable[[WorkerState], bool], timeout: float = 30.0) -> bool:
+        """Poll until ``predicate(state)`` holds (True) or ``timeout`` seconds pass (False). For tests and CLI."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.poll()
+            if predicate(self.state):
+                return True
+            time.sleep(0.01)
+        self.poll()
+        return predicate(self.state)

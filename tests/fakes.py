@@ -1,0 +1,119 @@
+"""Test doubles for the app: a tiny engine that follows the Stylizer protocol (picklable factory for spawn)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class FakeReport:
+    """Step report with the protocol's fields."""
+
+    phase: str
+    step: int
+    total_steps: int
+    losses: dict = field(default_factory=dict)
+    seconds: float = 0.0
+    gaussians: int = 0
+    colours_changed: bool = True
+    geometry_changed: bool = False
+    done: bool = False
+
+
+class FakeEngine:
+    """Deterministic engine: colours move with the step count, geometry grows every ``grow_every`` steps.
+
+    ``fail_at``: step() raises RuntimeError at that step (1-based). ``set_params`` values are echoed in the
+    snapshot under ``"params"`` so tests can see that they arrived.
+    """
+
+    def __init__(self, n: int = 64, total_steps: int = 1_000_000, fail_at: int | None = None,
+                 step_seconds: float = 0.002, grow_every: int = 0) -> None:
+        self.n, self.total, self.fail_at = n, total_steps, fail_at
+        self.step_seconds, self.grow_every = step_seconds, grow_every
+        self.steps = 0
+        self.params: dict[str, float] = {"lambda_clip": 10.0, "lambda_nnfm": 100.0}
+        self.geometry_version = 0
+        rng = np.random.default_rng(0)
+        self.means = rng.normal(0, 0.5, (n, 3)).astype(np.float32)
+
+    def step(self) -> FakeReport:
+        self.steps += 1
+        if self.fail_at is not None and self.steps == self.fail_at:
+            raise RuntimeError("fake engine failure\nsecond line")
+        time.sleep(self.step_seconds)
+        grew = bool(self.grow_every) and self.steps % self.grow_every == 0
+        if grew:
+            self.means = np.concatenate([self.means, self.means[:1] + 0.01])
+            self.geometry_version += 1
+        loss = 1.0 / self.steps * self.params["lambda_clip"]
+        return FakeReport("stylize", self.steps, self.total, {"total": loss}, self.step_seconds, len(self.means),
+                          True, grew, self.steps >= self.total)
+
+    def set_params(self, **kw: float) -> None:
+        unknown = set(kw) - {"lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "split_rate", "lr"}
+        if unknown:
+            raise ValueError(f"unknown parameters: {sorted(unknown)}")
+        self.params.update({k: float(v) for k, v in kw.items()})
+
+    def snapshot(self) -> dict:
+        n = len(self.means)
+        level = (self.steps % 100) / 100.0
+        return {
+            "means": self.means.copy(),
+            "log_scales": np.full((n, 3), np.log(0.05), np.float32),
+            "quats": np.tile(np.array([1, 0, 0, 0], np.float32), (n, 1)),
+            "opacity_logits": np.full(n, 2.0, np.float32),
+            "colors": np.full((n, 3), level, np.float32),
+            "colors_gt": np.full((n, 3), 0.5, np.float32),
+            "geometry_version": self.geometry_version,
+            "colour_version": self.steps,
+            "params": dict(self.params),
+        }
+
+    def state_dict(self) -> dict:
+        return {"steps": self.steps, "means": self.means.copy(), "params": dict(self.params)}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.steps = state["steps"]
+        self.means = state["means"].copy()
+        self.params = dict(state["params"])
+
+
+def make_fake_engine(scene=None, style=None, cameras=None, preset=None, **config) -> FakeEngine:
+    """Module-level factory (picklable for the spawn start method); ignores the app's scene/style keys."""
+    return FakeEngine(**config)
+
+
+class MeanColourPull:
+    """Cheap stand-in style objective: pulls the render's mean colour to the style's (no networks)."""
+
+    def __init__(self, style, settings) -> None:
+        import torch
+
+        self.target = torch.as_tensor(np.asarray(style).reshape(-1, 3).mean(0))
+        self.weights = settings.weights
+
+    def set_weights(self, weights) -> None:
+        self.weights = weights
+
+    def __call__(self, image, content, view):
+        loss = self.weights.nnfm * ((image.reshape(-1, 3).mean(0) - self.target) ** 2).sum()
+        return loss, {"nnfm": float(loss.detach())}
+
+
+def make_small_stylizer(n: int = 150, **_ignored):
+    """The real ``Stylizer`` on a tiny synthetic scene with ``MeanColourPull`` (for bridge integration tests)."""
+    from synthetic import blob_scene, ring_cameras
+
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    style = np.zeros((8, 8, 3), np.float32)
+    style[..., 0] = 1.0
+    settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=3, min_steps=0, refit_iterations=2,
+                                split_at_epochs=(1.0,), working_width=32, preprocess_rounds=1)
+    return Stylizer(blob_scene(n, seed=5), ring_cameras(3), style, settings, objective_factory=MeanColourPull)

@@ -1,0 +1,136 @@
+"""``gstyle-studio --headless``: the same frame loop on glfw's NULL platform + EGL, last frame written as PNG."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("imgui_bundle")
+pytest.importorskip("moderngl")
+
+from synthetic import blob_scene, ring_cameras  # noqa: E402
+
+import app.studio as studio  # noqa: E402
+from app.main import main, parse_size  # noqa: E402
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+@pytest.fixture
+def synthetic_loader(monkeypatch):
+    """Serve a small synthetic scene instead of reading a file (the loader is another module's job)."""
+    scene = blob_scene(1500, sh_degree=1, spread=0.4, scale=0.05)
+    cams = ring_cameras(4, width=320, height=240)
+    monkeypatch.setattr(studio, "load_scene_with_cameras",
+                        lambda path, cameras: studio.LoadedScene(path or "synthetic", scene, cams))
+
+
+def read_png(path):
+    from PIL import Image
+
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def test_headless_run_writes_png(tmp_path, synthetic_loader, capsys):
+    out = tmp_path / "shot.png"
+    rc = main(["--headless", "--frames", "2", "--size", "320x240", "--screenshot", str(out), "--hide-ui",
+               "--output-dir", str(tmp_path)])
+    assert rc == 0 and f"wrote {out}" in capsys.readouterr().out
+    img = read_png(out)
+    assert img.shape == (240, 320, 3)
+    centre, corner = img[100:140, 140:180].mean(), img[:10, :10].mean()
+    assert centre > 20 and corner < centre  # the blob is in the middle of a black background
+
+
+def test_headless_compare_with_panel(tmp_path, synthetic_loader):
+    out = tmp_path / "ui.png"
+    assert main(["--headless", "--frames", "3", "--size", "400x300", "--screenshot", str(out),
+                 "--view", "compare", "--camera", "2", "--output-dir", str(tmp_path)]) == 0
+    img = read_png(out)
+    assert img.shape == (300, 400, 3)
+    assert (img[:8, 199:201] > 240).all()  # divider line above the panel
+
+
+def test_no_display_falls_back_to_headless(tmp_path, synthetic_loader, monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    out = tmp_path / "fallback.png"
+    assert main(["--size", "160x120", "--screenshot", str(out), "--output-dir", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out
+    assert "cannot open a window" in printed and str(out) in printed
+    assert read_png(out).shape == (120, 160, 3)
+
+
+def test_bad_arguments_are_one_line_errors(synthetic_loader, capsys):
+    with pytest.raises(SystemExit):
+        parse_size("800by600") if False else main(["--size", "800by600"])
+    assert "size must look like 800x600" in capsys.readouterr().err
+    assert main(["--headless", "--frames", "0"]) == 2
+    assert main(["--headless", "--camera", "9", "--frames", "1"]) == 2
+    assert "--camera must be 1..4" in capsys.readouterr().err
+
+
+def test_real_scene_file(tmp_path):
+    scene = DATA / "scenes" / "ply_3dgs" / "cvlab_epfl_pc_short.ply"
+    if not scene.is_file():
+        pytest.skip(f"shared test data not found at {scene}")
+    try:
+        from gstyle_core.io import load_scene  # noqa: F401
+    except ImportError as exc:
+        pytest.skip(f"gstyle_core.io.load_scene not available yet: {exc}")
+    out = tmp_path / "real.png"
+    assert main([str(scene), "--headless", "--frames", "1", "--size", "320x240", "--screenshot", str(out),
+                 "--hide-ui", "--output-dir", str(tmp_path)]) == 0
+    assert read_png(out).max() > 0
+
+
+@pytest.fixture
+def xvfb_display(monkeypatch):
+    """A private Xvfb server (killed by PID afterwards); skipped when Xvfb is not installed."""
+    import shutil
+    import subprocess
+    import time
+
+    if shutil.which("Xvfb") is None:
+        pytest.skip("Xvfb is not installed (apt-get install xvfb)")
+    display = ":97"
+    proc = subprocess.Popen(["Xvfb", display, "-screen", "0", "640x480x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    lock = Path(f"/tmp/.X11-unix/X{display[1:]}")
+    deadline = time.monotonic() + 10
+    while not lock.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if proc.poll() is not None or not lock.exists():
+        proc.kill()
+        pytest.skip("Xvfb did not start")
+    monkeypatch.setenv("DISPLAY", display)
+    yield display
+    proc.terminate()
+    proc.wait(5)
+
+
+def test_real_window_under_xvfb(tmp_path, synthetic_loader, xvfb_display):
+    out = tmp_path / "window.png"
+    assert main(["--frames", "3", "--size", "320x240", "--screenshot", str(out), "--no-engine", "--hide-ui",
+                 "--fps", "120", "--output-dir", str(tmp_path)]) == 0
+    img = read_png(out)
+    assert img.shape == (240, 320, 3) and img[100:140, 140:180].mean() > 20
+
+
+def test_window_module_opens_headless_in_a_fresh_process():
+    """Import order matters (imgui_bundle before glfw); a fresh interpreter catches a reordered import."""
+    import os
+    import subprocess
+    import sys
+
+    code = "from app.window import open_window\nw = open_window(64, 64, headless=True)\nw.close()\nprint('ok')"
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    res = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[1], env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr[-500:]
+
+
+def test_missing_scene_is_a_one_line_error(tmp_path, capsys):
+    assert main([str(tmp_path / "nope.ply"), "--headless", "--frames", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"gstyle-studio: scene file not found: {tmp_path / 'nope.ply'}"

@@ -1,0 +1,143 @@
+"""Panel and studio driven headless (glfw NULL platform + EGL) with injected ImGui input."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("imgui_bundle")
+pytest.importorskip("moderngl")
+
+from imgui_bundle import imgui  # noqa: E402, I001 - before glfw (gl-stack.md)
+
+from app.panels import PanelState, draw_panel, format_eta  # noqa: E402
+from app.renderer import read_rgb  # noqa: E402
+from app.studio import LoadedScene, StudioApp  # noqa: E402
+from app.window import DisplayUnavailableError, open_window  # noqa: E402
+from fakes import make_fake_engine  # noqa: E402
+from gstyle_core.scene import GaussianScene, logit, rgb_to_sh_dc  # noqa: E402
+from synthetic import look_at_camera  # noqa: E402
+
+W, H = 400, 300
+
+
+@pytest.fixture
+def window():
+    try:
+        win = open_window(W, H, headless=True)
+    except DisplayUnavailableError as exc:
+        pytest.skip(f"no headless GL window (glfw NULL + EGL): {exc}")
+    yield win
+    win.close()
+
+
+def wall_scene(rgb) -> GaussianScene:
+    """A 10x10 grid of big opaque Gaussians filling the view of a camera at the origin looking along +z."""
+    xs, ys = np.meshgrid(np.linspace(-1.5, 1.5, 10), np.linspace(-1.2, 1.2, 10))
+    n = xs.size
+    means = np.column_stack([xs.ravel(), ys.ravel(), np.full(n, 3.0)]).astype(np.float32)
+    return GaussianScene(means, np.full((n, 3), np.log(0.25), np.float32),
+                         np.tile(np.array([1, 0, 0, 0], np.float32), (n, 1)), logit(np.full(n, 0.99)),
+                         rgb_to_sh_dc(np.tile(np.asarray(rgb, np.float32), (n, 1))))
+
+
+def frame(win, app, inject=None):
+    if inject:
+        inject(imgui.get_io())
+    win.begin_frame()
+    screen = win.ctx.screen
+    screen.use()
+    commands = app.frame(screen)
+    win.end_frame(swap=False)
+    return commands
+
+
+def test_space_pauses_the_engine_through_the_panel(window, tmp_path):
+    cam = look_at_camera((0, 0, -3), (0, 0, 0), W, H)
+    from synthetic import blob_scene
+
+    app = StudioApp(window.ctx, loaded=LoadedScene("synthetic", blob_scene(200), [cam]),
+                    engine_factory=make_fake_engine, engine_config={"n": 200}, output_dir=tmp_path)
+    try:
+        app.start_engine()
+        assert app.bridge.wait_until(lambda s: s.snapshots_received >= 3 or s.error, 60)
+        assert app.bridge.state.error is None
+        frame(window, app)
+        assert not app.bridge.state.paused
+
+        def press_space(io):
+            io.add_key_event(imgui.Key.space, True)
+
+        commands = frame(window, app, press_space)
+        frame(window, app, lambda io: io.add_key_event(imgui.Key.space, False))
+        assert [c.name for c in commands] == ["pause"]
+        assert app.bridge.wait_until(lambda s: s.paused, 10)
+        # colour updates stop: the version shown stays put over several frames
+        for _ in range(3):
+            frame(window, app)
+        version = app.bridge.state.snapshot["colour_version"]
+        import time
+
+        time.sleep(0.3)
+        frame(window, app)
+        assert app.bridge.state.snapshot["colour_version"] == version
+        assert app.panel.paused
+        # Space again resumes
+        commands = frame(window, app, press_space)
+        assert [c.name for c in commands] == ["resume"]
+    finally:
+        app.close()
+
+
+def test_compare_divider_shows_both_sources_and_can_be_dragged(window, tmp_path):
+    cam = look_at_camera((0, 0, 0), (0, 0, 3), W, H, fov_deg=60)
+    app = StudioApp(window.ctx, loaded=LoadedScene("wall", wall_scene([0.0, 0.0, 1.0]), [cam]), output_dir=tmp_path)
+    app.stylized.update_colors(np.tile([1.0, 0.0, 0.0], (app.stylized.count, 1)).astype(np.float32))
+    app.view_mode = "compare"
+    fbo = window.ctx.framebuffer([window.ctx.texture((W, H), 4)])
+    app.render_view(fbo)
+    img = read_rgb(fbo)
+    left, right = img[H // 2, W // 4], img[H // 2, 3 * W // 4]
+    assert left[0] > 200 and left[2] < 30  # stylized (red) on the left
+    assert right[2] > 200 and right[0] < 30  # original (blue) on the right
+    assert img[H // 2, W // 2 - 1].min() > 240  # the divider line
+
+    # drag the divider from the middle to a quarter of the width with injected mouse events
+    frame(window, app, lambda io: io.add_mouse_pos_event(W / 2, H / 2))
+    frame(window, app, lambda io: io.add_mouse_button_event(0, True))
+    frame(window, app, lambda io: io.add_mouse_pos_event(W / 4, H / 2))
+    frame(window, app, lambda io: io.add_mouse_button_event(0, False))
+    assert abs(app.divider - 0.25) < 0.01
+    app.render_view(fbo)
+    img = read_rgb(fbo)
+    assert img[H // 2, W // 8][0] > 200 and img[H // 2, 3 * W // 8][2] > 200
+    app.close()
+
+
+def test_panel_widgets_emit_commands(window):
+    state = PanelState(camera_count=3, paused=False)
+
+    def run(events):
+        for e in events:
+            e(imgui.get_io())
+        window.begin_frame()
+        cmds = draw_panel(state)
+        window.end_frame(swap=False)
+        return [c.name for c in cmds], cmds
+
+    names, _ = run([lambda io: io.add_key_event(imgui.Key.h, True)])
+    assert names == ["toggle_help"]
+    names, _ = run([lambda io: io.add_key_event(imgui.Key.h, False), lambda io: io.add_key_event(imgui.Key._2, True)])
+    names2, cmds = names, _
+    assert names2 == ["snap_camera"] and cmds[0].args == {"index": 1}
+    run([lambda io: io.add_key_event(imgui.Key._2, False)])
+    names, cmds = run([lambda io: io.add_key_event(imgui.Key.mod_ctrl, True),
+                       lambda io: io.add_key_event(imgui.Key.left_ctrl, True),
+                       lambda io: io.add_key_event(imgui.Key.s, True)])
+    assert names == ["export"]
+    run([lambda io: io.add_key_event(imgui.Key.s, False), lambda io: io.add_key_event(imgui.Key.mod_ctrl, False),
+         lambda io: io.add_key_event(imgui.Key.left_ctrl, False)])
+    names, _ = run([lambda io: io.add_key_event(imgui.Key.f12, True)])
+    assert names == ["screenshot"]
+
+
+def test_format_eta():
+    assert format_eta(None) == "-" and format_eta(65) == "1:05" and format_eta(3725) == "1:02:05"
