@@ -1,0 +1,168 @@
+"""Colour-only fast path: with geometry fixed, a render is linear in the Gaussians' colours.
+
+image = W c + T_final * background, W the [pixels x Gaussians] matrix of blend weights alpha_i T_i of one
+camera, stored as a sparse CSR matrix (and its transpose for the backward pass).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from . import kernels
+from .fast import build_tile_lists
+from .projection import project_gaussians
+
+
+class _SparseLinear(torch.autograd.Function):
+    """y = W x for a constant sparse W; the backward multiplies by the stored W^T."""
+
+    @staticmethod
+    def forward(ctx, x, weights, weights_t):  # noqa: D401
+        ctx.weights_t = weights_t
+        return weights @ x
+
+    @staticmethod
+    def backward(ctx, grad):
+        return ctx.weights_t @ grad.contiguous(), None, None
+
+
+class ColourCache:
+    """Blend weights of one camera for a fixed geometry; ``render(colors)`` costs a sparse product."""
+
+    def __init__(
+        self,
+        means: Tensor,  # [N, 3]
+        quats: Tensor,  # [N, 4]
+        scales: Tensor,  # [N, 3]
+        opacities: Tensor,  # [N]
+        viewmat: Tensor,  # [4, 4]
+        K: Tensor,  # [3, 3]
+        width: int,
+        height: int,
+        geometry_version: int,
+        near: float = 0.01,
+        far: float = 1e10,
+        tile_size: int = 16,
+    ) -> None:
+        self.width, self.height, self.geometry_version = int(width), int(height), int(geometry_version)
+        self.n_gaussians = int(means.shape[0])
+        with torch.no_grad():
+            f32 = torch.float32
+            proj = project_gaussians(
+                means.to(f32),
+                quats.to(f32),
+                scales.to(f32),
+                viewmat.to(f32),
+                K.to(f32),
+                self.width,
+                self.height,
+                near,
+                far,
+                tile_size,
+            )
+            features = torch.zeros(self.n_gaussians, kernels.FEATURES)
+            lists = build_tile_lists(proj, opacities.to(f32), features)
+        args = (
+            lists.offsets,
+            lists.records,
+            lists.tile_order,
+            self.width,
+            self.height,
+            tile_size,
+            lists.tiles_x,
+        )
+        _, t_final, _ = kernels.blend_forward(*args)
+        counts = kernels.count_blend_weights(*args)
+        row_ptr = np.zeros(counts.shape[0] + 1, np.int64)
+        np.cumsum(counts, out=row_ptr[1:])
+        cols, vals = kernels.fill_blend_weights(
+            lists.offsets,
+            lists.ids,
+            lists.records,
+            lists.tile_order,
+            self.width,
+            self.height,
+            tile_size,
+            lists.tiles_x,
+            row_ptr,
+        )
+        shape = (self.height * self.width, self.n_gaussians)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Sparse CSR tensor support is in beta")
+            self.weights = torch.sparse_csr_tensor(
+                torch.from_numpy(row_ptr),
+                torch.from_numpy(cols),
+                torch.from_numpy(vals),
+                size=shape,
+                check_invariants=False,
+            )
+            self.weights_t = self.weights.t().to_sparse_csr()
+        self.t_final = torch.from_numpy(t_final)  # [H, W]
+
+    @property
+    def nbytes(self) -> int:
+        """Approximate memory held by the two sparse matrices."""
+        nnz = int(self.weights.values().shape[0])
+        return 2 * nnz * (4 + 8) + 8 * (self.height * self.width + self.n_gaussians + 2)
+
+    def render(self, colors: Tensor, background: Tensor | None = None) -> Tensor:
+        """Image [H, W, 3] for colours [N, 3] (float32), differentiable w.r.t. colours and background."""
+        if tuple(colors.shape) != (self.n_gaussians, 3):
+            raise ValueError(
+                f"ColourCache.render: colors must be [{self.n_gaussians}, 3], got {list(colors.shape)}"
+            )
+        flat = _SparseLinear.apply(colors.to(torch.float32), self.weights, self.weights_t)
+        image = flat.reshape(self.height, self.width, 3)
+        if background is not None:
+            image = image + self.t_final[..., None] * background.to(torch.float32)
+        return image
+
+
+class ColourCacheStore:
+    """One ColourCache per camera index; all dropped on ``invalidate()`` or a new geometry version."""
+
+    def __init__(self) -> None:
+        self._caches: dict[int, ColourCache] = {}
+        self.geometry_version: int | None = None
+
+    def __len__(self) -> int:
+        return len(self._caches)
+
+    def invalidate(self) -> None:
+        """Drop every cache (call after any geometry change)."""
+        self._caches.clear()
+        self.geometry_version = None
+
+    def get(self, camera_index: int, geometry_version: int) -> ColourCache | None:
+        """The camera's cache if built for this geometry version; a new version drops all caches."""
+        if geometry_version != self.geometry_version:
+            self.invalidate()
+            return None
+        return self._caches.get(camera_index)
+
+    def put(self, camera_index: int, cache: ColourCache) -> None:
+        """Store a cache; a cache of another geometry version than the stored ones replaces them all."""
+        if cache.geometry_version != self.geometry_version:
+            self.invalidate()
+            self.geometry_version = cache.geometry_version
+        self._caches[camera_index] = cache
+
+    def get_or_build(
+        self, camera_index: int, geometry_version: int, build: Callable[[], ColourCache]
+    ) -> ColourCache:
+        """Return the stored cache or build, store and return a new one."""
+        cache = self.get(camera_index, geometry_version)
+        if cache is None:
+            cache = build()
+            if cache.geometry_version != geometry_version:
+                raise ValueError(
+                    "ColourCacheStore: built cache has geometry version "
+                    f"{cache.geometry_version}, expected {geometry_version}"
+                )
+            self.put(camera_index, cache)
+        return cache

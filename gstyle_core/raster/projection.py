@@ -1,0 +1,157 @@
+"""The 3D half of the rasterizer: project Gaussians to screen-space ellipses (vectorised torch, autograd).
+
+Both backends share this code, so they agree on means2d, conics, radii and culling bit for bit.
+Maths follows Kerbl et al. 2023 (EWA splatting with the 3DGS clamp and a 0.3 px low-pass dilation);
+see ``gstyle_core/raster/__init__.py`` for the pixel convention.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+LOW_PASS_DILATION = 0.3
+FOV_CLAMP_MARGIN = 0.3  # the 3DGS clamp: |x/z| <= 1.3 * tan(half fov) for a centred principal point
+MAX_RADIUS = 2.0**30  # radii are clamped here so they fit an int32 (such a Gaussian covers any screen)
+
+
+@dataclass
+class Projected:
+    """Per-Gaussian screen-space quantities (culled Gaussians carry harmless placeholder values)."""
+
+    means2d: Tensor  # [N, 2] pixel coordinates (0 for culled Gaussians)
+    conics: Tensor  # [N, 3] upper triangle (a, b, c) of the inverse 2D covariance
+    depths: Tensor  # [N] camera z
+    radii: Tensor  # [N] int32 pixel radius, 0 = culled
+    visible: Tensor  # [N] bool
+    tile_min: Tensor  # [N, 2] int64 first tile (x, y) touched, inclusive
+    tile_max: Tensor  # [N, 2] int64 last tile (x, y) touched, exclusive
+    tiles_x: int
+    tiles_y: int
+
+
+def _rotation_entries(quats: Tensor) -> list[Tensor]:
+    """Row-major entries of the rotation matrices of wxyz quaternions [N, 4] (any length; 0 -> identity)."""
+    q = quats.t().contiguous()  # [4, N]: contiguous rows make the per-component ops fast
+    norm_sq = (q * q).sum(0, keepdim=True)
+    tiny = 1e-24 if quats.dtype == torch.float64 else 1e-20
+    degenerate = norm_sq <= tiny
+    q = q / torch.sqrt(norm_sq.clamp_min(tiny))
+    identity = torch.zeros_like(q)
+    identity[0] = 1.0
+    q = torch.where(degenerate, identity, q)
+    w, x, y, z = q.unbind(0)
+    return [
+        1 - 2 * (y * y + z * z),
+        2 * (x * y - w * z),
+        2 * (x * z + w * y),
+        2 * (x * y + w * z),
+        1 - 2 * (x * x + z * z),
+        2 * (y * z - w * x),
+        2 * (x * z - w * y),
+        2 * (y * z + w * x),
+        1 - 2 * (x * x + y * y),
+    ]
+
+
+def quat_to_rotmat(quats: Tensor) -> Tensor:
+    """Rotation matrices [N, 3, 3] from wxyz quaternions [N, 4] of any length (zero gives identity)."""
+    return torch.stack(_rotation_entries(quats), -1).reshape(-1, 3, 3)
+
+
+def covariance_3d(quats: Tensor, scales: Tensor) -> Tensor:
+    """World-space covariances R S S^T R^T, [N, 3, 3]."""
+    m = quat_to_rotmat(quats) * scales[:, None, :]
+    return m @ m.transpose(1, 2)
+
+
+def project_gaussians(
+    means: Tensor,
+    quats: Tensor,
+    scales: Tensor,
+    viewmat: Tensor,
+    K: Tensor,
+    width: int,
+    height: int,
+    near: float = 0.01,
+    far: float = 1e10,
+    tile_size: int = 16,
+) -> Projected:
+    """Project Gaussians to pixel space: means2d, conics, depths, radii, culling and tile rectangles."""
+    dtype = means.dtype
+    viewmat = viewmat.to(dtype=dtype, device=means.device).detach()
+    K = K.to(dtype=dtype, device=means.device).detach()
+    fx, fy, cx, cy = (float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]))
+    rot_view = viewmat[:3, :3]
+    p_cam = torch.addmm(viewmat[:3, 3:4], rot_view, means.t())  # [3, N]
+    x, y, z = p_cam.unbind(0)
+    in_depth = (z > near) & (z <= far) & torch.isfinite(p_cam).all(0)
+    z_safe = torch.where(in_depth, z, torch.ones_like(z))
+    x_safe = torch.where(in_depth, x, torch.zeros_like(x))
+    y_safe = torch.where(in_depth, y, torch.zeros_like(y))
+
+    # EWA Jacobian at the mean with the 3DGS field-of-view clamp (gsplat's form for an off-centre principal
+    # point; it equals 3DGS's 1.3 * tan(fov/2) when cx = width/2, cy = height/2).
+    tan_fov_x, tan_fov_y = 0.5 * width / fx, 0.5 * height / fy
+    lim_x_pos = (width - cx) / fx + FOV_CLAMP_MARGIN * tan_fov_x
+    lim_x_neg = cx / fx + FOV_CLAMP_MARGIN * tan_fov_x
+    lim_y_pos = (height - cy) / fy + FOV_CLAMP_MARGIN * tan_fov_y
+    lim_y_neg = cy / fy + FOV_CLAMP_MARGIN * tan_fov_y
+    tx = z_safe * torch.clamp(x_safe / z_safe, -lim_x_neg, lim_x_pos)
+    ty = z_safe * torch.clamp(y_safe / z_safe, -lim_y_neg, lim_y_pos)
+    # Sigma_2D = J W Sigma W^T J^T = G G^T with G = J W R S [N, 2, 3] (J: EWA Jacobian, W: view rotation).
+    # Written per component on [N] tensors: much faster in torch than batched 3x3 products.
+    inv_z = 1.0 / z_safe
+    w = [[float(v) for v in row] for row in rot_view]
+    jx, jxz = fx * inv_z, -fx * tx * inv_z * inv_z
+    jy, jyz = fy * inv_z, -fy * ty * inv_z * inv_z
+    t_x = [jx * w[0][k] + jxz * w[2][k] for k in range(3)]  # first row of J W
+    t_y = [jy * w[1][k] + jyz * w[2][k] for k in range(3)]
+    r = _rotation_entries(quats)
+    sx, sy, sz = scales.t().contiguous().unbind(0)
+    rs = [r[3 * i + k] * s_k for i in range(3) for k, s_k in enumerate((sx, sy, sz))]  # R S, row-major
+    g_x = [(t_x[0] * rs[k] + t_x[1] * rs[3 + k] + t_x[2] * rs[6 + k]).to(torch.float64) for k in range(3)]
+    g_y = [(t_y[0] * rs[k] + t_y[1] * rs[3 + k] + t_y[2] * rs[6 + k]).to(torch.float64) for k in range(3)]
+    # The 2D covariance in float64: huge scales close to the camera would overflow float32. Its determinant
+    # is |g_x x g_y|^2 (Cauchy-Binet) plus the dilation terms: positive, and free of cancellation.
+    a = g_x[0] * g_x[0] + g_x[1] * g_x[1] + g_x[2] * g_x[2] + LOW_PASS_DILATION
+    b = g_x[0] * g_y[0] + g_x[1] * g_y[1] + g_x[2] * g_y[2]
+    c = g_y[0] * g_y[0] + g_y[1] * g_y[1] + g_y[2] * g_y[2] + LOW_PASS_DILATION
+    cross = [
+        g_x[1] * g_y[2] - g_x[2] * g_y[1],
+        g_x[2] * g_y[0] - g_x[0] * g_y[2],
+        g_x[0] * g_y[1] - g_x[1] * g_y[0],
+    ]
+    det = cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]
+    det = det + LOW_PASS_DILATION * (a + c) - LOW_PASS_DILATION**2
+    det_ok = (det > 0) & torch.isfinite(det) & torch.isfinite(a + c)
+    det_safe = torch.where(det_ok, det, torch.ones_like(det))
+    inv_det = 1.0 / det_safe
+    conics = torch.stack([c * inv_det, -b * inv_det, a * inv_det], -1).to(dtype)
+
+    with torch.no_grad():
+        mid = 0.5 * (a + c)
+        lambda_max = mid + torch.sqrt(torch.clamp(mid * mid - det_safe, min=0.1))
+        radius_f = torch.ceil(3.0 * torch.sqrt(lambda_max)).clamp(max=MAX_RADIUS)
+        radius_f = torch.nan_to_num(radius_f, nan=0.0, posinf=MAX_RADIUS)
+
+    means2d = torch.stack([fx * x_safe * inv_z + cx, fy * y_safe * inv_z + cy], -1)
+    with torch.no_grad():
+        tiles_x = math.ceil(width / tile_size)
+        tiles_y = math.ceil(height / tile_size)
+        m64 = means2d.detach().to(torch.float64)
+        lo = torch.floor((m64 - radius_f[:, None]) / tile_size)
+        hi = torch.ceil((m64 + radius_f[:, None]) / tile_size)
+        limits = torch.tensor([tiles_x, tiles_y], dtype=torch.float64)
+        tile_min = torch.minimum(lo.clamp(min=0), limits).nan_to_num(0).to(torch.int64)
+        tile_max = torch.minimum(hi.clamp(min=0), limits).nan_to_num(0).to(torch.int64)
+        touches = ((tile_max - tile_min).prod(-1) > 0) & (radius_f > 0)
+        visible = in_depth & det_ok & touches & torch.isfinite(means2d.detach()).all(-1)
+        radii = torch.where(visible, radius_f, torch.zeros_like(radius_f)).to(torch.int32)
+        tile_max = torch.where(visible[:, None], tile_max, tile_min)
+
+    means2d = torch.where(visible[:, None], means2d, torch.zeros_like(means2d))
+    return Projected(means2d, conics, z, radii, visible, tile_min, tile_max, tiles_x, tiles_y)
