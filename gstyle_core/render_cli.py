@@ -45,8 +45,10 @@ def save_png(path: str | Path, image: np.ndarray) -> None:
     atomic_write_bytes(path, buf.getvalue())
 
 
-def render_scene_image(scene, camera, backend: str = "fast", sh_degree: int | None = None) -> np.ndarray:
-    """Render ``scene`` (with its SH unless ``sh_degree`` is lower) from ``camera``; returns [H, W, 3] float32."""
+def render_scene_image(scene, camera, backend: str = "fast", sh_degree: int | None = None,
+                       with_alpha: bool = False):
+    """Render ``scene`` (with its SH unless ``sh_degree`` is lower) from ``camera``; returns [H, W, 3] float32
+    (and the [H, W] alpha when ``with_alpha``)."""
     import torch
 
     from .fit.model import params_from_scene, render_params
@@ -55,6 +57,8 @@ def render_scene_image(scene, camera, backend: str = "fast", sh_degree: int | No
     degree = scene.sh_degree if sh_degree is None else min(sh_degree, scene.sh_degree)
     with torch.no_grad():
         out = render_params(params, camera, sh_degree=degree, backend=backend)
+    if with_alpha:
+        return out.image.numpy(), out.alpha.numpy()
     return out.image.numpy()
 
 

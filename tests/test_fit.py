@@ -95,3 +95,22 @@ def test_default_strategy_densifies_and_prunes():
     assert out["pruned"] >= 5
     assert params["means"].shape[0] == 45 - out["pruned"]
     assert state["grad2d"].shape[0] == params["means"].shape[0]
+
+
+def test_separable_ssim_equals_the_2d_window_formula():
+    import torch.nn.functional as F
+
+    torch.manual_seed(0)
+    a, b = torch.rand(1, 3, 20, 24, dtype=torch.float64), torch.rand(1, 3, 20, 24, dtype=torch.float64)
+    x = torch.arange(11, dtype=torch.float64) - 5
+    g = torch.exp(-(x**2) / (2 * 1.5**2))
+    g = g / g.sum()
+    w = (g[:, None] @ g[None, :]).expand(3, 1, 11, 11)
+
+    def blur(t):
+        return F.conv2d(t, w, padding=5, groups=3)
+
+    mu1, mu2 = blur(a), blur(b)
+    s1, s2, s12 = blur(a * a) - mu1**2, blur(b * b) - mu2**2, blur(a * b) - mu1 * mu2
+    ref = ((2 * mu1 * mu2 + 1e-4) * (2 * s12 + 9e-4) / ((mu1**2 + mu2**2 + 1e-4) * (s1 + s2 + 9e-4))).mean()
+    assert abs(float(ssim(a, b)) - float(ref)) < 1e-10

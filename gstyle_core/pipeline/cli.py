@@ -42,7 +42,7 @@ def build_stylizer(args: argparse.Namespace):
 
     scene, report, cams = load_scene_and_cameras(args.scene, args.cameras)
     style = load_style_image(args.style or DEFAULT_STYLE)
-    kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams.cameras)
+    kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams)
     settings = resolve_settings(
         args.preset, kind, len(cams.cameras),
         lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
@@ -126,11 +126,12 @@ def evaluate_run(engine, scene, style: np.ndarray, n_views: int = 3, width: int 
 
         vgg = load_vgg()
     ev = Evaluator(vgg, style, width)
-    before = [render_scene_image(scene, c) for c in cams]
+    before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
     after_scene = engine.stylized_scene()
-    after = [render_scene_image(after_scene, c) for c in cams]
-    initial = ev.measure(before, before)
-    final = ev.measure(after, before)
+    after, _ = zip(*(render_scene_image(after_scene, c, with_alpha=True) for c in cams), strict=True)
+    before, after, alpha = list(before), list(after), list(alpha)
+    initial = ev.measure(before, before, alpha)
+    final = ev.measure(after, before, alpha)
     return {"views": len(cams), "width": width, "initial": initial, "final": final,
             "images": (np.concatenate(before, axis=1), np.concatenate(after, axis=1))}
 

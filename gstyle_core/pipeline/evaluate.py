@@ -24,21 +24,38 @@ class Evaluator:
         self.vgg = vgg
         self.width = width
         self.style = np.asarray(style, np.float32)
-        self.target = StyleTarget(vgg, _to_bchw(_resize_to_width(self.style, width)))
+        self.target = StyleTarget.from_image(vgg, _to_bchw(_resize_to_width(self.style, width)))
 
     @torch.no_grad()
-    def measure(self, renders: list[np.ndarray], ground_truth: list[np.ndarray]) -> dict[str, float]:
-        """Mean NNFM distance to the style, content distance (VGG relu3 MSE) to ground truth, colour distance."""
-        from ..style.losses import content_loss, nnfm_loss
+    def measure(self, renders: list[np.ndarray], ground_truth: list[np.ndarray],
+                coverage: list[np.ndarray] | None = None) -> dict[str, float]:
+        """NNFM distance to the style, content distance (VGG relu3 MSE) to ground truth, colour distance.
 
-        nnfm, content = [], []
-        for img, gt in zip(renders, ground_truth, strict=True):
+        ``nnfm_full`` is the mean over the whole frame. ``nnfm`` weights each feature vector by the scene's coverage
+        (rendered alpha, pooled to the feature grid) when ``coverage`` is given: background that no Gaussian covers
+        cannot change, so it is left out. ``colour`` uses covered pixels (alpha > 0.5) the same way.
+        """
+        from ..style.losses import concat_features, content_loss, nnfm_loss
+
+        nnfm, nnfm_full, content, pixels = [], [], [], []
+        for i, (img, gt) in enumerate(zip(renders, ground_truth, strict=True)):
             f = self.vgg(_to_bchw(img))
             g = self.vgg(_to_bchw(gt))
-            nnfm.append(float(nnfm_loss(f, self.target)))
+            d = nnfm_loss(concat_features(f), self.target, reduction="none")[0]
+            nnfm_full.append(float(d.mean()))
+            if coverage is not None:
+                a = torch.as_tensor(np.asarray(coverage[i], np.float32))[None, None]
+                w = torch.nn.functional.adaptive_avg_pool2d(a, d.shape)[0, 0]
+                nnfm.append(float((d * w).sum() / w.sum().clamp_min(1e-6)))
+                pixels.append(img.reshape(-1, 3)[np.asarray(coverage[i]).reshape(-1) > 0.5])
+            else:
+                nnfm.append(float(d.mean()))
+                pixels.append(img.reshape(-1, 3))
             content.append(float(content_loss(f, g)))
-        colour = colour_stats_distance(np.concatenate([r.reshape(-1, 3) for r in renders]), self.style)
-        return {"nnfm": float(np.mean(nnfm)), "content": float(np.mean(content)), "colour": colour}
+        covered = np.concatenate(pixels) if sum(len(p) for p in pixels) > 1 else np.zeros((2, 3))
+        colour = colour_stats_distance(covered, self.style)
+        return {"nnfm": float(np.mean(nnfm)), "nnfm_full": float(np.mean(nnfm_full)),
+                "content": float(np.mean(content)), "colour": colour}
 
 
 def _resize_to_width(img: np.ndarray, width: int) -> np.ndarray:

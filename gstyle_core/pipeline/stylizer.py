@@ -96,6 +96,8 @@ class Stylizer:
         self.params = params_from_scene(scene.with_sh_degree(0))
         self.c_s = torch.zeros((scene.count, 3))
         self.gt_images: list[torch.Tensor] = []
+        self.coverage: list[torch.Tensor] = []  # pixels the scene covers (photos: all); colour statistics use these
+        self._input_params = None
         self.content_images: list[torch.Tensor] = []
         self.phase = "ground_truth"
         self.phase_step = 0
@@ -229,13 +231,19 @@ class Stylizer:
             photo = np.clip(np.asarray(self.photos[i], np.float32), 0, 1)
             img = Image.fromarray((photo * 255 + 0.5).astype(np.uint8)).resize((cam.width, cam.height), Image.LANCZOS)
             gt = torch.as_tensor(np.asarray(img, np.float32) / 255.0)
+            covered = torch.ones(gt.shape[:2], dtype=torch.bool)
         else:
-            full = params_from_scene(self.input_scene, requires_grad=False)
+            if self._input_params is None:
+                self._input_params = params_from_scene(self.input_scene, requires_grad=False)
             with torch.no_grad():
-                gt = render_params(full, cam, sh_degree=self.input_scene.sh_degree).image.clamp(0, 1)
+                out = render_params(self._input_params, cam, sh_degree=self.input_scene.sh_degree)
+            gt = out.image.clamp(0, 1)
+            covered = out.alpha > 0.5
         self.gt_images.append(gt)
+        self.coverage.append(covered)
         msg = f"ground truth {i + 1}/{len(self.cameras)} ({'photo' if self.photos is not None else 'render'})"
         if len(self.gt_images) == len(self.cameras):
+            self._input_params = None
             self._start_preprocess()
         return StepReport("ground_truth", 0, 0, message=msg)
 
@@ -311,7 +319,9 @@ class Stylizer:
     def _step_colour_match(self) -> StepReport:
         from ..style.colour_match import apply_colour_transform, colour_transfer_matrix
 
-        gt_pixels = torch.cat([g.reshape(-1, 3) for g in self.gt_images]).numpy()
+        gt_pixels = torch.cat([g[m] for g, m in zip(self.gt_images, self.coverage, strict=True)]).numpy()
+        if len(gt_pixels) < 2:  # the scene covers no pixel: use whole frames
+            gt_pixels = torch.cat([g.reshape(-1, 3) for g in self.gt_images]).numpy()
         style_pixels = self.style.reshape(-1, 3)
         A, b = colour_transfer_matrix(gt_pixels, style_pixels)
         self.colour_transform = (A, b)
@@ -412,8 +422,15 @@ class Stylizer:
     def _step_finish(self) -> StepReport:
         from ..style.colour_match import apply_colour_transform, colour_transfer_matrix
 
-        renders = [self._render_cs(v).reshape(-1, 3) for v in range(len(self.cameras))]
-        A, b = colour_transfer_matrix(torch.cat(renders).numpy(), self.style.reshape(-1, 3))
+        pixels = []
+        for v in range(len(self.cameras)):
+            image = self._render_cs(v)
+            covered = self._caches.get(v, self.geometry_version).t_final < 0.5
+            pixels.append(image[covered])
+        covered_pixels = torch.cat(pixels).numpy()
+        if len(covered_pixels) < 2:
+            covered_pixels = torch.cat([self._render_cs(v).reshape(-1, 3) for v in range(len(self.cameras))]).numpy()
+        A, b = colour_transfer_matrix(covered_pixels, self.style.reshape(-1, 3))
         self.c_s = torch.as_tensor(apply_colour_transform(self.c_s.numpy(), A, b), dtype=torch.float32)
         self._enter("done")
         return StepReport("finish", 0, 0, colours_changed=True, message="final colour match to the style")
@@ -426,6 +443,7 @@ class Stylizer:
             "c_s": self.c_s.detach().clone(),
             "grad_acc": self._grad_acc.clone(),
             "gt_images": [g.clone() for g in self.gt_images],
+            "coverage": [m.clone() for m in self.coverage],
             "content_images": [g.clone() for g in self.content_images],
             "phase": self.phase,
             "phase_step": self.phase_step,
@@ -452,6 +470,7 @@ class Stylizer:
         self.c_s = state["c_s"].clone()
         self._grad_acc = state["grad_acc"].clone()
         self.gt_images = [g.clone() for g in state["gt_images"]]
+        self.coverage = [m.clone() for m in state["coverage"]]
         self.content_images = [g.clone() for g in state["content_images"]]
         self.phase = state["phase"]
         self.phase_step = state["phase_step"]

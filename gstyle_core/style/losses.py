@@ -106,10 +106,12 @@ def _style_matrix(style: StyleTarget | torch.Tensor) -> torch.Tensor:
     return StyleTarget.from_features(style).matrix
 
 
-def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chunk: int = 4096) -> torch.Tensor:
+def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chunk: int = 4096,
+              reduction: str = "mean") -> torch.Tensor:
     """Mean over render vectors of min over style vectors of (1 − cos). ``render_feats`` [B,C,h,w];
     ``style`` a :class:`StyleTarget`, raw features [C,hs,ws] or a normalised matrix [C,M]. The
-    nearest-neighbour search runs in chunks of ``chunk`` render vectors, without gradients."""
+    nearest-neighbour search runs in chunks of ``chunk`` render vectors, without gradients.
+    ``reduction="none"`` returns the distance of every render vector, [B, h, w]."""
     style_matrix = _style_matrix(style).to(render_feats.device)
     if render_feats.ndim != 4 or render_feats.shape[1] != style_matrix.shape[0]:
         raise ValueError(f"render features {tuple(render_feats.shape)} do not match style channels "
@@ -121,7 +123,11 @@ def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chu
         nearest = torch.cat([(block @ style_matrix).argmax(dim=1)
                              for block in render_vectors.detach().split(max(1, chunk))])
     matched = style_matrix.t()[nearest]  # [N, C], constant
-    return (1.0 - (render_vectors * matched).sum(dim=1)).mean()
+    distances = 1.0 - (render_vectors * matched).sum(dim=1)
+    if reduction == "none":
+        b, _, h, w = render_feats.shape
+        return distances.reshape(b, h, w)
+    return distances.mean()
 
 
 def content_loss(render_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor,
@@ -201,7 +207,8 @@ class StyleLoss(nn.Module):
             raise ValueError("the CLIP weight needs a CLIP term (or its coarse-VGG substitute)")
         self._weights = value
 
-    def forward(self, render: torch.Tensor, gt: torch.Tensor | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+    def forward(self, render: torch.Tensor, gt: torch.Tensor | None = None,
+                gt_feats: Mapping[str, torch.Tensor] | None = None) -> tuple[torch.Tensor, dict[str, float]]:
         w = self._weights
         zero = render.new_zeros(())
         terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero}
@@ -212,13 +219,8 @@ class StyleLoss(nn.Module):
             if w.nnfm > 0:
                 terms["nnfm"] = nnfm_loss(concat_features(feats), self.style_target, self.nnfm_chunk)
             if w.content > 0:
-                if gt is None:
-                    raise ValueError("the content term needs the ground-truth view (gt)")
-                with torch.no_grad():
-                    gt_small = gt if gt.shape[-2:] == small.shape[-2:] else F.interpolate(
-                        gt, size=small.shape[-2:], mode="bilinear", align_corners=False, antialias=True)
-                    gt_feats = self.vgg(gt_small)
-                self.calls["vgg"] += 1
+                if gt_feats is None:
+                    gt_feats = self.content_features(gt, small.shape[-2:])
                 terms["content"] = content_loss(feats, gt_feats)
         if w.clip > 0:
             terms["clip"] = self.clip_term(small)
@@ -228,3 +230,13 @@ class StyleLoss(nn.Module):
         total = (w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"]
                  + w.tv * terms["tv"])
         return total, {name: float(value.detach()) for name, value in terms.items()}
+
+    @torch.no_grad()
+    def content_features(self, gt: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> dict[str, torch.Tensor]:
+        """VGG features of the ground-truth view [1,3,H,W] at ``size`` (cache them per view: they never change)."""
+        if gt is None:
+            raise ValueError("the content term needs the ground-truth view (gt)")
+        gt_small = gt if gt.shape[-2:] == tuple(size) else F.interpolate(
+            gt, size=tuple(size), mode="bilinear", align_corners=False, antialias=True)
+        self.calls["vgg"] += 1
+        return self.vgg(gt_small)
