@@ -9,15 +9,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
-
-@dataclass
-class StyleWeights:
-    """λ weights of L = λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV."""
-
-    clip: float = 10.0
-    nnfm: float = 100.0
-    content: float = 0.05
-    tv: float = 1e-4
+from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
 
 
 @dataclass
