@@ -111,10 +111,15 @@ class _EngineHost:
             _single_torch_thread()
             if self.params:
                 self.engine.set_params(**self.params)
+            current = getattr(self.engine, "current_params", None)
+            if current is not None:  # the resolved settings (e.g. λ_NNFM 10 for a 360° scene) reach the sliders
+                self.params.update(current())
         except Exception as exc:  # noqa: BLE001 - any engine error is reported, never fatal
             self.fail(exc, "building the engine")
             return
         self.send("ready", {"paused": self.paused})
+        if self.params:
+            self.send("params", dict(self.params))
         self.snapshot_pending = True
         self.flush_snapshot()
 

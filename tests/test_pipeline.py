@@ -102,6 +102,7 @@ def test_set_params_takes_effect_on_next_step():
     assert eng._opt.param_groups[0]["lr"] <= 0.5
     with pytest.raises(ValueError):
         eng.set_params(lambda_bogus=1.0)
+    assert eng.current_params()["lambda_nnfm"] == 0.0 and eng.current_params()["lr"] == 0.5
 
 
 def test_zero_split_rate_never_splits():

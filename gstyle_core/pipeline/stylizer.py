@@ -161,6 +161,12 @@ class Stylizer:
             self.settings.lr_start = float(kw["lr"])
             self.settings.lr_end = float(kw["lr"]) * ratio
 
+    def current_params(self) -> dict[str, float]:
+        """The values ``set_params`` accepts, as they are now (for UIs to show)."""
+        w = self.settings.weights
+        return {"lambda_clip": w.clip, "lambda_nnfm": w.nnfm, "lambda_content": w.content, "lambda_tv": w.tv,
+                "split_rate": self.settings.split_rate, "lr": self.settings.lr_start}
+
     def snapshot(self) -> dict[str, Any]:
         """Arrays a viewer needs (numpy copies): geometry, stylized and ground-truth colours, versions."""
         p = self.params
