@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 import torch
 
-from .geometry import quat_to_rotmat
+from ..raster.projection import quat_to_rotmat
 
 Optimizers = dict[str, torch.optim.Optimizer]
 

@@ -5,6 +5,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from ..cameras.images import resize_image
+from .objective import to_bchw
+
 
 def colour_stats_distance(pixels: np.ndarray, style_pixels: np.ndarray) -> float:
     """‖μ_a − μ_b‖ + ‖Σ_a − Σ_b‖_F of two RGB pixel sets ([M, 3] in [0, 1])."""
@@ -24,7 +27,8 @@ class Evaluator:
         self.vgg = vgg
         self.width = width
         self.style = np.asarray(style, np.float32)
-        self.target = StyleTarget.from_image(vgg, _to_bchw(_resize_to_width(self.style, width)))
+        height = max(1, round(self.style.shape[0] * width / self.style.shape[1]))
+        self.target = StyleTarget.from_image(vgg, to_bchw(resize_image(self.style, (width, height))))
 
     @torch.no_grad()
     def measure(self, renders: list[np.ndarray], ground_truth: list[np.ndarray],
@@ -39,8 +43,8 @@ class Evaluator:
 
         nnfm, nnfm_full, content, pixels = [], [], [], []
         for i, (img, gt) in enumerate(zip(renders, ground_truth, strict=True)):
-            f = self.vgg(_to_bchw(img))
-            g = self.vgg(_to_bchw(gt))
+            f = self.vgg(to_bchw(img))
+            g = self.vgg(to_bchw(gt))
             d = nnfm_loss(concat_features(f), self.target, reduction="none")[0]
             nnfm_full.append(float(d.mean()))
             if coverage is not None:
@@ -56,17 +60,3 @@ class Evaluator:
         colour = colour_stats_distance(covered, self.style)
         return {"nnfm": float(np.mean(nnfm)), "nnfm_full": float(np.mean(nnfm_full)),
                 "content": float(np.mean(content)), "colour": colour}
-
-
-def _resize_to_width(img: np.ndarray, width: int) -> np.ndarray:
-    from PIL import Image
-
-    h, w = img.shape[:2]
-    height = max(1, int(round(h * width / w)))
-    pil = Image.fromarray((np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8))
-    return np.asarray(pil.resize((width, height), Image.LANCZOS), np.float32) / 255.0
-
-
-def _to_bchw(img: np.ndarray | torch.Tensor) -> torch.Tensor:
-    t = torch.as_tensor(np.asarray(img, np.float32))
-    return t.permute(2, 0, 1)[None].contiguous()

@@ -7,22 +7,20 @@ from dataclasses import asdict
 import numpy as np
 import torch
 
+from ..cameras.images import resize_image
 from .settings import StylizeSettings
 
 
-def _bchw(img: np.ndarray | torch.Tensor) -> torch.Tensor:
+def to_bchw(img: np.ndarray | torch.Tensor) -> torch.Tensor:
+    """[H, W, 3] image -> float32 [1, 3, H, W] tensor."""
     return torch.as_tensor(img, dtype=torch.float32).permute(2, 0, 1)[None].contiguous()
 
 
-def resize_image(img: np.ndarray, long_side: int) -> np.ndarray:
+def resize_long_side(img: np.ndarray, long_side: int) -> np.ndarray:
     """Resize an [H, W, 3] float image so its longer side is ``long_side`` pixels (aspect kept)."""
-    from PIL import Image
-
     h, w = img.shape[:2]
     s = long_side / max(h, w)
-    size = (max(1, int(round(w * s))), max(1, int(round(h * s))))
-    pil = Image.fromarray((np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8))
-    return np.asarray(pil.resize(size, Image.LANCZOS), np.float32) / 255.0
+    return resize_image(img, (max(1, int(round(w * s))), max(1, int(round(h * s)))))
 
 
 class StyleObjective:
@@ -41,13 +39,13 @@ class StyleObjective:
         dtype = torch.bfloat16 if settings.vgg_dtype == "bfloat16" else torch.float32
         self.vgg = vgg if vgg is not None else load_vgg(dtype=dtype, channels_last=dtype == torch.bfloat16)
         long_side = settings.working_width
-        style_small = _bchw(resize_image(style, max(64, int(long_side * settings.style_scale))))
+        style_small = to_bchw(resize_long_side(style, max(64, int(long_side * settings.style_scale))))
         self.target = StyleTarget.from_image(self.vgg, style_small)
         clip_term = None
         if settings.weights.clip > 0:
             encoder, self.clip_status = load_clip(settings.clip_weights)
             if encoder is not None:
-                clip_term = ClipStyleLoss(encoder, _bchw(resize_image(style, 448)),
+                clip_term = ClipStyleLoss(encoder, to_bchw(resize_long_side(style, 448)),
                                           generator=torch.Generator().manual_seed(settings.seed))
             else:
                 clip_term = CoarseStyleLoss(self.vgg, style_small)
@@ -79,6 +77,3 @@ class StyleObjective:
                 self._content_cache[view] = gt_feats
         return self.loss(render, gt_feats=gt_feats)
 
-    def forget_content(self) -> None:
-        """Drop cached content features (call when the content images change)."""
-        self._content_cache.clear()

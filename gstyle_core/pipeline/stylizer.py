@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from ..cameras.camera import Camera
+from ..cameras.images import resize_image
 from ..fit import ops
 from ..fit.model import camera_tensors, params_from_scene, render_params, scene_from_params
 from ..fit.strategy import Strategy
@@ -232,11 +233,8 @@ class Stylizer:
         i = len(self.gt_images)
         cam = self.cameras[i]
         if self.photos is not None:
-            from PIL import Image
-
             photo = np.clip(np.asarray(self.photos[i], np.float32), 0, 1)
-            img = Image.fromarray((photo * 255 + 0.5).astype(np.uint8)).resize((cam.width, cam.height), Image.LANCZOS)
-            gt = torch.as_tensor(np.asarray(img, np.float32) / 255.0)
+            gt = torch.as_tensor(resize_image(photo, (cam.width, cam.height)))
             covered = torch.ones(gt.shape[:2], dtype=torch.bool)
         else:
             if self._input_params is None:
