@@ -43,6 +43,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the stylization engine (default: on in a window, off headless)")
     p.add_argument("--no-engine", dest="engine", action="store_false")
     p.add_argument("--hide-ui", action="store_true", help="draw the scene only (no panel)")
+    p.add_argument("--no-pacing", dest="pacing", action="store_false",
+                   help="draw every changed frame at full resolution at once (default: reduced resolution while the "
+                        "camera moves, full resolution built progressively when it stops; see app/scene_view.py)")
     p.add_argument("--output-dir", default="out", help="where exports, screenshots and the checkpoint go")
     return p
 
@@ -115,9 +118,10 @@ def loop(window, args: argparse.Namespace) -> int:
             screen = window.ctx.screen
             screen.viewport = (0, 0, *window.framebuffer_size)  # follows window resizes
             screen.use()
+            last = frames is not None and count + 1 >= frames
+            app.progressive = args.pacing and not last  # the last frame of a --frames run: exact, full resolution
             app.frame(screen)
             count += 1
-            last = frames is not None and count >= frames
             window.end_frame(swap=False)
             for path in app.screenshot_requests:
                 app.panel.status = f"screenshot {app.save_png(path, app.capture(screen))}"

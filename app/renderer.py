@@ -7,8 +7,9 @@ camera costs no CPU work per frame. Uploads are split: ``update_colors`` rewrite
 ``update_geometry`` the four geometry textures.
 
 Colour layers: any name -> [N, 3] RGB. The special layer ``"sh"`` (present when the scene was given SH
-coefficients) is view dependent: evaluated on the CPU with the rasterizer's own SH code when the camera
-position changed (the original scene in the viewer); the stylized scene uses plain diffuse layers.
+coefficients that are not all zero; all-zero bands are dropped) is view dependent: evaluated on the CPU with the
+rasterizer's own SH code when the camera position changed (the original scene in the viewer); the stylized scene
+uses plain diffuse layers.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import moderngl
 import numpy as np
 
 from gstyle_core.cameras.camera import Camera
+from gstyle_core.raster.sh import used_sh_degree
 
 from .shader_loader import program_sources
 from .splat_data import (
@@ -54,7 +56,10 @@ class SplatRenderer:
         self._sorted_for: np.ndarray | None = None
         self._instances = 0
         self.geometry_version = 0
+        self.content_version = 0  # bumped by every geometry or colour upload (the view cache's key)
         self.sort_count = 0  # how many times the depth order was recomputed (for tests and stats)
+        self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
+        self.sh_evaluations = 0  # view-dependent SH evaluations (one per camera position, original scene only)
 
     # ----------------------------------------------------------------- data
     @property
@@ -81,7 +86,9 @@ class SplatRenderer:
         self._sh = None
         if "sh_dc" in arrays:
             rest = np.asarray(arrays.get("sh_rest", np.zeros((n, 0, 3))), np.float32).reshape(n, -1, 3)
-            if rest.shape[1] > 0:
+            degree = used_sh_degree(rest)  # all-zero bands add nothing: no SH layer for a scene without real SH
+            if degree > 0:
+                rest = rest[:, : (degree + 1) ** 2 - 1]
                 self._sh = np.concatenate([np.asarray(arrays["sh_dc"], np.float32)[:, None], rest], axis=1)
         self.update_geometry(arrays)
         self.update_colors(colors, DIFFUSE_LAYER)
@@ -105,6 +112,8 @@ class SplatRenderer:
         self._sorted_for = None
         self._sh_camera = None
         self.geometry_version += 1
+        self.uploads["geometry"] += 1
+        self.content_version += 1
 
     def update_colors(self, colors: np.ndarray, layer: str = DIFFUSE_LAYER) -> None:
         """Upload RGB [N, 3] colours into a named layer (N must match the geometry)."""
@@ -123,14 +132,20 @@ class SplatRenderer:
             tex = self._texture(content)
             self._layers[layer] = tex
         tex.extra = self.count
+        self.uploads["colors"] += 1
+        if not layer.startswith("__"):  # internal layers (view-dependent SH) follow the camera, already in any key
+            self.content_version += 1
 
     # ----------------------------------------------------------------- drawing
     def render(self, camera: Camera, fbo: moderngl.Framebuffer, background: Sequence[float] = (0.0, 0.0, 0.0),
                layer: str = DIFFUSE_LAYER, scissor: tuple[int, int, int, int] | None = None,
-               clear: bool = True) -> None:
+               clear: bool = True, instances: tuple[int, int] | None = None) -> int:
         """Draw with ``camera`` into ``fbo``'s viewport (whose size should be camera.width x camera.height).
 
         ``scissor`` = (x, y, width, height) in GL framebuffer pixels (y up) limits drawing (and clearing).
+        ``instances`` = (first, count) draws only that slice of the back-to-front order (progressive rendering:
+        slices drawn in order, without clearing in between, add up to the whole image). Returns the number of
+        Gaussians in the whole order (those in front of the camera).
         """
         fbo.use()
         width, height = target_size(fbo)
@@ -144,10 +159,16 @@ class SplatRenderer:
             self.ctx.enable(moderngl.BLEND)
             self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
             self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
-            if self._instances:
-                self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=self._instances)
+            first, count = (0, self._instances) if instances is None else instances
+            first = min(max(int(first), 0), self._instances)
+            count = min(max(int(count), 0), self._instances - first)
+            if count:
+                self._vao.bind(self.program["in_index"].location, "i", self._index_buffer, "1i", offset=4 * first,
+                               divisor=1)
+                self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=count)
             self.ctx.disable(moderngl.BLEND)
         self.ctx.scissor = None
+        return self._instances if self.count else 0
 
     def release(self) -> None:
         """Free all GL objects."""
@@ -189,8 +210,11 @@ class SplatRenderer:
             self.sort_count += 1
         if layer == SH_LAYER and self._sh is not None:
             position = camera.position
-            if self._sh_camera is None or not np.array_equal(position, self._sh_camera):
+            moved = self._sh_camera is None or np.abs(position - self._sh_camera).max() > 1e-7 * max(
+                1.0, float(np.abs(position).max()))  # a turn in place (position equal up to rounding) keeps SH
+            if moved:
                 rgb = sh_colors(self._sh, self._means, position)
+                self.sh_evaluations += 1
                 self.update_colors(rgb, "__sh__")
                 self._sh_camera = position
 

@@ -21,6 +21,7 @@ from gstyle_core.scene import GaussianScene
 from .camera_control import CameraControl
 from .panels import Command, PanelState, draw_panel
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
+from .scene_view import SceneView, ViewPass
 from .worker import WorkerBridge
 
 SCENE_SUFFIXES = (".ply", ".splat", ".spz")
@@ -75,6 +76,8 @@ class StudioApp:
         self.ctx = ctx
         self.original = SplatRenderer(ctx)
         self.stylized = SplatRenderer(ctx)
+        self.view = SceneView(ctx)
+        self.progressive = True  # pace the scene render (see app/scene_view.py); False: full frames always
         self.control = CameraControl()
         self.panel = PanelState()
         self.output_dir = Path(output_dir)
@@ -90,6 +93,7 @@ class StudioApp:
         self._last_frame = time.perf_counter()
         self._snapshots_seen = 0
         self._geometry_version: Any = None
+        self._colour_key: Any = None  # (colour_version, geometry_version) of the colours last uploaded
         self.engine_factory = engine_factory
         self.engine_config = dict(engine_config or {})
         self.bridge: WorkerBridge | None = None
@@ -109,7 +113,7 @@ class StudioApp:
         self.original.set_scene(arrays)
         self.stylized.set_scene({k: v for k, v in arrays.items() if k != "sh_rest"})
         self.loaded, self.cameras = loaded, list(loaded.cameras)
-        self._geometry_version = None
+        self._geometry_version = self._colour_key = None
         self.panel.scene_path = loaded.path
         self.panel.gaussians = loaded.scene.count
         self.panel.camera_count = len(self.cameras)
@@ -154,11 +158,13 @@ class StudioApp:
         else:
             self.bridge.restart(self.engine_config)
         self._snapshots_seen = 0
+        self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
 
     def close(self) -> None:
         """Stop the engine (it checkpoints) and free GL objects."""
         if self.bridge is not None:
             self.bridge.quit()
+        self.view.release()
         self.original.release()
         self.stylized.release()
 
@@ -185,7 +191,7 @@ class StudioApp:
         return commands
 
     def render_view(self, target: moderngl.Framebuffer) -> None:
-        """Render the current view mode into ``target`` (its viewport)."""
+        """Show the current view mode in ``target`` (its viewport), paced by ``SceneView`` (app/scene_view.py)."""
         width, height = target_size(target)
         camera = self.control.camera(width, height)
         if self.original.count == 0:
@@ -193,20 +199,24 @@ class StudioApp:
             target.clear(*BACKGROUND, 1.0)
             return
         mode = self.view_mode
+        divider = float(np.clip(self.divider, 0.0, 1.0))
         if mode == "original":
-            self.original.render(camera, target, BACKGROUND, self._original_layer())
+            passes = [ViewPass(self.original, self._original_layer())]
         elif mode == "ground truth" and "gt" in self.stylized.layers:
-            self.stylized.render(camera, target, BACKGROUND, "gt")
+            passes = [ViewPass(self.stylized, "gt")]
         elif mode == "compare":
-            split = int(round(np.clip(self.divider, 0.0, 1.0) * width))
-            self.stylized.render(camera, target, BACKGROUND, DIFFUSE_LAYER, scissor=(0, 0, split, height))
-            self.original.render(camera, target, BACKGROUND, self._original_layer(),
-                                 scissor=(split, 0, width - split, height))
+            passes = [ViewPass(self.stylized, DIFFUSE_LAYER, 0.0, divider),
+                      ViewPass(self.original, self._original_layer(), divider, 1.0)]
+        else:
+            passes = [ViewPass(self.stylized, DIFFUSE_LAYER)]
+        # Screenshots and the last frame of a --frames run show the exact current state at full resolution.
+        self.view.progressive = self.progressive and not self.screenshot_requests
+        self.view.draw(target, camera, passes, (mode, divider, tuple(p.layer for p in passes)), BACKGROUND)
+        if mode == "compare":
+            split = int(round(divider * width))
             self.ctx.scissor = (max(split - 1, 0), 0, 2, height)
             target.clear(*DIVIDER_COLOUR, 1.0)
             self.ctx.scissor = None
-        else:
-            self.stylized.render(camera, target, BACKGROUND, DIFFUSE_LAYER)
 
     def _original_layer(self) -> str:
         return SH_LAYER if SH_LAYER in self.original.layers else DIFFUSE_LAYER
@@ -220,13 +230,18 @@ class StudioApp:
             return
         self._snapshots_seen = st.snapshots_received
         snap = st.snapshot
-        try:
-            if snap.get("geometry_version") != self._geometry_version and "means" in snap:
+        try:  # upload only what changed: geometry by its version, colours by theirs (c_gt changes with geometry)
+            new_geometry = snap.get("geometry_version") != self._geometry_version and "means" in snap
+            if new_geometry:
                 self.stylized.update_geometry(snap)
                 self._geometry_version = snap.get("geometry_version")
-            if "colors" in snap and len(snap["colors"]) == self.stylized.count:
+            colour_key = (snap.get("colour_version"), self._geometry_version)
+            new_colours = colour_key != self._colour_key or colour_key[0] is None
+            if new_colours and "colors" in snap and len(snap["colors"]) == self.stylized.count:
                 self.stylized.update_colors(snap["colors"], DIFFUSE_LAYER)
-            if "colors_gt" in snap and len(snap["colors_gt"]) == self.stylized.count:
+                self._colour_key = colour_key
+            gt_stale = new_geometry or "gt" not in self.stylized.layers or self._geometry_version is None
+            if gt_stale and "colors_gt" in snap and len(snap["colors_gt"]) == self.stylized.count:
                 self.stylized.update_colors(snap["colors_gt"], "gt")
         except ValueError as exc:
             self.panel.status = f"snapshot ignored: {exc}"
@@ -238,11 +253,13 @@ class StudioApp:
         p.fov_deg = self.control.pose.fov_y_deg
         p.has_ground_truth = "gt" in self.stylized.layers
         p.gaussians = self.stylized.count
+        p.viewer_notes = self.viewer_notes()
         if self.bridge is None:
             p.running, p.paused = False, False
             return
         st = self.bridge.state
         p.running, p.paused, p.error = st.alive, st.paused, st.error
+        p.decisions = st.decisions
         p.loss_history = st.loss_history[-500:]
         if st.params:
             p.params.update(st.params)
@@ -254,6 +271,20 @@ class StudioApp:
                              if st.reports_received and not st.done else None)
         if st.exported:
             p.status = f"exported {st.exported[-1]}"
+
+    def viewer_notes(self) -> list[str]:
+        """What the viewer evaluates and skips (panel "Decisions"): view-dependent SH, sorts, uploads."""
+        renderers = (self.original, self.stylized)
+        if SH_LAYER in self.original.layers:
+            sh = (f"viewer SH: evaluated for the original scene only, when the camera position changes "
+                  f"({self.original.sh_evaluations} evaluations so far); the stylized scene is diffuse")
+        else:
+            sh = "viewer SH: none evaluated (the scene has no view-dependent SH)"
+        sorts = sum(r.sort_count for r in renderers)
+        colours = sum(r.uploads["colors"] for r in renderers)
+        geometry = sum(r.uploads["geometry"] for r in renderers)
+        return [sh, f"viewer work: {sorts} depth sorts (view changes only), {colours} colour and {geometry} "
+                    "geometry uploads (changes only)"]
 
     # ----------------------------------------------------------------- input
     def _handle_input(self, size: tuple[int, int], dt: float) -> None:

@@ -90,6 +90,7 @@ def test_space_pauses_the_engine_through_the_panel(window, tmp_path):
 def test_compare_divider_shows_both_sources_and_can_be_dragged(window, tmp_path):
     cam = look_at_camera((0, 0, 0), (0, 0, 3), W, H, fov_deg=60)
     app = StudioApp(window.ctx, loaded=LoadedScene("wall", wall_scene([0.0, 0.0, 1.0]), [cam]), output_dir=tmp_path)
+    app.progressive = False  # each render_view shows the exact current state (pacing: tests/test_scene_view.py)
     app.stylized.update_colors(np.tile([1.0, 0.0, 0.0], (app.stylized.count, 1)).astype(np.float32))
     app.view_mode = "compare"
     fbo = window.ctx.framebuffer([window.ctx.texture((W, H), 4)])

@@ -1,0 +1,155 @@
+"""UI frame rate of the studio while its worker stylizes, and what the UI costs the worker.
+
+Runs the real app headless (glfw NULL platform + EGL, llvmpipe) at 800×600 with the panel, the real engine in its
+spawned worker process, the app's frame cap, and a scripted session: the camera orbits for 3 s, then stays still
+for 3 s, repeated (the worker streams colours all the time). Measured only once the engine is in its stylize
+phase. Then the same worker runs alone (no UI, the bridge polled every 30 ms) from the start of stylize for the
+same time: ``worker_share`` = steps/s with the UI ÷ steps/s alone.
+
+    .venv/bin/python bench/ui.py [--scene PATH] [--seconds 24] [--size 800x600] [--fps 60] [--no-pacing]
+
+Frame time = interval between consecutive frame starts (what the user sees), each frame ending with
+``ctx.finish()`` (a real window's swap waits for the rasteriser the same way). Prints a table, then
+``RESULT ui_fps=… ui_p95_ms=… worker_steps_per_s=… worker_share=…``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from app.engine_factory import make_stylizer  # noqa: E402
+from app.main import parse_size  # noqa: E402
+from app.studio import StudioApp, load_scene_with_cameras  # noqa: E402
+from app.window import open_window  # noqa: E402
+from app.worker import WorkerBridge  # noqa: E402
+
+SEGMENT_S = 3.0
+
+
+def stylize_started(bridge: WorkerBridge) -> bool:
+    rep = bridge.state.last_report or {}
+    return rep.get("phase") in ("stylize", "refit", "finish", "done")
+
+
+def worker_alone(config: dict, seconds: float, warmup_timeout: float) -> float:
+    """Worker steps per second from the start of its stylize phase, with nobody drawing."""
+    bridge = WorkerBridge(make_stylizer, config)
+    bridge.start()
+    try:
+        deadline = time.perf_counter() + warmup_timeout
+        while not stylize_started(bridge):
+            bridge.poll()
+            if bridge.state.error or time.perf_counter() > deadline:
+                raise SystemExit(f"worker did not reach stylize: {bridge.state.error or 'timeout'}")
+            time.sleep(0.03)
+        start_steps, t0 = bridge.state.reports_received, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            bridge.poll()
+            time.sleep(0.03)
+        return (bridge.state.reports_received - start_steps) / (time.perf_counter() - t0)
+    finally:
+        bridge.quit()
+
+
+def ui_session(args, config: dict) -> dict:
+    """Frame intervals (ms) while moving and while still, and the worker's steps/s, with the UI running."""
+    import glfw
+
+    window = open_window(*args.size, headless=True)
+    loaded = load_scene_with_cameras(args.scene, None)
+    app = StudioApp(window.ctx, loaded=loaded, style_path=config["style"], engine_factory=make_stylizer,
+                    engine_config=dict(config), output_dir=str(ROOT / "out" / "bench_ui"))
+    app.progressive = args.pacing
+    period = 1.0 / args.fps if args.fps > 0 else 0.0
+    frames = {"moving": [], "still": []}
+    scales: list[float] = []
+    try:
+        app.start_engine()
+        t_measure = None
+        start_steps = 0
+        deadline = time.perf_counter()
+        last_start = None
+        warmup_end = time.perf_counter() + args.warmup_timeout
+        while True:
+            start = time.perf_counter()
+            if t_measure is None and app.bridge is not None and stylize_started(app.bridge):
+                t_measure, start_steps, last_start = start, app.bridge.state.reports_received, None
+            elapsed = start - (t_measure if t_measure is not None else start)
+            if t_measure is not None and elapsed >= args.seconds:
+                break
+            if t_measure is None and start > warmup_end:
+                raise SystemExit(f"worker did not reach stylize: {app.bridge.state.error or 'timeout'}")
+            moving = int(elapsed // SEGMENT_S) % 2 == 0
+            if last_start is not None and t_measure is not None:
+                frames["moving" if moving else "still"].append((start - last_start) * 1e3)
+            last_start = start
+            window.begin_frame()
+            screen = window.ctx.screen
+            screen.viewport = (0, 0, *window.framebuffer_size)
+            screen.use()
+            if moving:
+                app.control.orbit(4.0, 0.0)
+            app.frame(screen)
+            window.end_frame(swap=False)
+            glfw.swap_buffers(window.handle)
+            window.ctx.finish()
+            if t_measure is not None:
+                scales.append(app.view.stats.last_scale)
+            if period:
+                deadline = max(deadline + period, time.perf_counter() - period)
+                time.sleep(max(0.0, deadline - time.perf_counter()))
+        steps = (app.bridge.state.reports_received - start_steps) / (time.perf_counter() - t_measure)
+        stats = app.view.stats
+        return {"frames": frames, "steps_per_s": steps, "median_scale": float(np.median(scales)),
+                "builds": stats.builds_completed, "gaussians": app.stylized.count}
+    finally:
+        app.close()
+        window.close()
+
+
+def summary(ms: list[float]) -> tuple[float, float, float]:
+    a = np.asarray(ms)
+    return float(1e3 / np.median(a)), float(np.percentile(a, 95)), float(a.max())
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--scene", default=None, help="scene (default: the bundled demo, 40k Gaussians)")
+    p.add_argument("--style", default=str(ROOT / "assets" / "styles" / "starry_night.jpg"))
+    p.add_argument("--seconds", type=float, default=24.0)
+    p.add_argument("--size", type=parse_size, default=(800, 600))
+    p.add_argument("--fps", type=float, default=60.0, help="the app's frame cap (the studio's default is 60)")
+    p.add_argument("--no-pacing", dest="pacing", action="store_false")
+    p.add_argument("--warmup-timeout", type=float, default=600.0)
+    args = p.parse_args()
+    config = {"scene": args.scene, "style": args.style, "cameras": None, "preset": "preview"}
+    ui = ui_session(args, config)
+    alone = worker_alone(config, args.seconds, args.warmup_timeout)
+    print(f"scene {args.scene or 'bundled demo'}: {ui['gaussians']} Gaussians, {args.size[0]}x{args.size[1]}, "
+          f"cap {args.fps:g} fps, pacing {'on' if args.pacing else 'off'}; {args.seconds:g} s measured")
+    print(f"{'segment':<8} {'frames':>6} {'fps (median)':>12} {'p95 ms':>8} {'max ms':>8}")
+    for name, ms in ui["frames"].items():
+        if ms:
+            fps, p95, worst = summary(ms)
+            print(f"{name:<8} {len(ms):>6} {fps:>12.1f} {p95:>8.1f} {worst:>8.1f}")
+    every = ui["frames"]["moving"] + ui["frames"]["still"]
+    fps, p95, worst = summary(every)
+    print(f"{'all':<8} {len(every):>6} {fps:>12.1f} {p95:>8.1f} {worst:>8.1f}")
+    print(f"median render scale while measured: {ui['median_scale']:.2f}; full-resolution builds completed: "
+          f"{ui['builds']}")
+    share = ui["steps_per_s"] / max(alone, 1e-9)
+    print(f"worker steps/s: {ui['steps_per_s']:.2f} with the UI, {alone:.2f} alone ({100 * share:.0f} %)")
+    print(f"RESULT ui_fps={fps:.1f} ui_p95_ms={p95:.1f} worker_steps_per_s={ui['steps_per_s']:.2f} "
+          f"worker_share={share:.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,159 @@
+"""Frame pacing of the studio's scene view: reuse, reduced-resolution renders while moving, progressive builds."""
+
+import numpy as np
+import pytest
+
+moderngl = pytest.importorskip("moderngl")
+
+from synthetic import blob_scene, look_at_camera  # noqa: E402
+
+from app.renderer import SplatRenderer, read_rgb  # noqa: E402
+from app.scene_view import ResolutionGovernor, SceneView, ViewPass  # noqa: E402
+from app.studio import scene_arrays  # noqa: E402
+
+W, H = 96, 72
+BG = (0.0, 0.0, 0.0)
+
+
+class FakeClock:
+    """Advances 1 ms per reading (so a slice 'takes' 1 ms); tests add frame intervals to ``t``."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        self.t += 1e-3
+        return self.t
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    try:
+        context = moderngl.create_standalone_context(backend="egl", require=330)
+    except Exception as exc:  # noqa: BLE001
+        pytest.skip(f"no EGL OpenGL 3.3 context: {exc}")
+    yield context
+    context.release()
+
+
+@pytest.fixture()
+def scene(ctx):
+    r = SplatRenderer(ctx)
+    r.set_scene(scene_arrays(blob_scene(3000, seed=1)))
+    yield r
+    r.release()
+
+
+def camera(angle: float = 0.0):
+    return look_at_camera((3 * np.sin(angle), -0.4, -3 * np.cos(angle)), (0, 0, 0), W, H)
+
+
+def one_pass(ctx, renderer, cam, layer="diffuse"):
+    fbo = ctx.framebuffer([ctx.texture((W, H), 4)])
+    renderer.render(cam, fbo, BG, layer)
+    return read_rgb(fbo)
+
+
+def shown(ctx, view, cam, passes, key=("stylized",)):
+    fbo = ctx.framebuffer([ctx.texture((W, H), 4)])
+    view.draw(fbo, cam, passes, key, BG)
+    return read_rgb(fbo)
+
+
+def test_governor_lowers_scale_for_slow_frames_and_recovers():
+    g = ResolutionGovernor(budget_ms=20.0, min_scale=0.25)
+    for _ in range(10):
+        g.observe(100.0 * g.scale ** 2, g.scale)  # fill-bound: 100 ms at full resolution
+    assert 0.35 <= g.scale <= 0.5  # sqrt(20/100) = 0.45, quantised down to 1/16 steps
+    g.observe(1e4, g.scale)
+    assert g.scale >= 0.25  # never below the floor
+    for _ in range(20):
+        g.observe(1.0, g.scale)
+    assert g.scale == 1.0
+
+
+def test_progressive_slices_compose_to_the_one_pass_image(ctx, scene):
+    clock = FakeClock()
+    view = SceneView(ctx, budget_ms=1e-6, clock=clock)  # budget below any slice: one slice per frame
+    view.first_slice = 700
+    view.governor.scale = 0.5
+    cam = camera(0.3)
+    img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+    assert view.stats.immediate == 1 and view.stats.last_scale == 0.5 and not view.stats.shown_full
+    for _ in range(200):
+        clock.t += 0.05
+        img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+        if view.stats.shown_full:
+            break
+    assert view.stats.shown_full and view.stats.builds_completed == 1
+    assert view.stats.slices >= 2  # really built in pieces
+    assert np.array_equal(img, one_pass(ctx, scene, cam))
+
+
+def test_unchanged_view_draws_no_splat(ctx, scene):
+    clock = FakeClock()
+    view = SceneView(ctx, clock=clock)
+    view.progressive = False
+    cam = camera(0.1)
+    first = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+    sorts, slices, immediate = scene.sort_count, view.stats.slices, view.stats.immediate
+    for _ in range(5):
+        clock.t += 0.1
+        again = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+    assert np.array_equal(first, again)
+    assert (scene.sort_count, view.stats.slices, view.stats.immediate) == (sorts, slices, immediate)
+    assert view.stats.reused == 5
+
+
+def test_moving_camera_renders_at_once_and_refines_when_still(ctx, scene):
+    clock = FakeClock()
+    view = SceneView(ctx, budget_ms=1e-6, still_delay=0.15, clock=clock)
+    view.governor.scale = 0.5
+    for i in range(4):  # moving: a reduced-resolution render every frame, no progressive slice
+        clock.t += 0.02
+        shown(ctx, view, camera(0.1 * i), [ViewPass(scene, "diffuse")])
+    assert view.stats.immediate == 4 and view.stats.slices == 0
+    cam = camera(0.3)
+    for _ in range(300):
+        clock.t += 0.05
+        img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+        if view.stats.shown_full:
+            break
+    assert view.stats.slices > 0 and np.array_equal(img, one_pass(ctx, scene, cam))
+
+
+def test_streamed_colours_do_not_starve_the_build(ctx, scene):
+    clock = FakeClock()
+    view = SceneView(ctx, budget_ms=1e-6, clock=clock)
+    view.progressive = False
+    cam = camera(0.2)
+    shown(ctx, view, cam, [ViewPass(scene, "diffuse")])  # full-resolution start
+    view.progressive = True
+    rng = np.random.default_rng(0)
+    colors = None
+    for _ in range(60):  # the worker sends new colours every frame
+        clock.t += 0.05
+        colors = rng.uniform(0, 1, (scene.count, 3)).astype(np.float32)
+        scene.update_colors(colors)
+        shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+    assert view.stats.builds_completed >= 1  # a newer change waits for the running build
+    for _ in range(200):  # the stream stops: the last colours are shown exactly, at full resolution
+        clock.t += 0.05
+        img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+    assert np.array_equal(img, one_pass(ctx, scene, cam))
+
+
+def test_compare_passes_split_the_view(ctx, scene):
+    other = SplatRenderer(ctx)
+    arrays = scene_arrays(blob_scene(3000, seed=1))
+    arrays["sh_dc"] = np.zeros_like(arrays["sh_dc"]) + 2.0  # bright original
+    other.set_scene(arrays)
+    view = SceneView(ctx)
+    view.progressive = False
+    cam = camera(0.0)
+    img = shown(ctx, view, cam, [ViewPass(scene, "diffuse", 0.0, 0.5), ViewPass(other, "diffuse", 0.5, 1.0)],
+                key=("compare", 0.5))
+    left, right = one_pass(ctx, scene, cam), one_pass(ctx, other, cam)
+    assert np.array_equal(img[:, : W // 2], left[:, : W // 2])
+    assert np.array_equal(img[:, W // 2:], right[:, W // 2:])
+    other.release()
