@@ -1,4 +1,7 @@
-"""``gstyle-studio [SCENE] [--style IMAGE] [--cameras PATH] [--headless] [--frames N] [--screenshot OUT.png]``."""
+"""``gstyle-studio [SCENE] [--style IMAGE] [--cameras PATH] [--resume] [--headless] [--frames N] [--screenshot PNG]``.
+
+Closing the window saves the running stylization in the cache folder (keyed by scene and style); ``--resume`` or
+the panel's "Resume last session" continues it."""
 
 from __future__ import annotations
 
@@ -46,7 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-pacing", dest="pacing", action="store_false",
                    help="draw every changed frame at full resolution at once (default: reduced resolution while the "
                         "camera moves, full resolution built progressively when it stops; see app/scene_view.py)")
-    p.add_argument("--output-dir", default="out", help="where exports, screenshots and the checkpoint go")
+    p.add_argument("--output-dir", default="out", help="where exports and screenshots go")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the session saved when the studio last closed with this scene and style")
     return p
 
 
@@ -107,7 +112,9 @@ def loop(window, args: argparse.Namespace) -> int:
             raise GStyleError(f"--camera must be 1..{len(app.cameras)}, got {args.camera}")
         app.control.snap_to(app.cameras[args.camera - 1])
     glfw.set_drop_callback(window.handle, lambda _w, paths: [app.open_path(p) for p in paths[:1]])
-    app.start_engine()
+    if not app.start_engine(resume=args.resume) and args.resume:
+        print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",
+              file=sys.stderr)
     cap = 0.0 if headless else args.fps
     period = 1.0 / cap if cap and cap > 0 else 0.0
     deadline = time.perf_counter()
@@ -136,7 +143,9 @@ def loop(window, args: argparse.Namespace) -> int:
                 deadline = max(deadline + period, time.perf_counter() - period)
                 time.sleep(max(0.0, deadline - time.perf_counter()))
     finally:
-        app.close()
+        if not app.close():
+            print("gstyle-studio: the engine did not stop in time and was killed; the session was not saved",
+                  file=sys.stderr)
     return 0
 
 

@@ -75,6 +75,9 @@ class PanelState:
     camera_count: int = 0
     fov_deg: float = 50.0
     show_help: bool = False
+    resume_available: bool = False  # a saved session of this scene + style exists (cache folder)
+    decisions: dict[str, Any] = field(default_factory=dict)  # the engine's, as forwarded by the worker
+    viewer_notes: list[str] = field(default_factory=list)  # what the viewer skips (SH, sorts, uploads)
 
 
 def shortcut_commands(state: PanelState) -> list[Command]:
@@ -125,6 +128,7 @@ def draw_panel(state: PanelState) -> list[Command]:
     imgui.begin("G-Style Studio")
     _files_section(state, out)
     _progress_section(state, out)
+    _decisions_section(state)
     _view_section(state, out)
     _params_section(state, out)
     _output_section(out)
@@ -163,6 +167,10 @@ def _progress_section(state: PanelState, out: list[Command]) -> None:
     imgui.same_line()
     if imgui.button("Restart"):
         out.append(Command("restart"))
+    if state.resume_available:
+        if imgui.button("Resume last session"):
+            out.append(Command("resume_session"))
+        imgui.set_item_tooltip("Continue the stylization saved when the studio last closed with this scene and style.")
     if state.error:
         imgui.push_style_color(imgui.Col_.text, imgui.ImVec4(1.0, 0.35, 0.3, 1.0))
         imgui.text_wrapped(f"Error: {state.error}")
@@ -190,6 +198,30 @@ def _loss_plot(history: list[dict[str, float]]) -> None:
             ys = np.where(ys > 0, ys, np.nan)
             implot.plot_line(key, np.arange(len(ys), dtype=np.float64), ys)
         implot.end_plot()
+
+
+def decision_lines(decisions: dict[str, Any]) -> list[str]:
+    """One ``name: value`` line per engine decision (dicts as ``k=v`` lists, lists joined with ``;``)."""
+    lines = []
+    for key, value in decisions.items():
+        if isinstance(value, dict):
+            text = ", ".join(f"{k}={v}" for k, v in value.items())
+        elif isinstance(value, (list, tuple)):
+            text = "; ".join(str(v) for v in value)
+        else:
+            text = str(value)
+        lines.append(f"{key.replace('_', ' ')}: {text}")
+    return lines
+
+
+def _decisions_section(state: PanelState) -> None:
+    """Collapsible list of what the engine and the viewer decided to compute or skip for this scene."""
+    if not (state.decisions or state.viewer_notes):
+        return
+    if imgui.collapsing_header("Decisions"):
+        for line in decision_lines(state.decisions) + state.viewer_notes:
+            imgui.bullet()
+            imgui.text_wrapped(line)
 
 
 def _view_section(state: PanelState, out: list[Command]) -> None:

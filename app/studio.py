@@ -97,6 +97,9 @@ class StudioApp:
         self.engine_factory = engine_factory
         self.engine_config = dict(engine_config or {})
         self.bridge: WorkerBridge | None = None
+        self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
+        self._resume_seen: Any = None  # the last resume report shown in the status line
+        self._resume_probe: tuple[float, Path | None, bool] = (0.0, None, False)  # (time, path, exists)
         self.loaded: LoadedScene | None = None
         self.cameras: list[Camera] = []
         self.last_frame_rgb: np.ndarray | None = None
@@ -147,26 +150,55 @@ class StudioApp:
         self.panel.style_path = str(path)
         self.engine_config["style"] = str(path)
 
-    def start_engine(self) -> None:
-        """Spawn the engine worker with the current scene/style config (restarts it if running)."""
+    def session_checkpoint(self) -> Path | None:
+        """Where the session of this scene + style is saved when the studio closes (cache folder), or None."""
+        from gstyle_core.pipeline.checkpoint import studio_checkpoint_path
+
+        scene = self.engine_config.get("scene")
+        return studio_checkpoint_path(scene, self.engine_config.get("style")) if scene else None
+
+    def resume_available(self) -> bool:
+        """True when a saved session of this scene + style exists and this engine did not start from it."""
+        now, path = time.monotonic(), self.session_checkpoint()
+        when, probed, exists = self._resume_probe
+        if probed != path or now - when > 1.0:  # one stat a second at most
+            exists = path is not None and path.is_file()
+            self._resume_probe = (now, path, exists)
+        return exists and self.engine_factory is not None and self._resumed_from != path
+
+    def start_engine(self, resume: bool = False) -> bool:
+        """Spawn the engine worker with the current scene/style config (restarts it if running).
+
+        ``resume``: continue from the saved session of this scene + style; returns False when there is none (the
+        engine then starts afresh). Whether the checkpoint fits (same inputs and settings) the worker checks."""
         if self.engine_factory is None:
-            return
+            return False
+        path = self.session_checkpoint()
+        resume_from = path if resume and path is not None and path.is_file() else None
+        self._resumed_from = resume_from
         if self.bridge is None:
-            self.bridge = WorkerBridge(self.engine_factory, self.engine_config,
-                                       checkpoint_path=self.output_dir / "checkpoint.pt")
+            self.bridge = WorkerBridge(self.engine_factory, self.engine_config, checkpoint_path=path,
+                                       resume_from=resume_from)
             self.bridge.start()
         else:
-            self.bridge.restart(self.engine_config)
+            self.bridge.set_checkpoint_path(path)
+            self.bridge.restart(self.engine_config, resume_from=resume_from)
+        if resume_from is not None:
+            self.panel.status = f"resuming the last session ({resume_from.name}) ..."
         self._snapshots_seen = 0
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
+        return resume_from is not None
 
-    def close(self) -> None:
-        """Stop the engine (it checkpoints) and free GL objects."""
+    def close(self, timeout: float = 20.0) -> bool:
+        """Stop the engine (it saves the session in the cache folder; killed after ``timeout`` s) and free GL
+        objects. Returns False when the engine had to be killed (nothing saved)."""
+        clean = True
         if self.bridge is not None:
-            self.bridge.quit()
+            clean = self.bridge.quit(timeout)
         self.view.release()
         self.original.release()
         self.stylized.release()
+        return clean
 
     # ----------------------------------------------------------------- per frame
     def frame(self, target: moderngl.Framebuffer, with_ui: bool = True) -> list[Command]:
@@ -254,6 +286,7 @@ class StudioApp:
         p.has_ground_truth = "gt" in self.stylized.layers
         p.gaussians = self.stylized.count
         p.viewer_notes = self.viewer_notes()
+        p.resume_available = self.resume_available()
         if self.bridge is None:
             p.running, p.paused = False, False
             return
@@ -269,6 +302,9 @@ class StudioApp:
             p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
             p.eta_seconds = (st.step_seconds / max(st.reports_received, 1) * max(p.total_steps - p.step, 0)
                              if st.reports_received and not st.done else None)
+        if st.resumed is not None and st.resumed is not self._resume_seen:
+            self._resume_seen = st.resumed
+            p.status = f"resumed the last session at step {st.resumed.get('step')}"
         if st.exported:
             p.status = f"exported {st.exported[-1]}"
 
@@ -327,6 +363,8 @@ class StudioApp:
             {"pause": bridge.pause, "resume": bridge.resume, "step": bridge.step_once}[name]()
         elif name == "restart":
             self.start_engine()
+        elif name == "resume_session":
+            self.start_engine(resume=True)
         elif name == "set_params":
             self.panel.params.update(args)
             if bridge is not None:

@@ -15,6 +15,7 @@ and the child stays alive so ``restart`` can rebuild the engine.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import multiprocessing as mp
@@ -53,8 +54,10 @@ class WorkerState:
     step_seconds: float = 0.0  # sum of the reports' step times (for the ETA)
     geometry_received: int = 0
     params: dict[str, float] = field(default_factory=dict)
+    decisions: dict[str, Any] = field(default_factory=dict)  # the engine's "what this scene needs" decisions
     exported: list[str] = field(default_factory=list)
     checkpoint: str | None = None
+    resumed: dict[str, Any] | None = None  # {"checkpoint": path, "step": n} once a checkpoint was loaded
     started_at: float = 0.0
 
 
@@ -82,6 +85,7 @@ class _EngineHost:
                  checkpoint_path: str | None) -> None:
         self.factory, self.config, self.events, self.credits = factory, config, events, credits
         self.checkpoint_path = checkpoint_path
+        self.fingerprint: dict[str, str] = {}  # what the engine was built from (checked before resuming)
         self.engine: Any = None
         self.paused = False
         self.done = False
@@ -90,6 +94,7 @@ class _EngineHost:
         self.snapshot_pending = False
         self.last_report: dict[str, Any] | None = None
         self.params: dict[str, float] = {}
+        self.sent_decisions: dict[str, Any] | None = None
 
     def send(self, kind: str, payload: Any = None) -> None:
         self.events.put((kind, payload))
@@ -101,11 +106,12 @@ class _EngineHost:
         self.snapshot_pending = False  # never ship the state of a failed step: the UI keeps the last good one
         self.send("error", f"{during}: {one_line_error(exc)}")
 
-    def build(self, config: dict[str, Any] | None = None) -> None:
+    def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
         if config is not None:
             self.config = config
         self.engine, self.done, self.failed = None, False, False
         self.sent_geometry_version = object()
+        self.sent_decisions = None
         try:
             self.engine = self.factory(**self.config)
             _single_torch_thread()
@@ -114,12 +120,18 @@ class _EngineHost:
             current = getattr(self.engine, "current_params", None)
             if current is not None:  # the resolved settings (e.g. λ_NNFM 10 for a 360° scene) reach the sliders
                 self.params.update(current())
+            from gstyle_core.pipeline.checkpoint import engine_fingerprint
+
+            self.fingerprint = engine_fingerprint(self.engine)
         except Exception as exc:  # noqa: BLE001 - any engine error is reported, never fatal
             self.fail(exc, "building the engine")
             return
         self.send("ready", {"paused": self.paused})
+        if resume_from:
+            self.load_checkpoint(resume_from)
         if self.params:
             self.send("params", dict(self.params))
+        self.send_decisions()
         self.snapshot_pending = True
         self.flush_snapshot()
 
@@ -132,8 +144,16 @@ class _EngineHost:
         self.last_report = report
         self.done = bool(report.get("done"))
         self.send("report", report)
+        self.send_decisions()
         self.snapshot_pending = True
         self.flush_snapshot()
+
+    def send_decisions(self) -> None:
+        """Forward the engine's ``decisions`` dict (if it has one) whenever it changed."""
+        decisions = getattr(self.engine, "decisions", None)
+        if isinstance(decisions, dict) and decisions != self.sent_decisions:
+            self.sent_decisions = copy.deepcopy(decisions)
+            self.send("decisions", copy.deepcopy(decisions))
 
     def flush_snapshot(self, force: bool = False) -> None:
         """Send the engine's current snapshot if one is owed and a credit is free (``force``: even without)."""
@@ -169,10 +189,12 @@ class _EngineHost:
         elif command == "step":
             if self.engine is not None and not self.done:
                 self.step()
-        elif command == "restart":
+        elif command in ("restart", "restart_from"):
             self.paused = False
             self.send("paused", False)
-            self.build(arg)
+            self.build(*(arg if command == "restart_from" else (arg,)))
+        elif command == "checkpoint_path":
+            self.checkpoint_path = arg
         elif command == "set_params":
             self.set_params(arg)
         elif command == "export":
@@ -207,18 +229,34 @@ class _EngineHost:
         self.send("exported", written)
 
     def checkpoint(self) -> None:
+        """Save the engine's state, the fingerprint of its inputs and the slider values (cache folder)."""
         if self.engine is None or not self.checkpoint_path:
             return
         try:
-            import torch
+            from gstyle_core.pipeline.checkpoint import save_checkpoint
 
-            from gstyle_core.atomic import atomic_write
-
-            with atomic_write(self.checkpoint_path, "wb") as fh:
-                torch.save(self.engine.state_dict(), fh)
+            meta = {"kind": "studio", "scene": self.config.get("scene"), "style": self.config.get("style"),
+                    "fingerprint": self.fingerprint, "params": dict(self.params)}
+            save_checkpoint(self.checkpoint_path, self.engine.state_dict(), meta)
             self.send("checkpoint", str(self.checkpoint_path))
         except Exception as exc:  # noqa: BLE001
             self.send("error", f"checkpoint: {one_line_error(exc)}")
+
+    def load_checkpoint(self, path: str) -> None:
+        """Continue from a checkpoint made for the same inputs; otherwise say why in one line and start fresh."""
+        try:
+            from gstyle_core.pipeline.checkpoint import load_checkpoint
+
+            state, meta = load_checkpoint(path, self.fingerprint)
+            self.engine.load_state_dict(state)
+        except Exception as exc:  # noqa: BLE001 - a bad checkpoint is reported; the fresh engine carries on
+            traceback.print_exc()
+            self.send("error", f"resume: {one_line_error(exc)}; starting afresh")
+            return
+        step = getattr(self.engine, "global_step", state.get("global_step", state.get("steps")))
+        self.send("resumed", {"checkpoint": str(path), "step": step})
+        if meta.get("params"):
+            self.set_params(dict(meta["params"]))
 
     def should_step(self) -> bool:
         return self.engine is not None and not (self.paused or self.done or self.failed)
@@ -240,6 +278,7 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
         scene = GaussianScene(*(snap[k] for k in GEOMETRY_FIELDS), rgb_to_sh_dc(snap["colors"]))
     save_scene(scene, path)
     summary = {"scene": str(path), "gaussians": scene.count, "report": last_report, "params": params,
+               "decisions": getattr(engine, "decisions", None),
                "settings": engine.settings.to_dict() if hasattr(getattr(engine, "settings", None), "to_dict")
                else None}
     atomic_write_text(path.with_suffix(".json"), json.dumps(summary, indent=2, default=str))
@@ -262,12 +301,12 @@ def _single_torch_thread() -> None:
 
 
 def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: Any, events: Any, credits: Any,
-                checkpoint_path: str | None, start_paused: bool) -> None:
+                checkpoint_path: str | None, start_paused: bool, resume_from: str | None = None) -> None:
     """Entry point of the spawned process."""
     _lower_priority()
     host = _EngineHost(factory, config, events, credits, checkpoint_path)
     host.paused = start_paused
-    host.build()
+    host.build(resume_from=resume_from)
     parent = mp.parent_process()
     running = True
     while running:
@@ -290,10 +329,12 @@ class WorkerBridge:
     """Start, command and poll an engine running in a spawned process."""
 
     def __init__(self, factory: Callable[..., Any], config: dict[str, Any] | None = None, *,
-                 checkpoint_path: str | os.PathLike | None = None, start_paused: bool = False) -> None:
+                 checkpoint_path: str | os.PathLike | None = None, start_paused: bool = False,
+                 resume_from: str | os.PathLike | None = None) -> None:
         self.factory = factory
         self.config = dict(config or {})
         self.checkpoint_path = str(checkpoint_path) if checkpoint_path else None
+        self.resume_from = str(resume_from) if resume_from else None  # used by the next start()
         self.start_paused = start_paused
         self.state = WorkerState()
         self._mp = mp.get_context("spawn")
@@ -310,7 +351,8 @@ class WorkerBridge:
         self._process = self._mp.Process(
             target=worker_main, name="gstyle-engine", daemon=True,
             args=(self.factory, self.config, self._commands, self._events, self._credits, self.checkpoint_path,
-                  self.start_paused))
+                  self.start_paused, self.resume_from))
+        self.resume_from = None
         self._process.start()
         self.state = WorkerState(alive=True, paused=self.start_paused, started_at=time.monotonic())
 
@@ -319,10 +361,13 @@ class WorkerBridge:
         """True while the worker process runs."""
         return self._process is not None and self._process.is_alive()
 
-    def quit(self, timeout: float = 10.0) -> None:
-        """Ask the worker to checkpoint and exit; terminate it if it does not within ``timeout``."""
+    def quit(self, timeout: float = 10.0) -> bool:
+        """Ask the worker to checkpoint and exit; terminate it (then kill it) if it does not within ``timeout``.
+
+        Returns True when the worker exited by itself (a checkpoint was then written if it had an engine)."""
         if self._process is None:
-            return
+            return True
+        clean = True
         if self.alive:
             self._send("quit")
             deadline = time.monotonic() + timeout
@@ -331,10 +376,16 @@ class WorkerBridge:
                 self._process.join(0.05)
         self.poll()
         if self.alive:
+            clean = False
             self._process.terminate()
             self._process.join(2.0)
+            if self._process.is_alive():  # SIGTERM ignored or stuck: SIGKILL
+                self._process.kill()
+                self._process.join(2.0)
+            self.state.error = f"the engine did not stop within {timeout:g} s and was killed; no checkpoint saved"
         self.state.alive = False
         self._process = None
+        return clean
 
     # ----------------------------------------------------------------- commands
     def pause(self) -> None:
@@ -353,19 +404,31 @@ class WorkerBridge:
         """Run exactly one step (useful while paused)."""
         self._send("step")
 
-    def restart(self, config: dict[str, Any] | None = None) -> None:
-        """Rebuild the engine (with a new config if given); respawns the process if it died."""
+    def restart(self, config: dict[str, Any] | None = None, resume_from: str | os.PathLike | None = None) -> None:
+        """Rebuild the engine (with a new config if given), continuing from the checkpoint ``resume_from`` if
+        given; respawns the process if it died."""
         if config is not None:
             self.config = dict(config)
         if not self.alive:
+            self.resume_from = str(resume_from) if resume_from else None
             self.start()
             return
         self.state.error = None
         self.state.done = False
         self.state.paused = False
         self.state.loss_history.clear()
+        self.state.decisions = {}
         self.state.reports_received, self.state.step_seconds = 0, 0.0
-        self._send("restart", self.config)
+        self.state.resumed = None
+        if resume_from:
+            self._send("restart_from", (self.config, str(resume_from)))
+        else:
+            self._send("restart", self.config)
+
+    def set_checkpoint_path(self, path: str | os.PathLike | None) -> None:
+        """Where the worker saves its checkpoint when it quits (e.g. after the scene or style changed)."""
+        self.checkpoint_path = str(path) if path else None
+        self._send("checkpoint_path", self.checkpoint_path)
 
     def set_params(self, **params: float) -> None:
         """Change engine parameters (λ weights, split_rate, lr) from the next step on."""
@@ -386,7 +449,7 @@ class WorkerBridge:
         """Apply all pending worker messages to ``state``; returns them (oldest first) as (kind, payload).
 
         Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
-        exported (path), checkpoint (path), bye.
+        decisions (dict), exported (path), checkpoint (path), resumed (dict), bye.
         """
         messages: list[tuple[str, Any]] = []
         if self._events is None:
@@ -431,10 +494,14 @@ class WorkerBridge:
             st.paused = bool(payload)
         elif kind == "params":
             st.params = dict(payload)
+        elif kind == "decisions":
+            st.decisions = dict(payload)
         elif kind == "exported":
             st.exported.append(payload)
         elif kind == "checkpoint":
             st.checkpoint = payload
+        elif kind == "resumed":
+            st.resumed = dict(payload)
 
     def wait_until(self, predicate: Callable[[WorkerState], bool], timeout: float = 30.0) -> bool:
         """Poll until ``predicate(state)`` holds (True) or ``timeout`` seconds pass (False). For tests and CLI."""

@@ -1,4 +1,4 @@
-"""The ``gstyle`` command line: info, convert, render, fit, stylize.
+"""The ``gstyle`` command line: info, convert, render, fit, stylize, cache.
 
 Every error a user can cause (bad file, missing cameras, missing weights) is a ``GStyleError`` and is printed as one
 line without a traceback; the exit status is then 2.
@@ -48,6 +48,12 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     return fit_command(args)
 
 
+def _cmd_cache(args: argparse.Namespace) -> int:
+    from .cache_cli import cache_command
+
+    return cache_command(args)
+
+
 def _cmd_stylize(args: argparse.Namespace) -> int:
     from .pipeline.cli import stylize_command
 
@@ -94,6 +100,12 @@ def build_parser() -> argparse.ArgumentParser:
         s = sub.add_parser("stylize", help="stylize a scene after a painting (G-Style)")
         add_stylize_arguments(s)
         s.set_defaults(func=_cmd_stylize)
+
+    from .cache_cli import add_cache_arguments
+
+    s = sub.add_parser("cache", help="list the cache folder (converted weights, checkpoints) or --clear it")
+    add_cache_arguments(s)
+    s.set_defaults(func=_cmd_cache)
     return p
 
 

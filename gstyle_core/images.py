@@ -17,6 +17,7 @@ guard checked before decoding) raise :class:`StyleImageError` with a one-line me
 
 from __future__ import annotations
 
+import io
 import warnings
 from pathlib import Path
 
@@ -40,11 +41,23 @@ def _open(path: Path, max_pixels: int) -> Image.Image:
         raise StyleImageError(f"style image {path} does not exist")
     if not path.is_file():
         raise StyleImageError(f"style image {path} is not a file")
+    # Decode from memory: Pillow skips chunks with fp.read(claimed length), which for a file object
+    # allocates the claimed length up front (4 GB for one lying PNG chunk); from memory a read is bounded
+    # by what is there. No image of ``max_pixels`` pixels needs more than 8 bytes per pixel on disk.
+    limit = 8 * max_pixels + (16 << 20)
+    if path.stat().st_size > limit:
+        raise StyleImageError(f"style image {path} is {path.stat().st_size:,} bytes, more than {limit:,} "
+                              f"(8 bytes per pixel of the {max_pixels:,}-pixel limit)")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise StyleImageError(f"cannot read style image {path}: {exc.strerror or exc}") from None
     try:
         with warnings.catch_warnings():
-            warnings.simplefilter("error", Image.DecompressionBombWarning)
-            image = Image.open(path)
-    except (Image.DecompressionBombError, Image.DecompressionBombWarning) as exc:
+            # Pillow's own (smaller) warning limit would override ``max_pixels``, checked below before decoding
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            image = Image.open(io.BytesIO(data))
+    except Image.DecompressionBombError as exc:
         raise StyleImageError(f"style image {path} is too large to decode safely ({exc.__class__.__name__})") from exc
     except UnidentifiedImageError as exc:
         raise StyleImageError(f"{path} is not an image file Pillow can read") from exc

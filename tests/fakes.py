@@ -27,11 +27,16 @@ class FakeEngine:
     """Deterministic engine: colours move with the step count, geometry grows every ``grow_every`` steps.
 
     ``fail_at``: step() raises RuntimeError at that step (1-based). ``set_params`` values are echoed in the
-    snapshot under ``"params"`` so tests can see that they arrived.
+    snapshot under ``"params"`` so tests can see that they arrived. ``ignore_sigterm``: the process ignores SIGTERM
+    (with a long ``step_seconds``, a worker that hangs and must be killed).
     """
 
     def __init__(self, n: int = 64, total_steps: int = 1_000_000, fail_at: int | None = None,
-                 step_seconds: float = 0.002, grow_every: int = 0) -> None:
+                 step_seconds: float = 0.002, grow_every: int = 0, ignore_sigterm: bool = False) -> None:
+        if ignore_sigterm:
+            import signal
+
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
         self.n, self.total, self.fail_at = n, total_steps, fail_at
         self.step_seconds, self.grow_every = step_seconds, grow_every
         self.steps = 0

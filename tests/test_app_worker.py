@@ -79,16 +79,60 @@ def test_geometry_only_sent_when_its_version_changes(bridge_factory):
     assert len(st.snapshot["means"]) == len(st.snapshot["colors"]) == 8 + st.snapshot["geometry_version"]
 
 
-def test_quit_writes_checkpoint(tmp_path):
-    b = WorkerBridge(make_fake_engine, {"n": 4}, checkpoint_path=tmp_path / "ck.pt")
-    b.start()
-    assert b.wait_until(lambda s: s.snapshots_received >= 2, 60)
-    b.quit()
-    assert not b.alive and b.state.checkpoint == str(tmp_path / "ck.pt")
-    import torch
+def test_quit_writes_checkpoint_and_resume_reaches_the_engine(tmp_path, monkeypatch):
+    from gstyle_core.pipeline.checkpoint import read_checkpoint, studio_checkpoint_path
 
-    state = torch.load(tmp_path / "ck.pt", weights_only=False)
-    assert state["steps"] >= 1
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    path = studio_checkpoint_path(tmp_path / "scene.ply", tmp_path / "style.png")  # what the studio uses
+    b = WorkerBridge(make_fake_engine, {"n": 4}, checkpoint_path=path)
+    b.start()
+    assert b.wait_until(lambda s: s.snapshots_received >= 5, 60)
+    b.set_params(lambda_clip=2.5)
+    assert b.wait_until(lambda s: s.params.get("lambda_clip") == 2.5, 10)
+    assert b.quit(timeout=60) is True  # closing the window: checkpoint, clean exit (torch imported to save)
+    assert not b.alive and b.state.checkpoint == str(path)
+    state, meta = read_checkpoint(path)
+    assert state["steps"] >= 5 and meta["kind"] == "studio" and meta["params"]["lambda_clip"] == 2.5
+
+    resumed = WorkerBridge(make_fake_engine, {"n": 4}, resume_from=path, start_paused=True)
+    resumed.start()
+    try:
+        assert resumed.wait_until(lambda s: s.resumed is not None and s.snapshots_received >= 1, 60), \
+            resumed.state.error
+        assert resumed.state.resumed["step"] == state["steps"]
+        assert resumed.state.snapshot["colour_version"] == state["steps"]  # the engine's counter came back
+        assert resumed.wait_until(lambda s: s.snapshot.get("params", {}).get("lambda_clip") == 2.5, 10)
+        assert resumed.state.params["lambda_clip"] == 2.5  # the sliders' values came back too
+    finally:
+        resumed.quit(timeout=5)
+
+
+def test_resume_from_a_foreign_checkpoint_is_one_line_and_the_engine_starts_afresh(tmp_path):
+    from gstyle_core.pipeline.checkpoint import save_checkpoint
+
+    path = save_checkpoint(tmp_path / "other.ckpt", {"phase": "stylize"}, {"kind": "studio"})  # another engine's
+    b = WorkerBridge(make_fake_engine, {"n": 8}, resume_from=path)
+    b.start()
+    try:
+        assert b.wait_until(lambda s: s.error is not None, 120)
+        assert b.state.error.startswith("resume: ") and "starting afresh" in b.state.error
+        assert "\n" not in b.state.error and b.state.resumed is None
+        assert b.wait_until(lambda s: s.reports_received >= 2, 60)  # the fresh engine runs
+    finally:
+        b.quit()
+
+
+def test_a_worker_that_hangs_on_quit_is_killed_within_the_bound(tmp_path):
+    b = WorkerBridge(make_fake_engine, {"n": 4, "step_seconds": 60.0, "ignore_sigterm": True},
+                     checkpoint_path=tmp_path / "never.ckpt")
+    b.start()
+    assert b.wait_until(lambda s: s.ready, 60)
+    time.sleep(0.3)  # inside the 60 s step now
+    t0 = time.monotonic()
+    assert b.quit(timeout=1.0) is False
+    assert time.monotonic() - t0 < 8.0
+    assert not b.alive and "killed" in b.state.error
+    assert not (tmp_path / "never.ckpt").exists()
 
 
 def test_report_and_error_helpers():
@@ -110,6 +154,32 @@ def test_export_writes_ply_and_summary_or_reports_one_line(bridge_factory, tmp_p
     b.export(tmp_path / "out.ply")
     assert b.wait_until(lambda s: s.exported, 20), b.state.error
     assert (tmp_path / "out.ply").stat().st_size > 0 and (tmp_path / "out.json").is_file()
+
+
+@pytest.mark.slow
+def test_real_stylizer_resumes_from_its_checkpoint_through_the_bridge(tmp_path):
+    from fakes import make_small_stylizer
+
+    from gstyle_core.pipeline.checkpoint import read_checkpoint
+
+    path = tmp_path / "session.ckpt"
+    b = WorkerBridge(make_small_stylizer, {"n": 80}, checkpoint_path=path)
+    b.start()
+    assert b.wait_until(lambda s: (s.last_report or {}).get("step", 0) >= 8 or s.error, 120), "no progress"
+    assert b.state.error is None, b.state.error
+    b.quit()
+    state, meta = read_checkpoint(path)
+    assert state["global_step"] >= 8 and meta["fingerprint"]["scene"]
+
+    again = WorkerBridge(make_small_stylizer, {"n": 80}, resume_from=path)
+    again.start()
+    try:
+        assert again.wait_until(lambda s: s.reports_received >= 1 or s.error, 120)
+        assert again.state.error is None, again.state.error
+        assert again.state.resumed["step"] == state["global_step"]
+        assert again.state.last_report["step"] > state["global_step"]  # counting on from the checkpoint
+    finally:
+        again.quit()
 
 
 def test_real_stylizer_runs_to_the_end_through_the_bridge():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import struct
+import tracemalloc
 import warnings
 import zlib
 from pathlib import Path
@@ -171,3 +172,82 @@ def test_shared_styles_load():
     for file in files:
         img = _load_quiet(file, max_side=256)
         assert max(img.shape[:2]) == 256 and img.min() >= 0 and img.max() <= 1
+
+
+def test_more_modes_la_one_bit_float_and_48_bit(tmp_path):
+    grey = _gradient_rgb()[..., 0]
+    Image.fromarray(np.stack([grey, np.full_like(grey, 255)], axis=2), mode="LA").save(tmp_path / "la.png")
+    np.testing.assert_allclose(_load_quiet(tmp_path / "la.png")[..., 2], grey / 255.0, atol=1e-6)
+    Image.fromarray(grey > 127).save(tmp_path / "bit.png")  # mode "1"
+    assert set(np.unique(_load_quiet(tmp_path / "bit.png"))) == {0.0, 1.0}
+    ramp = np.linspace(-0.5, 1.5, 72 * 96, dtype=np.float32).reshape(72, 96)
+    Image.fromarray(ramp, mode="F").save(tmp_path / "f.tif")
+    np.testing.assert_allclose(_load_quiet(tmp_path / "f.tif")[..., 0], np.clip(ramp, 0, 1), atol=1e-6)
+    Image.fromarray(grey.astype(np.uint16) * 257).save(tmp_path / "g16.tif")  # 16-bit TIFF
+    np.testing.assert_allclose(_load_quiet(tmp_path / "g16.tif")[..., 0], grey / 255.0, atol=1e-6)
+    rows = np.zeros((64, 64, 3), ">u2")
+    rows[..., 0] = np.linspace(0, 65535, 64, dtype=np.uint16)[None]
+    raw = b"".join(b"\0" + row.tobytes() for row in rows)  # 48-bit RGB PNG (Pillow reads it as 8-bit RGB)
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    ihdr = chunk(b"IHDR", struct.pack(">IIBBBBB", 64, 64, 16, 2, 0, 0, 0))
+    png = b"\x89PNG\r\n\x1a\n" + ihdr + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b"")
+    (tmp_path / "rgb48.png").write_bytes(png)
+    img = _load_quiet(tmp_path / "rgb48.png")
+    np.testing.assert_allclose(img[0, :, 0], np.linspace(0, 1, 64), atol=1 / 255)
+
+
+def test_animated_gif_uses_the_first_frame(tmp_path):
+    frames = [Image.fromarray(_gradient_rgb()), Image.new("RGB", (96, 72), (0, 0, 255))]
+    frames[0].save(tmp_path / "anim.gif", save_all=True, append_images=frames[1:])
+    img = _load_quiet(tmp_path / "anim.gif")
+    assert img.shape == (72, 96, 3) and np.abs(img - _gradient_rgb() / 255.0).mean() < 0.05
+
+
+@pytest.mark.parametrize("orientation, turns", [(1, 0), (3, 2), (8, 1), (0, 0), (9, 0)])
+def test_exif_orientations_including_invalid_values(tmp_path, orientation, turns):
+    pixels = _gradient_rgb(96, 64)
+    exif = Image.Exif()
+    exif[0x0112] = orientation  # 0 and 9 are not valid orientations: the image is used as stored
+    Image.fromarray(pixels).save(tmp_path / "o.jpg", exif=exif, quality=95)
+    img = _load_quiet(tmp_path / "o.jpg")
+    expected = np.rot90(pixels, k=turns) / 255.0
+    assert img.shape == expected.shape and np.abs(img - expected).mean() < 0.03
+
+
+def test_our_pixel_limit_governs_not_pillows_warning(tmp_path, monkeypatch):
+    Image.fromarray(_gradient_rgb(40, 40)).save(tmp_path / "a.png")  # 1,600 pixels
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)  # Pillow warns above 1,000 and refuses above 2,000
+    assert _load_quiet(tmp_path / "a.png", min_side=8).shape == (40, 40, 3)
+    with pytest.raises(StyleImageError, match="decompression-bomb"):
+        load_style_image(tmp_path / "a.png", max_pixels=1500)
+    Image.fromarray(_gradient_rgb(50, 50)).save(tmp_path / "b.png")  # 2,500 pixels: Pillow's hard limit
+    with pytest.raises(StyleImageError, match="too large"):
+        load_style_image(tmp_path / "b.png")
+
+
+def test_png_chunk_claiming_gigabytes_is_not_allocated(tmp_path):
+    Image.fromarray(_gradient_rgb(20, 20)).save(tmp_path / "ok.png")
+    data = bytearray((tmp_path / "ok.png").read_bytes())
+    idat = data.index(b"IDAT")
+    struct.pack_into(">I", data, idat - 4, 3_858_759_899)  # Pillow skipped it with fp.read(3.8 GB)
+    for cut in (len(data), len(data) - 20):  # complete (decodes) and cut inside IDAT (an error)
+        (tmp_path / "lie.png").write_bytes(bytes(data[:cut]))
+        tracemalloc.start()
+        try:
+            try:
+                assert load_style_image(tmp_path / "lie.png", min_side=8).shape == (20, 20, 3)
+            except StyleImageError:
+                assert cut < len(data)
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        assert peak < 16 << 20, f"{peak:,} bytes"
+
+
+def test_files_larger_than_any_image_of_the_pixel_limit_are_refused(tmp_path):
+    (tmp_path / "big.png").write_bytes(b"\x89PNG" + bytes(17 << 20))  # over 8 x 100 + 16 MiB
+    with pytest.raises(StyleImageError, match="8 bytes per pixel"):
+        load_style_image(tmp_path / "big.png", max_pixels=100)

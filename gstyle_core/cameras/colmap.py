@@ -172,6 +172,15 @@ def _read_exact(fh: BinaryIO, fmt: str) -> tuple:
     return struct.unpack(fmt, data)
 
 
+def _skip(fh: BinaryIO, size: int) -> None:
+    """Seek ``size`` bytes forward; the size is checked against the file first (never read into memory)."""
+    here = fh.tell()
+    end = fh.seek(0, 2)
+    if size > end - here:
+        raise CameraFormatError("file is truncated")
+    fh.seek(here + size)
+
+
 def _read_count(fh: BinaryIO) -> int:
     (count,) = _read_exact(fh, "<Q")
     if count > 1 << 32:
@@ -185,7 +194,7 @@ def _make_camera(camera_id: int, model: CameraModel, width: int, height: int, pa
         raise CameraFormatError(f"camera {camera_id} has size {width}x{height}")
     cam = ColmapCamera(camera_id, model, int(width), int(height), params)
     if not all(np.isfinite(v) for v in (cam.fx, cam.fy, cam.cx, cam.cy)) or cam.fx <= 0 or cam.fy <= 0:
-        raise CameraFormatError(f"camera {camera_id} has invalid intrinsics {list(params[:4])}")
+        raise CameraFormatError(f"camera {camera_id} has invalid intrinsics {params[:4].tolist()}")
     return cam
 
 
@@ -232,9 +241,7 @@ def _read_images_bin(fh: BinaryIO) -> list[ColmapImage]:
                 break
             name += ch
         (num_points2d,) = _read_exact(fh, "<Q")
-        skip = 24 * num_points2d
-        if len(fh.read(skip)) != skip:
-            raise CameraFormatError("file is truncated")
+        _skip(fh, 24 * num_points2d)
         images.append(_make_image(image_id, [qw, qx, qy, qz], [tx, ty, tz], camera_id,
                                   name.decode("utf-8", errors="replace")))
     return images
@@ -259,7 +266,7 @@ def _read_images_txt(fh) -> list[ColmapImage]:
 def _make_image(image_id: int, qvec, tvec, camera_id: int, name: str) -> ColmapImage:
     q, t = np.asarray(qvec, np.float64), np.asarray(tvec, np.float64)
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(t))):
-        raise CameraFormatError(f"image {name or image_id} has a non-finite pose")
+        raise CameraFormatError(f"image {name or image_id!r} has a non-finite pose")
     return ColmapImage(image_id, q, t, camera_id, name)
 
 
@@ -304,5 +311,7 @@ def _read_points_txt(fh) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _finish_points(xyz: np.ndarray, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    with np.errstate(over="ignore"):  # beyond float32 becomes inf and is dropped
+        xyz = xyz.astype(np.float32)
     keep = np.all(np.isfinite(xyz), axis=1)
-    return xyz[keep].astype(np.float32), (rgb[keep].astype(np.float32) / 255.0)
+    return xyz[keep], (rgb[keep].astype(np.float32) / 255.0)

@@ -24,8 +24,9 @@ def read_cameras_json(path: Path) -> list[Camera]:
     """Parse a 3DGS cameras.json (entries sorted by ``id`` when all have one)."""
     try:
         entries = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CameraFormatError(f"cannot read {Path(path).name}: {exc}") from None
+    except (OSError, ValueError, RecursionError) as exc:  # ValueError: bad JSON, bad UTF-8, 5000-digit numbers
+        reason = "nested too deeply" if isinstance(exc, RecursionError) else (str(exc).splitlines() or ["?"])[0]
+        raise CameraFormatError(f"cannot read {Path(path).name}: {reason}") from None
     if not isinstance(entries, list) or not entries:
         raise CameraFormatError(f"{Path(path).name} must be a non-empty JSON list of cameras")
     if all(isinstance(e, dict) and isinstance(e.get("id"), int) for e in entries):
@@ -47,7 +48,7 @@ def _camera_from_entry(entry: object, index: int, file_name: str) -> Camera:
         cy = float(entry.get("cy", height / 2))
         position = np.asarray(entry["position"], np.float64)
         rotation = np.asarray(entry["rotation"], np.float64)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: int(inf) from 1e400
         raise CameraFormatError(f"{where} has a malformed field ({exc})") from None
     if position.shape != (3,) or rotation.shape != (3, 3):
         raise CameraFormatError(f"{where}: position must be 3 numbers and rotation 3x3")

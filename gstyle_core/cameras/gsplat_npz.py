@@ -6,33 +6,31 @@
 
 from __future__ import annotations
 
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from gstyle_core.cameras.arrays import load_npz
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.errors import CameraFormatError
 
 
 def read_gsplat_npz(path: Path) -> tuple[list[Camera], np.ndarray | None, np.ndarray | None]:
     """Return (cameras, points [M,3] float32 or None, colours [M,3] in [0,1] or None)."""
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise CameraFormatError(f"cannot read {path.name}: {exc}") from None
+    arrays = load_npz(path)
     missing = [k for k in ("viewmats", "Ks", "width", "height") if k not in arrays]
     if missing:
         raise CameraFormatError(f"{path.name} lacks {', '.join(missing)} (not a gsplat camera npz)")
-    viewmats = np.asarray(arrays["viewmats"], np.float64)
-    ks = np.asarray(arrays["Ks"], np.float64)
+    viewmats, ks = _real(arrays, "viewmats", path.name), _real(arrays, "Ks", path.name)
     if viewmats.ndim != 3 or viewmats.shape[1:] != (4, 4) or ks.shape != (len(viewmats), 3, 3) or not len(ks):
         raise CameraFormatError(f"{path.name}: viewmats must be [C,4,4] and Ks [C,3,3] (got "
                                 f"{viewmats.shape}, {ks.shape})")
     if arrays["width"].size != 1 or arrays["height"].size != 1:
         raise CameraFormatError(f"{path.name}: width and height must be scalars")
-    width, height = int(arrays["width"].item()), int(arrays["height"].item())
+    size = [float(_real(arrays, key, path.name).item()) for key in ("width", "height")]
+    if not np.all(np.isfinite(size)) or max(size) > 2**31:
+        raise CameraFormatError(f"{path.name}: width and height must be finite numbers, got {size}")
+    width, height = (int(v) for v in size)
     if width < 1 or height < 1 or not (np.all(np.isfinite(viewmats)) and np.all(np.isfinite(ks))):
         raise CameraFormatError(f"{path.name}: invalid image size or non-finite cameras")
     if np.any(ks[:, 0, 0] <= 0) or np.any(ks[:, 1, 1] <= 0):
@@ -43,18 +41,27 @@ def read_gsplat_npz(path: Path) -> tuple[list[Camera], np.ndarray | None, np.nda
     return cams, points, colors
 
 
+def _real(arrays: dict[str, np.ndarray], key: str, name: str) -> np.ndarray:
+    """``arrays[key]`` as float64; CameraFormatError unless it holds real numbers."""
+    arr = arrays[key]
+    if arr.dtype.kind not in "fiub":
+        raise CameraFormatError(f"{name}: {key} must hold real numbers, got {arr.dtype}")
+    return arr.astype(np.float64)
+
+
 def _points(arrays: dict[str, np.ndarray], name: str) -> tuple[np.ndarray | None, np.ndarray | None]:
     if "means3d" not in arrays:
         return None, None
-    points = np.asarray(arrays["means3d"], np.float32)
+    with np.errstate(over="ignore"):  # beyond float32 becomes inf and is dropped below
+        points = _real(arrays, "means3d", name).astype(np.float32)
     if points.ndim != 2 or points.shape[1] != 3:
         raise CameraFormatError(f"{name}: means3d must be [M,3], got {points.shape}")
     keep = np.all(np.isfinite(points), axis=1)
     colors = None
     if "colors" in arrays:
-        raw = np.asarray(arrays["colors"])
+        raw = _real(arrays, "colors", name)
         if raw.shape != points.shape:
             raise CameraFormatError(f"{name}: colors must match means3d, got {raw.shape}")
-        scale = 255.0 if np.issubdtype(raw.dtype, np.integer) else 1.0
-        colors = np.clip(raw.astype(np.float32) / scale, 0.0, 1.0)[keep]
+        scale = 255.0 if np.issubdtype(arrays["colors"].dtype, np.integer) else 1.0
+        colors = np.clip(np.nan_to_num(raw / scale), 0.0, 1.0).astype(np.float32)[keep]
     return points[keep], colors

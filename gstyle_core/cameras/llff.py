@@ -14,17 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
+from gstyle_core.cameras.arrays import load_npy
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.errors import CameraFormatError
 
 
 def read_poses_bounds(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Load and check ``poses_bounds.npy``: returns (poses [N,3,5], bounds [N,2]) as float64."""
-    try:
-        arr = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as exc:
-        raise CameraFormatError(f"cannot read {path.name}: {exc}") from None
-    if arr.ndim != 2 or arr.shape[1] != 17 or arr.shape[0] == 0 or not np.issubdtype(arr.dtype, np.number):
+    arr = load_npy(path)
+    if arr.ndim != 2 or arr.shape[1] != 17 or arr.shape[0] == 0 or arr.dtype.kind not in "fiu":
         raise CameraFormatError(f"{path.name} must be a numeric [N,17] array, got {arr.dtype} {arr.shape}")
     arr = arr.astype(np.float64)
     if not np.all(np.isfinite(arr)):

@@ -22,6 +22,8 @@ from gstyle_core.cameras.image_folders import (
 from gstyle_core.cameras.llff import llff_cameras, read_poses_bounds
 from gstyle_core.errors import CameraFormatError
 
+MAX_IMAGE_SIDE = 1 << 16
+ROTATION_TOLERANCE = 1e-3
 _COLMAP_FILES = {f"{stem}{ext}" for stem in ("cameras", "images", "points3D") for ext in (".bin", ".txt")}
 
 
@@ -73,8 +75,29 @@ def _scene_dir_of(model_dir: Path) -> Path:
     return model_dir.parent
 
 
+def check_camera(cam: Camera, where: str) -> None:
+    """``CameraFormatError`` unless ``cam`` is usable: a sane image size, positive finite focal lengths,
+    a finite principal point and a rigid world-to-camera pose (rotation within ``ROTATION_TOLERANCE``)."""
+    if not (1 <= cam.width <= MAX_IMAGE_SIDE and 1 <= cam.height <= MAX_IMAGE_SIDE):
+        raise CameraFormatError(f"{where}: image size {cam.width}x{cam.height} is outside 1..{MAX_IMAGE_SIDE}")
+    if not (np.isfinite([cam.fx, cam.fy, cam.cx, cam.cy]).all() and cam.fx > 0 and cam.fy > 0):
+        raise CameraFormatError(f"{where}: invalid intrinsics fx={cam.fx:.6g} fy={cam.fy:.6g} "
+                                f"cx={cam.cx:.6g} cy={cam.cy:.6g}")
+    pose = np.asarray(cam.world_to_cam, np.float64)
+    if pose.shape != (4, 4) or not np.isfinite(pose).all():
+        raise CameraFormatError(f"{where}: the pose is not a finite 4x4 matrix")
+    rot = pose[:3, :3]
+    rigid = (np.allclose(pose[3], [0, 0, 0, 1]) and np.linalg.det(rot) > 0
+             and np.allclose(rot @ rot.T, np.eye(3), atol=ROTATION_TOLERANCE))
+    if not rigid:
+        raise CameraFormatError(f"{where}: the pose is not a rotation plus a translation")
+
+
 def _finish(cams: list[Camera], source: Path, points=None, colors=None, near=None, far=None,
             extra_scale: float = 1.0) -> CameraSet:
+    label = source.name if source.is_file() else str(source)
+    for i, cam in enumerate(cams):
+        check_camera(cam, f"{label} camera {cam.name or i!r}")
     cams = scale_cameras(fit_cameras_to_images(cams), extra_scale)
     return CameraSet(cams, classify_scene_kind(cams, points), str(source), points, colors, near, far)
 
@@ -89,7 +112,7 @@ def _from_colmap(model_dir: Path, scene_dir: Path, image_dir, downscale) -> Came
     for im in images:
         cam = intrinsics.get(im.camera_id)
         if cam is None:
-            raise CameraFormatError(f"COLMAP image {im.name} refers to missing camera {im.camera_id}")
+            raise CameraFormatError(f"COLMAP image {im.name!r} refers to missing camera {im.camera_id}")
         image_path = folder / im.name if folder is not None else None
         cams.append(Camera(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy, im.world_to_cam(),
                            Path(im.name).stem, image_path if image_path and image_path.is_file() else None))

@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import SceneFormatError
 from ..scene import GaussianScene
 from .ply_3dgs import read_3dgs_ply
@@ -49,7 +51,8 @@ def load_scene(path: str | os.PathLike) -> tuple[GaussianScene, LoadReport]:
     p = Path(path)
     data = read_scene_bytes(p)
     try:
-        scene, count, fmt, repairs, warnings = _decode(data, p)
+        with np.errstate(all="ignore"):  # overflow to inf, NaN from garbage: validate_and_repair handles them
+            scene, count, fmt, repairs, warnings = _decode(data, p)
     except SceneFormatError:
         raise
     except (ValueError, TypeError, IndexError, KeyError, OverflowError, MemoryError) as exc:

@@ -64,6 +64,11 @@ class PlyHeader:
         return next((e for e in self.elements if e.name == name), None)
 
 
+def _quote(line: str) -> str:
+    """A header line for an error message: quoted, control characters escaped, at most 80 characters."""
+    return repr(line if len(line) <= 80 else line[:77] + "...")
+
+
 def is_ply(data: bytes) -> bool:
     """True when the bytes start with the PLY magic line."""
     return data[:4] in (b"ply\n", b"ply\r")
@@ -96,24 +101,24 @@ def parse_header(data: bytes, name: str) -> PlyHeader:
             comments.append(ln[len(key) :].strip())
         elif key == "format":
             if len(words) != 3 or words[1] not in FORMATS:
-                raise SceneFormatError(f"{name}: unsupported PLY format line '{ln}'")
+                raise SceneFormatError(f"{name}: unsupported PLY format line {_quote(ln)}")
             fmt = words[1]
         elif key == "element":
-            if len(words) != 3 or not words[2].isdigit():
-                raise SceneFormatError(f"{name}: malformed PLY element line '{ln}'")
+            if len(words) != 3 or not words[2].isdigit() or len(words[2]) > 19:  # 19 digits: any count < 10^19
+                raise SceneFormatError(f"{name}: malformed PLY element line {_quote(ln)}")
             elements.append(PlyElement(words[1], int(words[2]), []))
         elif key == "property":
             if not elements:
-                raise SceneFormatError(f"{name}: PLY property before any element: '{ln}'")
+                raise SceneFormatError(f"{name}: PLY property before any element: {_quote(ln)}")
             if len(words) == 5 and words[1] == "list":
                 elements[-1].has_list = True
                 elements[-1].properties.append((words[4], "list"))
                 continue
             if len(words) != 3 or words[1] not in PLY_TYPES:
-                raise SceneFormatError(f"{name}: malformed PLY property line '{ln}'")
+                raise SceneFormatError(f"{name}: malformed PLY property line {_quote(ln)}")
             elements[-1].properties.append((words[2], PLY_TYPES[words[1]]))
         else:
-            raise SceneFormatError(f"{name}: unexpected PLY header line '{ln}'")
+            raise SceneFormatError(f"{name}: unexpected PLY header line {_quote(ln)}")
     if fmt is None:
         raise SceneFormatError(f"{name}: PLY header has no format line")
     return PlyHeader(fmt, elements, newline + 1, comments)
@@ -162,7 +167,7 @@ def _read_ascii(
     if tokens_needed * 2 > len(body) + 1:  # every number takes at least one digit and one separator
         raise SceneFormatError(
             f"{name}: truncated: header declares {tokens_needed:,} numbers "
-            f"but only {len(body):,} bytes follow"
+            f"(at least {2 * tokens_needed - 1:,} bytes) but only {len(body):,} bytes follow"
         )
     tokens = body.split()
     if len(tokens) < tokens_needed:

@@ -13,12 +13,14 @@ ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 
 
 def read_scene_bytes(path: str | os.PathLike) -> bytes:
-    """Return the whole file; one-line ``SceneFormatError`` for missing, directory, unreadable or empty."""
+    """Return the whole file; one-line ``SceneFormatError`` for missing, directory, device, unreadable or empty."""
     p = Path(path)
     if p.is_dir():
         raise SceneFormatError(f"{p} is a directory, not a scene file")
     if not p.exists():
         raise SceneFormatError(f"{p}: no such file")
+    if not p.is_file():  # a FIFO or a device (/dev/zero) would block or never end
+        raise SceneFormatError(f"{p} is not a regular file")
     try:
         data = p.read_bytes()
     except OSError as exc:

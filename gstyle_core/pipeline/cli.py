@@ -30,10 +30,17 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     p.add_argument("--out", default="out/stylized.ply", help="output .ply (a .json and PNGs are written beside it)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    p.add_argument("--max-gaussians", type=int, default=None,
+                   help="cap on the Gaussian count after splits (default: from the free memory)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the interrupted run with the same inputs and --out from its checkpoint")
+    p.add_argument("--checkpoint-every", type=float, default=120.0, metavar="SECONDS",
+                   help="checkpoint interval (also at every phase end; 0: phase ends only); default 120")
 
 
-def build_stylizer(args: argparse.Namespace):
-    """Load scene, cameras, photos and style, resolve settings and build the engine (shared with the app worker)."""
+def build_stylizer(args: argparse.Namespace, **setting_overrides):
+    """Load scene, cameras, photos and style, resolve settings and build the engine (shared with the app worker
+    and bench/tradeoff.py, which passes further ``StylizeSettings`` fields as ``setting_overrides``)."""
     from ..cameras import classify_scene_kind
     from ..images import load_style_image
     from ..render_cli import DEFAULT_STYLE, load_scene_and_cameras
@@ -43,12 +50,13 @@ def build_stylizer(args: argparse.Namespace):
     scene, report, cams = load_scene_and_cameras(args.scene, args.cameras)
     style = load_style_image(args.style or DEFAULT_STYLE)
     kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams)
-    settings = resolve_settings(
-        args.preset, kind, len(cams.cameras),
+    overrides = dict(
         lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
         lambda_tv=args.lambda_tv, split_rate=args.split_rate, working_width=args.working_width,
-        clip_weights=args.clip_weights,
+        clip_weights=args.clip_weights, max_gaussians=getattr(args, "max_gaussians", None),
     )
+    overrides.update(setting_overrides)
+    settings = resolve_settings(args.preset, kind, len(cams.cameras), **overrides)
     photos = None
     if cams.has_images:
         photos = cams.load_images(max_width=max(settings.working_width * 2, 256))
@@ -58,16 +66,22 @@ def build_stylizer(args: argparse.Namespace):
 
 def stylize_command(args: argparse.Namespace) -> int:
     """Run ``gstyle stylize``."""
-    from tqdm import tqdm
-
     from ..atomic import atomic_write_text, refuse_overwrite
     from ..io import save_scene
     from ..render_cli import save_png
+    from .checkpoint import RunCheckpointer, deferred_interrupts, engine_fingerprint, stylize_checkpoint_path
 
     out = Path(args.out)
     if out.suffix.lower() != ".ply":
         raise GStyleError(f"--out must end in .ply, got {out}")
     refuse_overwrite(out, args.force, inputs=[args.scene] if args.scene else [])
+    if getattr(args, "max_gaussians", None) is not None and args.max_gaussians < 1:
+        raise GStyleError(f"--max-gaussians must be at least 1, got {args.max_gaussians}")
+    every = getattr(args, "checkpoint_every", 120.0)
+    if not every >= 0:
+        raise GStyleError(f"--checkpoint-every must be 0 or more seconds, got {every}")
+    ckpt_path = stylize_checkpoint_path(out)
+    saved = _read_resume_checkpoint(ckpt_path) if getattr(args, "resume", False) else None
     if args.threads:
         torch.set_num_threads(args.threads)
     t0 = time.perf_counter()
@@ -75,23 +89,19 @@ def stylize_command(args: argparse.Namespace) -> int:
     s = engine.settings
     print(f"stylize: {scene.count} Gaussians, {len(engine.cameras)} views ({cams.source}), scene kind {s.scene_kind}, "
           f"preset {s.preset} ({s.working_width} px wide)")
-    bar = None
-    phase = None
-    while not engine.done:
-        rep = engine.step()
-        if rep.phase != phase:
-            if bar is not None:
-                bar.close()
-            phase = rep.phase
-            bar = tqdm(desc=f"{phase:>12}", unit="step", dynamic_ncols=True)
-        bar.update(1)
-        if rep.losses:
-            bar.set_postfix({k: f"{v:.3g}" for k, v in rep.losses.items() if v}, refresh=False)
-    if bar is not None:
-        bar.close()
-    print(engine.decisions.get("clip", ""))
+    fingerprint = engine_fingerprint(engine)
+    resumed = _resume(engine, ckpt_path, saved, fingerprint) if saved else None
+    if saved is None and ckpt_path.exists():
+        print(f"note: replacing the checkpoint of an earlier interrupted run ({ckpt_path}); --resume continues it")
+    meta = {"kind": "stylize", "out": str(out.resolve()), "fingerprint": fingerprint, "settings": s.to_dict(),
+            "args": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))}}
+    checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
+    with deferred_interrupts() as stop:
+        _run_with_progress(engine, checkpointer, stop)
+    for key in ("sh", "preprocess", "culled", "loss_terms", "clip"):  # what this scene needed (also in OUT.json)
+        if key in engine.decisions:
+            print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
-    save_scene(stylized, out)
     quality = evaluate_run(engine, scene, style)
     before, after = quality.pop("images")
     stem = out.with_suffix("")
@@ -104,13 +114,69 @@ def stylize_command(args: argparse.Namespace) -> int:
         "seconds_per_phase": {k: round(v, 2) for k, v in engine.timings.items()},
         "seconds_total": round(time.perf_counter() - t0, 1),
         "gaussians_before": scene.count, "gaussians_after": stylized.count, "quality": quality,
+        "resumed": resumed, "checkpoints_written": checkpointer.saved,
     }
     atomic_write_text(stem.with_suffix(".json"), json.dumps(summary, indent=2, default=_json_default))
+    save_scene(stylized, out)  # last: an existing OUT.ply means the run is complete
+    checkpointer.remove()
     q = quality
     print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
           f"({100 * (1 - q['final']['nnfm'] / max(q['initial']['nnfm'], 1e-12)):.0f}% lower)")
     print(f"wrote {out}, {stem}.json, {stem}_before.png, {stem}_after.png ({summary['seconds_total']:.0f} s)")
     return 0
+
+
+def _run_with_progress(engine, checkpointer, stop: dict) -> None:
+    """Step to the end with a progress bar per phase, checkpointing; on a stop request save and interrupt."""
+    from tqdm import tqdm
+
+    bar = None
+    phase = None
+    while not engine.done:
+        rep = engine.step()
+        if rep.phase != phase:
+            if bar is not None:
+                bar.close()
+            phase = rep.phase
+            bar = tqdm(desc=f"{phase:>12}", unit="step", dynamic_ncols=True)
+        bar.update(1)
+        if rep.losses:
+            bar.set_postfix({k: f"{v:.3g}" for k, v in rep.losses.items() if v}, refresh=False)
+        if "reduced" in rep.message:  # a split cut back by --max-gaussians
+            bar.write(f"note: {rep.message}")
+        checkpointer.after_step()
+        if stop["stop"]:
+            bar.close()
+            checkpointer.save()
+            print(f"stopped after step {engine.global_step}; checkpoint {checkpointer.path} (continue with --resume)")
+            raise KeyboardInterrupt
+    if bar is not None:
+        bar.close()
+
+
+def _read_resume_checkpoint(path: Path):
+    """The checkpoint to resume from, read before the inputs load (a corrupt one fails fast)."""
+    from .checkpoint import CheckpointError, read_checkpoint
+
+    if not path.exists():
+        raise CheckpointError(f"no checkpoint to resume for this --out (looked for {path}); run without --resume")
+    return read_checkpoint(path)
+
+
+def _resume(engine, path: Path, saved, fingerprint: dict[str, str]) -> dict:
+    """Check the checkpoint against this run's inputs and load it into ``engine``; returns what was skipped."""
+    from .checkpoint import CheckpointError, check_fingerprint
+
+    state, meta = saved
+    check_fingerprint(path, meta, fingerprint)
+    try:
+        engine.load_state_dict(state)
+    except (KeyError, TypeError, ValueError, RuntimeError, IndexError) as exc:
+        raise CheckpointError(f"checkpoint {path} does not fit this engine ({type(exc).__name__}: {exc}); "
+                              "run without --resume") from None
+    skipped = engine.global_step
+    print(f"resumed from {path}: skipped {skipped} of {engine.total_steps()} steps (now in phase {engine.phase})")
+    return {"checkpoint": str(path), "skipped_steps": skipped, "phase": engine.phase}
 
 
 def evaluate_run(engine, scene, style: np.ndarray, n_views: int = 3, width: int = 256) -> dict:

@@ -54,6 +54,22 @@ def size_evenness(log_scales: torch.Tensor, gamma: float) -> dict[str, float]:
     return {"area_cv": std / max(mean, 1e-30), "flat_fraction": flat, "elongated_fraction": elong}
 
 
+EVEN_FLAT_FRACTION = 0.001  # sizes count as even below this fraction of flat Gaussians ...
+EVEN_ELONGATED_FRACTION = 0.01  # ... and below this fraction of elongated ones
+
+
+def evenness_verdict(crit: dict[str, float]) -> tuple[bool, str]:
+    """Whether ``size_evenness`` figures say the sizes are already even, and the figures against their thresholds.
+
+    Even sizes: no flat outliers and few elongated Gaussians, so pre-processing has nothing to split or clamp
+    (the paper notes that well-reconstructed scenes may not need it).
+    """
+    even = crit["flat_fraction"] < EVEN_FLAT_FRACTION and crit["elongated_fraction"] < EVEN_ELONGATED_FRACTION
+    text = (f"flat fraction {crit['flat_fraction']:.4f} (even below {EVEN_FLAT_FRACTION}), elongated fraction "
+            f"{crit['elongated_fraction']:.4f} (even below {EVEN_ELONGATED_FRACTION}), area CV {crit['area_cv']:.3f}")
+    return even, text
+
+
 @torch.no_grad()
 def clamp_elongation(log_scales: torch.Tensor, limit: float = 1.5) -> int:
     """In place: where largest/second > ``limit``, set the largest scale to the mean of the two. Returns the count."""

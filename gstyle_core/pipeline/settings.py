@@ -14,7 +14,13 @@ from ..style.losses import StyleWeights  # λ weights: one definition for the lo
 
 @dataclass
 class StylizeSettings:
-    """Everything a run needs besides the scene, cameras and style image."""
+    """Everything a run needs besides the scene, cameras and style image.
+
+    Switches of the "compute only what the scene needs" decisions (on by default; the trade-off bench times them):
+    ``cull_unseen`` — Gaussians that no training camera sees are not rendered, optimised or split (False: every
+    Gaussian goes through the colour caches, Adam and the split ranking); ``force_preprocess`` — run the
+    pre-processing rounds even when the Gaussian sizes are already even (by default they are skipped then).
+    """
 
     preset: str = "preview"
     scene_kind: str = "auto"  # "forward" | "360" | "auto" (from the cameras)
@@ -38,11 +44,13 @@ class StylizeSettings:
     split_children: int = 4
     split_scale_divisor: float = 16.0
     grad_accumulate_from_epoch: float = 2.0
-    max_gaussians: int = 2_000_000
+    max_gaussians: int = 0  # cap on the count after splits; 0: from the free memory (pipeline/resources.py)
     max_views: int = 24  # at most this many training views (evenly chosen)
     vgg_dtype: str = "float32"  # or "bfloat16"
     clip_weights: str | None = None
     colour_match_after: bool = True
+    cull_unseen: bool = True  # skip Gaussians no training camera sees (see the class docstring)
+    force_preprocess: bool = False  # pre-process even when the sizes are already even
     seed: int = 0
 
     def to_dict(self) -> dict:

@@ -12,7 +12,8 @@ Phases, in order:
 4. ``stylize``: one view per step: render c_s at the working resolution (colour-only cached path), the style loss,
    Adam on c_s with an exponentially decaying learning rate; ‖∂L/∂c_s‖ is accumulated and at the scheduled steps the
    top ``split_rate`` fraction of Gaussians is split (children inherit c_s), followed by ``refit`` steps that refit
-   geometry and c_gt to the ground truth with c_s held.
+   geometry and c_gt to the ground truth with c_s held. Gaussians that no training camera sees (``cull_unseen``)
+   take no part: they are left out of the colour caches, the optimiser, the split ranking and the refits.
 5. ``finish``: one step: colour-match the stylized renders to the style once more (affine transform of c_s).
 Then ``done``. There are no threads here: callers (CLI, app worker, tests) decide when to call ``step()``.
 """
@@ -35,9 +36,11 @@ from ..fit.model import camera_tensors, params_from_scene, render_params, scene_
 from ..fit.strategy import Strategy
 from ..fit.trainer import FitConfig, Trainer
 from ..raster import ColourCache, ColourCacheStore
+from ..raster.sh import used_sh_degree
 from ..scene import GaussianScene, rgb_to_sh_dc, sh_dc_to_rgb
-from .preprocess import ElongationClampStrategy, flat_split_mask, size_evenness
+from .preprocess import ElongationClampStrategy, evenness_verdict, flat_split_mask, size_evenness
 from .settings import StylizeSettings
+from .visibility import culling_note, seen_mask
 
 GEOMETRY_AND_GT = ("means", "log_scales", "quats", "opacity_logits", "sh_dc")  # refit: all but c_s
 PHASES = ("ground_truth", "preprocess", "colour_match", "stylize", "refit", "finish", "done")
@@ -57,6 +60,12 @@ class StepReport:
     geometry_changed: bool = False
     done: bool = False
     message: str = ""
+
+
+def objective_generator(objective) -> torch.Generator | None:
+    """The random generator of an objective's CLIP term (random crops), if it has one (checkpoints keep its state)."""
+    gen = getattr(getattr(getattr(objective, "loss", None), "clip_term", None), "generator", None)
+    return gen if isinstance(gen, torch.Generator) else None
 
 
 def choose_views(cameras: list[Camera], max_views: int) -> list[int]:
@@ -106,10 +115,21 @@ class Stylizer:
         self.geometry_version = 0
         self.colour_version = 0
         self.decisions: dict[str, Any] = {}
+        # Work done, for tests and the trade-off bench: visibility passes, colour caches built and the Gaussians in
+        # them, colours given gradients (per optimiser), Gaussians in refits (per refit).
+        self.counters = dict.fromkeys(("visibility_passes", "cache_builds", "cache_gaussians", "optimised_colours",
+                                       "refit_gaussians"), 0)
+        self._seen_key: tuple[int, int] | None = None
+        self._seen_ids: torch.Tensor | None = None  # Gaussians some training camera sees (None: all)
+        self._c_opt: torch.Tensor | None = None  # the optimised c_s rows (the seen ones) during stylization
+        self._trainer_ids: torch.Tensor | None = None  # the Gaussians the running refit works on (None: all)
+        self._gt_sh_degree = used_sh_degree(scene.sh_rest)
+        self.decisions["sh"] = self._sh_note(scene.sh_degree)
         self.history: list[dict[str, float]] = []
         self.timings: dict[str, float] = {}
         self._objective_factory = objective_factory
         self._objective = None
+        self._note_loss_terms()
         self._opt: torch.optim.Adam | None = None
         self._grad_acc = torch.zeros(scene.count)
         self._trainer: Trainer | None = None
@@ -126,6 +146,13 @@ class Stylizer:
         if settings.split_rate <= 0:
             self.split_steps = []
         self.accumulate_from = int(round(settings.grad_accumulate_from_epoch * n))
+        self.max_gaussians, how = settings.max_gaussians, "max_gaussians setting"
+        if self.max_gaussians <= 0:  # 0: derived from the memory available now (pipeline/resources.py)
+            from .resources import default_max_gaussians
+
+            self.max_gaussians, how = default_max_gaussians(settings.working_width)
+        self.decisions["max_gaussians"] = f"at most {self.max_gaussians:,} Gaussians ({how})"
+        self._reduction_note = ""
 
     # ----------------------------------------------------------------- public API
     @property
@@ -155,6 +182,7 @@ class Stylizer:
             self.settings.weights = replace(self.settings.weights, **weights)
             if self._objective is not None:
                 self._objective.set_weights(self.settings.weights)
+            self._note_loss_terms()
         if kw.get("split_rate") is not None:
             self.settings.split_rate = float(kw["split_rate"])
         if kw.get("lr") is not None:
@@ -205,6 +233,9 @@ class Stylizer:
         rep.total_steps = self.total_steps()
         rep.gaussians = self.gaussian_count
         rep.done = self.done
+        if self._reduction_note:  # a split was cut back by max_gaussians
+            rep.message = f"{rep.message}; {self._reduction_note}" if rep.message else self._reduction_note
+            self._reduction_note = ""
         if rep.geometry_changed:
             self.geometry_version += 1
             self._caches.invalidate()
@@ -220,6 +251,48 @@ class Stylizer:
             rep = self.step()
             if callback is not None:
                 callback(rep)
+
+    # ----------------------------------------------------------------- what the scene needs
+    def _sh_note(self, degree: int) -> str:
+        if degree == 0:
+            return "no view-dependent SH in the scene: nothing to evaluate"
+        if self.photos is not None:
+            return f"SH degree {degree} never evaluated: ground truth from photos, stylization uses diffuse colour"
+        used = self._gt_sh_degree
+        kept = f"degree {used}" if used == degree else f"degree {used} (higher bands are all zero)"
+        return (f"SH evaluated only for the {len(self.cameras)} ground-truth renders at {kept}; stylization and "
+                "refits use diffuse colour only")
+
+    def _note_loss_terms(self) -> None:
+        loss = getattr(self._objective, "loss", None)
+        weights = getattr(loss, "weights", self.settings.weights)
+        on = [k for k in ("clip", "nnfm", "content", "tv") if getattr(weights, k) > 0]
+        off = [k for k in ("clip", "nnfm", "content", "tv") if k not in on]
+        self.decisions["loss_terms"] = (f"computed: {', '.join(on) or 'none'}; never computed (weight 0): "
+                                        f"{', '.join(off) or 'none'}")
+
+    def _seen(self) -> torch.Tensor | None:
+        """Indices of the Gaussians some training camera sees, None when that is all of them (or culling is off).
+
+        Recomputed whenever the geometry changed (a new version or count): after every split and refit.
+        """
+        key = (self.geometry_version, self.gaussian_count)
+        if key == self._seen_key:
+            return self._seen_ids
+        n = self.gaussian_count
+        if not self.settings.cull_unseen:
+            self.decisions["culled"] = "off (cull_unseen = False): every Gaussian is rendered, optimised, split"
+            ids = None
+        else:
+            p = self.params
+            mask = seen_mask(p["means"], p["quats"], torch.exp(p["log_scales"].detach()),
+                             torch.sigmoid(p["opacity_logits"].detach()), self.cameras)
+            self.counters["visibility_passes"] += 1
+            unseen = n - int(mask.sum())
+            self.decisions["culled"] = culling_note(unseen, n, len(self.cameras))
+            ids = torch.nonzero(mask).flatten() if unseen else None
+        self._seen_key, self._seen_ids = key, ids
+        return ids
 
     # ----------------------------------------------------------------- phases
     def _gt_rgb(self) -> torch.Tensor:
@@ -240,7 +313,7 @@ class Stylizer:
             if self._input_params is None:
                 self._input_params = params_from_scene(self.input_scene, requires_grad=False)
             with torch.no_grad():
-                out = render_params(self._input_params, cam, sh_degree=self.input_scene.sh_degree)
+                out = render_params(self._input_params, cam, sh_degree=self._gt_sh_degree)
             gt = out.image.clamp(0, 1)
             covered = out.alpha > 0.5
         self.gt_images.append(gt)
@@ -256,16 +329,20 @@ class Stylizer:
 
     def _start_preprocess(self) -> None:
         s = self.settings
-        crit = size_evenness(self.params["log_scales"], s.preprocess_gamma)
+        ids = self._seen()
+        log_scales = self.params["log_scales"] if ids is None else self.params["log_scales"][ids]
+        crit = size_evenness(log_scales, s.preprocess_gamma)  # of the Gaussians the cameras see
         self.decisions["size_evenness"] = {k: round(v, 4) for k, v in crit.items()}
+        even, figures = evenness_verdict(crit)
         rounds = s.preprocess_rounds
-        # Sizes already even: no flat outliers and few elongated Gaussians (the paper: well-reconstructed scenes may
-        # skip pre-processing).
-        if rounds > 0 and crit["flat_fraction"] < 0.001 and crit["elongated_fraction"] < 0.01:
-            self.decisions["preprocess"] = "skipped: Gaussian sizes already even"
+        if rounds <= 0:
+            self.decisions["preprocess"] = f"off (0 rounds in the settings); {figures}"
+        elif even and not s.force_preprocess:
+            self.decisions["preprocess"] = f"skipped: Gaussian sizes already even ({figures})"
             rounds = 0
         else:
-            self.decisions["preprocess"] = f"{rounds} round(s)" if rounds else "off (preset)"
+            why = "forced although the sizes are even" if even else "sizes uneven"
+            self.decisions["preprocess"] = f"{rounds} round(s), {why} ({figures})"
         self.decisions["preprocess_rounds"] = rounds
         self._preprocess_round = 0
         if rounds == 0:
@@ -274,21 +351,40 @@ class Stylizer:
             self._enter("preprocess")
 
     def _make_trainer(self, strategy: Strategy, trainable: tuple[str, ...]) -> Trainer:
+        """A refit of the seen Gaussians (a copy when some are unseen; ``_trainer_step`` writes it back)."""
         cfg = FitConfig(iterations=self.settings.refit_iterations, sh_degree=0, sh_increase_every=10**9,
                         trainable=trainable, seed=self.settings.seed + self.global_step)
-        return Trainer(self.params, self.cameras, self.gt_images, cfg, strategy, strategy_state={"extras": {}})
+        ids = self._seen()
+        params = self.params if ids is None else torch.nn.ParameterDict(
+            {k: torch.nn.Parameter(v.detach()[ids].clone()) for k, v in self.params.items()})
+        self._trainer_ids = ids
+        self.counters["refit_gaussians"] = int(params["means"].shape[0])
+        return Trainer(params, self.cameras, self.gt_images, cfg, strategy, strategy_state={"extras": {}})
 
-    def _split(self, mask: torch.Tensor, children: int, divisor: float) -> int:
+    def _trainer_step(self):
+        rep = self._trainer.step()
+        ids = self._trainer_ids
+        if ids is not None:
+            with torch.no_grad():
+                for k, v in self._trainer.params.items():
+                    self.params[k][ids] = v.detach()
+        return rep
+
+    def _split(self, mask: torch.Tensor, children: int, divisor: float, priority: torch.Tensor | None = None) -> int:
+        """Split the ``mask`` Gaussians; past ``max_gaussians`` the lowest-``priority`` candidates are dropped."""
         extras = {"c_s": self.c_s, "grad_acc": self._grad_acc}
-        limit = self.settings.max_gaussians - self.gaussian_count
+        limit = max(0, self.max_gaussians - self.gaussian_count)
         n_sel = int(mask.sum())
         if n_sel * (children - 1) > limit:
-            keep = max(0, limit // max(1, children - 1))
-            idx = torch.where(mask)[0][:keep]
+            keep = min(n_sel, limit // max(1, children - 1))
+            idx = torch.where(mask)[0]
+            if priority is not None and keep > 0:
+                idx = idx[torch.topk(priority.detach()[idx].double(), keep).indices]
             mask = torch.zeros_like(mask)
-            mask[idx] = True
-            self.decisions.setdefault("reductions", []).append(
-                f"split reduced from {n_sel} to {keep} Gaussians by the cap of {self.settings.max_gaussians}")
+            mask[idx[:keep]] = True
+            self._reduction_note = (f"split reduced from {n_sel:,} to {keep:,} Gaussians by the cap of "
+                                    f"{self.max_gaussians:,}")
+            self.decisions.setdefault("reductions", []).append(f"step {self.global_step + 1}: {self._reduction_note}")
         ops.split(self.params, {}, extras, mask, n_children=children, scale_divisor=divisor, generator=self._gen)
         self.c_s = extras["c_s"]
         self._grad_acc = extras["grad_acc"]
@@ -300,8 +396,16 @@ class Stylizer:
         msg = ""
         if self._trainer is None:
             gamma = s.preprocess_gamma * s.preprocess_gamma_growth**self._preprocess_round
-            mask = flat_split_mask(self.params["log_scales"], gamma, s.preprocess_cap)
-            n = self._split(mask, s.preprocess_children, s.preprocess_scale_divisor)
+            ids = self._seen()
+            if ids is None:
+                mask = flat_split_mask(self.params["log_scales"], gamma, s.preprocess_cap)
+            else:  # unseen Gaussians are never split
+                mask = torch.zeros(self.gaussian_count, dtype=torch.bool)
+                mask[ids] = flat_split_mask(self.params["log_scales"][ids], gamma, s.preprocess_cap)
+            from .preprocess import gaussian_areas
+
+            n = self._split(mask, s.preprocess_children, s.preprocess_scale_divisor,
+                            priority=gaussian_areas(self.params["log_scales"]))
             it = s.refit_iterations
             clamp_at = tuple(sorted({max(1, it // 4), max(1, it // 2), max(1, 3 * it // 4), it}))
             strategy = ElongationClampStrategy(clamp_at=clamp_at, limit=s.elongation_limit)
@@ -310,7 +414,7 @@ class Stylizer:
             msg = f"pre-processing round {self._preprocess_round + 1}: split {n} flat Gaussians (γ={gamma:.3f})"
             losses = {}
         else:
-            rep = self._trainer.step()
+            rep = self._trainer_step()
             self._refit_left -= 1
             losses = {"refit": rep.loss}
         if self._trainer is not None and self._refit_left <= 0:
@@ -349,6 +453,10 @@ class Stylizer:
             else:
                 self._objective = self._objective_factory(self.style, self.settings)
             self.decisions["clip"] = getattr(self._objective, "clip_status", "n/a")
+            gen, saved = objective_generator(self._objective), getattr(self, "_objective_rng", None)
+            if gen is not None and saved is not None:  # resumed: the CLIP crops continue where they were
+                gen.set_state(saved)
+            self._note_loss_terms()
         return self._objective
 
     def _lr(self) -> float:
@@ -357,54 +465,81 @@ class Stylizer:
         return float(math.exp((1 - t) * math.log(s.lr_start) + t * math.log(s.lr_end)))
 
     def _build_cache(self, view: int) -> ColourCache:
-        p, cam = self.params, self.cameras[view]
+        """The colour cache of one view over the seen Gaussians only (columns in ``_seen()`` order)."""
+        cam, ids = self.cameras[view], self._seen()
+        p = {k: self.params[k].detach() for k in ("means", "quats", "log_scales", "opacity_logits")}
+        if ids is not None:
+            p = {k: v[ids] for k, v in p.items()}
         viewmat, K = camera_tensors(cam)
-        return ColourCache(p["means"].detach(), p["quats"].detach(), torch.exp(p["log_scales"].detach()),
-                           torch.sigmoid(p["opacity_logits"].detach()), viewmat, K, cam.width, cam.height,
-                           geometry_version=self.geometry_version)
+        self.counters["cache_builds"] += 1
+        self.counters["cache_gaussians"] += int(p["means"].shape[0])
+        return ColourCache(p["means"], p["quats"], torch.exp(p["log_scales"]), torch.sigmoid(p["opacity_logits"]),
+                           viewmat, K, cam.width, cam.height, geometry_version=self.geometry_version)
 
-    def _render_cs(self, view: int) -> torch.Tensor:
+    def _render_cs(self, view: int, colours: torch.Tensor | None = None) -> torch.Tensor:
+        """Render c_s (or ``colours`` of the seen Gaussians) from a training view through its colour cache."""
         cache = self._caches.get_or_build(view, self.geometry_version, lambda: self._build_cache(view))
-        return cache.render(self.c_s)
+        if colours is None:
+            ids = self._seen()
+            colours = self.c_s if ids is None else self.c_s[ids]
+        return cache.render(colours)
 
     def _step_stylize(self) -> StepReport:
         s = self.settings
         if self._stylize_step in self.split_steps and s.split_rate > 0:
             return self._do_colour_split()
+        ids = self._seen()
         if self._opt is None:
-            self.c_s = self.c_s.detach().requires_grad_(True)
-            self._opt = torch.optim.Adam([self.c_s], lr=self._lr())
+            self._start_colour_optimiser(ids)
         for g in self._opt.param_groups:
             g["lr"] = self._lr()
         view = self._stylize_step % len(self.cameras)
-        image = self._render_cs(view)
+        image = self._render_cs(view, self._c_opt)
         total, terms = self._objective_fn()(image, self.content_images[view], view)
         self._opt.zero_grad(set_to_none=True)
         total.backward()
-        if self._stylize_step >= self.accumulate_from and self.c_s.grad is not None:
-            self._grad_acc += self.c_s.grad.detach().norm(dim=-1)
+        grad = self._c_opt.grad
+        if self._stylize_step >= self.accumulate_from and grad is not None:
+            norms = grad.detach().norm(dim=-1)
+            if ids is None:
+                self._grad_acc += norms
+            else:
+                self._grad_acc.index_add_(0, ids, norms)
         self._opt.step()
         with torch.no_grad():
-            self.c_s.clamp_(0.0, 1.0)
+            self._c_opt.clamp_(0.0, 1.0)
+            if ids is None:
+                self.c_s.copy_(self._c_opt)
+            else:
+                self.c_s[ids] = self._c_opt
         self._stylize_step += 1
         self.phase_step += 1
         if self._stylize_step >= self.stylize_steps:
-            self._opt = None
-            self.c_s = self.c_s.detach()
+            self._opt, self._c_opt = None, None
             self._enter("finish" if s.colour_match_after else "done")
         return StepReport("stylize", 0, 0, losses={"total": float(total.detach()), **terms}, colours_changed=True,
                           message=f"stylize view {view}")
+
+    def _start_colour_optimiser(self, ids: torch.Tensor | None) -> None:
+        """Adam on a copy of the seen Gaussians' c_s (unseen ones get no gradient and keep their colour)."""
+        self.c_s = self.c_s.detach()
+        self._c_opt = (self.c_s if ids is None else self.c_s[ids]).clone().requires_grad_(True)
+        self.counters["optimised_colours"] = int(self._c_opt.shape[0])
+        self._opt = torch.optim.Adam([self._c_opt], lr=self._lr())
 
     def _do_colour_split(self) -> StepReport:
         s = self.settings
         self.split_steps.remove(self._stylize_step)
         n = self.gaussian_count
-        k = int(math.floor(s.split_rate * n))
+        ids = self._seen()  # the split rate is a fraction of the seen Gaussians; unseen ones are never split
+        k = int(math.floor(s.split_rate * (n if ids is None else len(ids))))
         mask = torch.zeros(n, dtype=torch.bool)
         if k > 0:
-            mask[torch.topk(self._grad_acc, k).indices] = True
+            top = torch.topk(self._grad_acc if ids is None else self._grad_acc[ids], k).indices
+            mask[top if ids is None else ids[top]] = True
         self.c_s = self.c_s.detach()
-        count = self._split(mask, s.split_children, s.split_scale_divisor)
+        self._c_opt = None
+        count = self._split(mask, s.split_children, s.split_scale_divisor, priority=self._grad_acc)
         self._grad_acc = torch.zeros(self.gaussian_count)
         self._opt = None
         self._trainer = self._make_trainer(Strategy(), GEOMETRY_AND_GT)
@@ -414,7 +549,7 @@ class Stylizer:
                           message=f"split {count} Gaussians with the largest colour gradient")
 
     def _step_refit(self) -> StepReport:
-        rep = self._trainer.step()
+        rep = self._trainer_step()
         self._refit_left -= 1
         if self._refit_left <= 0:
             self._trainer = None
@@ -466,6 +601,7 @@ class Stylizer:
             "colour_transform": self.colour_transform,
             "adam": copy.deepcopy(self._opt.state_dict()) if self._opt is not None else None,
             "generator": self._gen.get_state(),
+            "objective_rng": g.get_state() if (g := objective_generator(self._objective)) is not None else None,
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -490,10 +626,12 @@ class Stylizer:
         self.colour_transform = state["colour_transform"]
         self._caches.invalidate()
         self._gen.set_state(state["generator"])
-        self._opt = None
+        self._objective_rng = state.get("objective_rng")
+        if self._objective is not None and self._objective_rng is not None and objective_generator(self._objective):
+            objective_generator(self._objective).set_state(self._objective_rng)
+        self._opt, self._c_opt = None, None
         if state.get("adam") is not None:
-            self.c_s = self.c_s.detach().requires_grad_(True)
-            self._opt = torch.optim.Adam([self.c_s], lr=self._lr())
+            self._start_colour_optimiser(self._seen())
             self._opt.load_state_dict(state["adam"])
         self._trainer = None
         self._refit_left = state["refit_left"]

@@ -4,8 +4,12 @@ Conventions (the OpenGL viewer matches them):
 - Camera: ``viewmat`` is world-to-camera with OpenCV axes (x right, y down, z forward); ``K`` in pixels.
 - Pixel convention (as gsplat): a Gaussian's centre projects to ``means2d = (fx*X/Z + cx, fy*Y/Z + cy)``
   and pixel (col, row) is evaluated at the continuous point ``(col + 0.5, row + 0.5)``.
-- Culling: camera z <= near or z > far; 2D covariance determinant <= 0; no 16x16 tile on screen touched by
-  the square of half-side radius = ceil(3 * sqrt(largest eigenvalue of the 2D covariance)).
+- Extreme inputs: scales above 1e20 count as 1e20 (the 2D covariance would overflow; such a Gaussian covers
+  the screen anyway); a quaternion is normalised after division by its largest component, and one whose
+  largest |component| is <= 1e-10 is the identity (both the same in float32 and float64).
+- Culling: camera z <= near or z > far; a centre projecting beyond the float range; 2D covariance determinant
+  <= 0; no 16x16 tile on screen touched by the square of half-side radius = ceil(3 * sqrt(largest eigenvalue
+  of the 2D covariance)).
 - 2D covariance: EWA Jacobian at the mean with x/z, y/z clamped to the field of view widened by 30 %
   (3DGS's 1.3 * tan(fov/2)), plus 0.3 px^2 on the diagonal (low-pass dilation).
 - Blending, front to back in depth order per pixel: power = -0.5 d^T conic d (skipped if > 0),

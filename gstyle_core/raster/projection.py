@@ -16,6 +16,9 @@ from torch import Tensor
 LOW_PASS_DILATION = 0.3
 FOV_CLAMP_MARGIN = 0.3  # the 3DGS clamp: |x/z| <= 1.3 * tan(half fov) for a centred principal point
 MAX_RADIUS = 2.0**30  # radii are clamped here so they fit an int32 (such a Gaussian covers any screen)
+MAX_SCALE = 1e20  # larger scales are clamped here: the 2D covariance would overflow (and such a Gaussian
+# covers any screen at any depth up to ``far`` anyway)
+QUAT_MIN = 1e-10  # a quaternion whose largest |component| is at most this is the identity (zero gradient)
 
 
 @dataclass
@@ -36,10 +39,13 @@ class Projected:
 def _rotation_entries(quats: Tensor) -> list[Tensor]:
     """Row-major entries of the rotation matrices of wxyz quaternions [N, 4] (any length; 0 -> identity)."""
     q = quats.t().contiguous()  # [4, N]: contiguous rows make the per-component ops fast
+    # Divide by the largest component before squaring: |q|^2 is then in [1, 4], so huge quaternions do not
+    # overflow nor tiny ones underflow, and float32 and float64 agree on which ones are degenerate.
+    big = q.abs().amax(0, keepdim=True)
+    degenerate = big <= QUAT_MIN
+    q = q / torch.where(degenerate, torch.ones_like(big), big)
     norm_sq = (q * q).sum(0, keepdim=True)
-    tiny = 1e-24 if quats.dtype == torch.float64 else 1e-20
-    degenerate = norm_sq <= tiny
-    q = q / torch.sqrt(norm_sq.clamp_min(tiny))
+    q = q / torch.sqrt(torch.where(degenerate, torch.ones_like(norm_sq), norm_sq))
     identity = torch.zeros_like(q)
     identity[0] = 1.0
     q = torch.where(degenerate, identity, q)
@@ -89,6 +95,8 @@ def project_gaussians(
     p_cam = torch.addmm(viewmat[:3, 3:4], rot_view, means.t())  # [3, N]
     x, y, z = p_cam.unbind(0)
     in_depth = (z > near) & (z <= far) & torch.isfinite(p_cam).all(0)
+    with torch.no_grad():  # centres that project beyond the float range are culled before they enter the graph
+        in_depth &= torch.isfinite(fx * x * (1.0 / z) + cx) & torch.isfinite(fy * y * (1.0 / z) + cy)
     z_safe = torch.where(in_depth, z, torch.ones_like(z))
     x_safe = torch.where(in_depth, x, torch.zeros_like(x))
     y_safe = torch.where(in_depth, y, torch.zeros_like(y))
@@ -111,7 +119,7 @@ def project_gaussians(
     t_x = [jx * w[0][k] + jxz * w[2][k] for k in range(3)]  # first row of J W
     t_y = [jy * w[1][k] + jyz * w[2][k] for k in range(3)]
     r = _rotation_entries(quats)
-    sx, sy, sz = scales.t().contiguous().unbind(0)
+    sx, sy, sz = scales.clamp(max=MAX_SCALE).t().contiguous().unbind(0)
     rs = [r[3 * i + k] * s_k for i in range(3) for k, s_k in enumerate((sx, sy, sz))]  # R S, row-major
     g_x = [(t_x[0] * rs[k] + t_x[1] * rs[3 + k] + t_x[2] * rs[6 + k]).to(torch.float64) for k in range(3)]
     g_y = [(t_y[0] * rs[k] + t_y[1] * rs[3 + k] + t_y[2] * rs[6 + k]).to(torch.float64) for k in range(3)]

@@ -247,11 +247,13 @@ def resize_short_side_center_crop(img: torch.Tensor, size: int) -> torch.Tensor:
 
 
 def spherical_distance(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """2·arcsin(‖â−b̂‖/2)² for unit-normalised rows of ``a`` [N,D] against ``b`` [1,D] → [N]."""
+    """2·arcsin(‖â−b̂‖/2)² for unit-normalised rows of ``a`` [N,D] against ``b`` [1,D] → [N].
+
+    Computed as 2·atan2(‖â−b̂‖, ‖â+b̂‖)² (the same half-angle): arcsin's derivative is infinite at opposite
+    embeddings and gave NaN gradients there; atan2 is finite everywhere."""
     a = F.normalize(a, dim=-1, eps=1e-8)
     b = F.normalize(b, dim=-1, eps=1e-8)
-    half_chord = ((a - b).norm(dim=-1) / 2).clamp(max=1.0)
-    return 2 * torch.arcsin(half_chord) ** 2
+    return 2 * torch.atan2((a - b).norm(dim=-1), (a + b).norm(dim=-1)) ** 2
 
 
 class ClipStyleLoss(nn.Module):
@@ -333,4 +335,6 @@ def _as_batch(img: torch.Tensor) -> torch.Tensor:
         img = img.unsqueeze(0)
     if img.ndim != 4 or img.shape[1] != 3:
         raise ValueError(f"expected an RGB image [B,3,H,W], got {tuple(img.shape)}")
+    if img.shape[0] == 0 or img.shape[2] == 0 or img.shape[3] == 0:
+        raise ValueError(f"expected a non-empty RGB image, got shape {tuple(img.shape)}")
     return img

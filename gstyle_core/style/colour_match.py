@@ -1,10 +1,12 @@
 """Linear colour transfer (as in ARF / G-Style): map the mean and covariance of content colours onto a style's.
 
 c' = A·c + b with A = Σ_s^{1/2} Σ_c^{-1/2} and b = μ_s − A·μ_c. Both matrix square roots come from
-symmetric eigendecompositions in float64 with eigenvalues clamped to [1e-8, 1e8], so the result stays
-finite for singular covariances (uniform or greyscale styles, one-colour scenes) and huge value ranges.
-For a rank-deficient content covariance the clamped inverse square root amplifies the missing directions
-by at most 1e4; since content colours have (numerically) no spread along them, mapped colours stay finite.
+symmetric eigendecompositions in float64 with eigenvalues floored at 1e-8 (a spread below 1e-4 in colour
+units counts as none), so the result stays finite for singular covariances (uniform or greyscale styles,
+one-colour scenes). For a rank-deficient content covariance the floored inverse square root amplifies the
+missing directions by at most 1e4; since content colours have (numerically) no spread along them, mapped
+colours stay finite. There is no upper clamp: large spreads (any scale of values) are matched exactly.
+Colour values beyond ±1e100 are rejected (their covariance would overflow float64).
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 EIGEN_MIN = 1e-8
-EIGEN_MAX = 1e8
+MAX_ABS_VALUE = 1e100
 
 
 def _as_pixels(colors: np.ndarray, what: str) -> np.ndarray:
@@ -24,12 +26,15 @@ def _as_pixels(colors: np.ndarray, what: str) -> np.ndarray:
     finite = np.isfinite(pixels).all(axis=1)
     if not finite.any():
         raise ValueError(f"{what} colours contain no finite value")
-    return pixels[finite]
+    pixels = pixels[finite]
+    if np.abs(pixels).max() > MAX_ABS_VALUE:
+        raise ValueError(f"{what} colours exceed ±{MAX_ABS_VALUE:g}")
+    return pixels
 
 
 def _symmetric_power(cov: np.ndarray, power: float) -> np.ndarray:
     values, vectors = np.linalg.eigh((cov + cov.T) / 2)
-    values = np.clip(values, EIGEN_MIN, EIGEN_MAX)
+    values = np.maximum(values, EIGEN_MIN)
     return (vectors * values**power) @ vectors.T
 
 

@@ -26,6 +26,7 @@ from torch import nn
 
 FEATURE_LAYERS = ("relu3_1", "relu3_2", "relu3_3")
 _NORM_EPS = 1e-8
+MIN_VGG_SIDE = 4  # relu3_x follow two 2x poolings: a smaller input has no feature vector (VGG raises)
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,8 @@ def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chu
                          f"{style_matrix.shape[0]}")
     if style_matrix.shape[1] == 0:
         raise ValueError("the style target has no feature vectors")
+    if render_feats.numel() == 0:
+        raise ValueError(f"the render has no feature vectors (features {tuple(render_feats.shape)})")
     render_vectors = normalise_vectors(render_feats.float().permute(0, 2, 3, 1).flatten(0, 2), dim=1)  # [N, C]
     with torch.no_grad():
         nearest = torch.cat([(block @ style_matrix).argmax(dim=1)
@@ -154,6 +157,19 @@ def tv_loss(img: torch.Tensor, kind: str = "squared") -> torch.Tensor:
     raise ValueError(f"tv kind must be 'squared' or 'abs', got {kind!r}")
 
 
+def vgg_input_size(size: tuple[int, int] | torch.Size) -> tuple[int, int]:
+    """``size`` (h, w) with each side raised to at least ``MIN_VGG_SIDE``."""
+    return max(int(size[0]), MIN_VGG_SIDE), max(int(size[1]), MIN_VGG_SIDE)
+
+
+def upsample_for_vgg(img: torch.Tensor) -> torch.Tensor:
+    """A render with a side below ``MIN_VGG_SIDE`` px stretched (bilinear) to that size; others as they are."""
+    size = vgg_input_size(img.shape[-2:])
+    if size == tuple(img.shape[-2:]):
+        return img
+    return F.interpolate(img, size=size, mode="bilinear", align_corners=False)
+
+
 def resize_to_width(img: torch.Tensor, width: int | None) -> torch.Tensor:
     """Bilinear (antialiased) resize so the width is ``width`` px, keeping the aspect ratio (None: as is)."""
     if width is None or img.shape[-1] == width:
@@ -169,6 +185,7 @@ class StyleLoss(nn.Module):
     ``vgg`` and ``style_target`` serve NNFM and content; ``clip_term`` is a :class:`ClipStyleLoss` or a
     :class:`CoarseStyleLoss` (or None: the CLIP weight must then be 0). ``working_width`` resizes the render
     (and gt) before the networks, like the reference's 1024-px stylization size; TV uses the full render.
+    A render (or gt) with a side below ``MIN_VGG_SIDE`` px is stretched to it for VGG (no relu3 features otherwise).
     Terms with weight 0 are skipped entirely and reported as 0.
     """
 
@@ -214,7 +231,7 @@ class StyleLoss(nn.Module):
         terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero}
         small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip) else render
         if w.nnfm > 0 or w.content > 0:
-            feats = self.vgg(small)
+            feats = self.vgg(upsample_for_vgg(small))
             self.calls["vgg"] += 1
             if w.nnfm > 0:
                 terms["nnfm"] = nnfm_loss(concat_features(feats), self.style_target, self.nnfm_chunk)
@@ -233,9 +250,11 @@ class StyleLoss(nn.Module):
 
     @torch.no_grad()
     def content_features(self, gt: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> dict[str, torch.Tensor]:
-        """VGG features of the ground-truth view [1,3,H,W] at ``size`` (cache them per view: they never change)."""
+        """VGG features of the ground-truth view [1,3,H,W] at ``size`` (raised to at least ``MIN_VGG_SIDE`` per
+        side, as renders are; cache them per view: they never change)."""
         if gt is None:
             raise ValueError("the content term needs the ground-truth view (gt)")
+        size = vgg_input_size(size)
         gt_small = gt if gt.shape[-2:] == tuple(size) else F.interpolate(
             gt, size=tuple(size), mode="bilinear", align_corners=False, antialias=True)
         self.calls["vgg"] += 1

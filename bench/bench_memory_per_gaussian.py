@@ -1,0 +1,88 @@
+"""Peak memory per Gaussian of a stylization run (the estimate behind the default ``max_gaussians``).
+
+Usage: .venv/bin/python bench/bench_memory_per_gaussian.py [--width W] [COPIES ...]   (default 192 px, 1 4)
+
+Each measurement runs in a fresh process: the bundled demo scene replicated COPIES times (each copy jittered by a
+fraction of the Gaussian sizes, so the footprint per Gaussian stays that of a real scene), generated cameras,
+preview settings at 192 px (16 views), a cheap stand-in objective (the networks' memory does not depend on the
+Gaussian count), driven through ground truth, one pre-processing round (split + 3 refit iterations), one
+stylization epoch (every view's colour cache built) and one colour-gradient split with 3 refit iterations.
+Reported: peak RSS (``ru_maxrss``) per run, and the slope between the smallest and largest run in bytes per
+Gaussian (``RESULT`` line).
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def child(copies: int, width: int) -> dict:
+    """Run the stylization in this process; return the Gaussian count and the peak RSS."""
+    sys.path.insert(0, str(ROOT))
+    sys.path.insert(0, str(ROOT / "tests"))
+    import numpy as np
+    import torch
+    from fakes import MeanColourPull
+
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.render_cli import load_scene_and_cameras
+    from gstyle_core.scene import GaussianScene
+
+    torch.set_num_threads(1)
+    scene, _report, cams = load_scene_and_cameras(None, None)
+    rng = np.random.default_rng(0)
+    parts = []
+    for i in range(copies):
+        jitter = rng.normal(0, 0.3, scene.means.shape) * np.exp(scene.log_scales) if i else 0.0
+        parts.append(scene.means + jitter)
+    big = GaussianScene(np.concatenate(parts).astype(np.float32), np.tile(scene.log_scales, (copies, 1)),
+                        np.tile(scene.quats, (copies, 1)), np.tile(scene.opacity_logits, copies),
+                        np.tile(scene.sh_dc, (copies, 1)), np.tile(scene.sh_rest, (copies, 1, 1)))
+    n_views = len(cams.cameras)
+    settings = resolve_settings("preview", "360", n_views, refit_iterations=3, epochs=2.0, min_steps=0,
+                                split_at_epochs=(1.0,), preprocess_rounds=1,
+                                working_width=width)
+    style = np.random.default_rng(1).uniform(0, 1, (64, 64, 3)).astype(np.float32)
+    engine = Stylizer(big, cams.cameras, style, settings, objective_factory=MeanColourPull)
+    phases = set()
+    while engine.phase not in ("finish", "done") and engine.global_step < 10_000:
+        phases.add(engine.step().phase)
+        if "refit" in phases and engine.phase == "stylize":
+            break
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: KiB
+    return {"gaussians_in": big.count, "gaussians_out": engine.gaussian_count, "peak_rss": peak,
+            "phases": sorted(phases), "views": len(engine.cameras), "width": settings.working_width}
+
+
+def main(argv: list[str]) -> int:
+    width = 192
+    if argv[:1] == ["--width"]:
+        width, argv = int(argv[1]), argv[2:]
+    if argv[:1] == ["--child"]:
+        print(json.dumps(child(int(argv[1]), int(argv[2]))))
+        return 0
+    copies = [int(a) for a in argv] or [1, 4]
+    rows = []
+    for c in copies:
+        out = subprocess.run([sys.executable, __file__, "--child", str(c), str(width)], capture_output=True, text=True,
+                             check=True, cwd=ROOT)
+        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        r = rows[-1]
+        print(f"copies {c}: {r['gaussians_in']:>8,} -> {r['gaussians_out']:>8,} Gaussians, {r['views']} views at "
+              f"{r['width']} px, peak RSS {r['peak_rss'] / 2**20:8.1f} MiB  (phases {', '.join(r['phases'])})")
+    lo, hi = rows[0], rows[-1]
+    slope = (hi["peak_rss"] - lo["peak_rss"]) / max(1, hi["gaussians_out"] - lo["gaussians_out"])
+    print(f"RESULT bytes_per_gaussian={slope:.0f} (peak RSS slope between {lo['gaussians_out']:,} and "
+          f"{hi['gaussians_out']:,} Gaussians)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,228 @@
+"""What accuracy costs in time: sweep the stylization's speed/quality knobs, measure both, mark the Pareto front.
+
+    .venv/bin/python bench/tradeoff.py [--fern out/fern.ply] [--groups demo:starry,...] [--quick]
+
+Each point is one full stylization (the real ``Stylizer`` driven to the end, as ``gstyle stylize`` does) with the
+``preview`` preset and one knob changed: working resolution, epochs, VGG in bf16 (channels_last), pre-processing
+rounds (0, the preset's 1, the paper's 5 forward-facing / 10 for 360°), colour-gradient splitting off, culling of
+Gaussians no camera sees off, and the ``balanced`` preset. Scenes: the bundled demo (360°) and the fern
+(forward-facing; fit it first with ``gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply``).
+
+Quality is measured on 3 fixed evaluation views at one width (256 px) for every point:
+- ``nnfm_drop``: 1 − NNFM distance to the style after / before (coverage-weighted; higher = more stylized),
+- ``content``: VGG relu3 MSE to the input scene's renders (lower = more of the scene kept),
+- ``colour``: distance of RGB mean/covariance to the style's,
+- ``consistency``: reprojection error between each evaluation view and a nearby view (rendered depth;
+  ``consistency_input`` is the same for the input scene, the floor of the measure; the nearby view is the
+  evaluation camera moved sideways by 3 % of the scene's median depth),
+- ``preprocess_psnr``: PSNR of the pre-processed scene against the ground truth on the training views.
+Writes ``docs/tradeoff.csv`` and ``docs/tradeoff.png`` (NNFM drop against time per scene/style, Pareto front =
+no other point of the group is both faster and more stylized) and prints ``RESULT points=N pareto=M`` last.
+Run it on a quiet machine: the times are wall-clock seconds on this one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from gstyle_core.pipeline.cli import build_stylizer  # noqa: E402
+from gstyle_core.pipeline.consistency import nearby_camera, view_consistency  # noqa: E402
+from gstyle_core.pipeline.stylizer import choose_views  # noqa: E402
+
+SCENES = {"demo": None}  # None = the bundled demo
+STYLES = {"starry": ROOT / "assets" / "styles" / "starry_night.jpg",
+          "mandelbrot": ROOT.parent / "shared" / "data" / "styles" / "mandelbrot_color.png"}
+FULL_SWEEP = [
+    ("preview", "preview", {}),
+    ("width 128", "preview", {"working_width": 128}),
+    ("width 256", "preview", {"working_width": 256}),
+    ("width 320", "preview", {"working_width": 320}),
+    ("epochs 3", "preview", {"epochs": 3.0, "min_steps": 30}),
+    ("epochs 12", "preview", {"epochs": 12.0, "min_steps": 120}),
+    ("bf16 VGG", "preview", {"vgg_dtype": "bfloat16"}),
+    ("no preprocess", "preview", {"preprocess_rounds": 0}),
+    ("paper rounds", "preview", {"preprocess_rounds": "paper"}),
+    ("no colour split", "preview", {"split_rate": 0.0}),
+    ("no culling", "preview", {"cull_unseen": False}),
+    ("balanced", "balanced", {}),
+]
+SHORT_SWEEP = [p for p in FULL_SWEEP if p[0] in ("preview", "width 128", "width 256", "epochs 3", "epochs 12")]
+QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5}),
+               ("width 128", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5,
+                                          "working_width": 128})]
+EVAL_WIDTH = 256
+NEARBY_SHIFT = 0.03  # consistency: the second view is moved sideways by 3 % of the scene's median depth
+
+
+def median_depth(scene, camera) -> float:
+    """Median camera-space depth of the Gaussians in front of ``camera``."""
+    pts = scene.means @ camera.world_to_cam[:3, :3].T + camera.world_to_cam[:3, 3]
+    z = pts[:, 2][pts[:, 2] > 0]
+    return float(np.median(z)) if z.size else 1.0
+
+
+def make_args(scene: str | None, style: Path, preset: str) -> argparse.Namespace:
+    return argparse.Namespace(scene=scene, style=str(style), cameras=None, preset=preset, scene_kind="auto",
+                              lambda_clip=None, lambda_nnfm=None, lambda_content=None, lambda_tv=None,
+                              split_rate=None, working_width=None, clip_weights=None, vgg_weights=None,
+                              max_gaussians=None)
+
+
+def psnr(engine) -> float:
+    """PSNR of the current geometry with c_gt against the ground truth, over the training views."""
+    from gstyle_core.fit.model import render_params
+
+    errors = []
+    with torch.no_grad():
+        for cam, gt in zip(engine.cameras, engine.gt_images, strict=True):
+            img = render_params(engine.params, cam, sh_degree=0).image
+            errors.append(float(((img - gt) ** 2).mean()))
+    return float(-10 * math.log10(max(np.mean(errors), 1e-12)))
+
+
+def run_point(scene: str | None, style: Path, preset: str, overrides: dict) -> dict:
+    """One stylization with ``overrides``; wall time per phase and the quality figures."""
+    from gstyle_core.pipeline.cli import evaluate_run
+
+    kw = dict(overrides)
+    if kw.get("preprocess_rounds") == "paper":
+        kw.pop("preprocess_rounds")
+        paper = True
+    else:
+        paper = False
+    t0 = time.perf_counter()
+    engine, scene_in, _, _, style_img = build_stylizer(make_args(scene, style, preset), **kw)
+    if paper:
+        engine.settings.preprocess_rounds = 5 if engine.settings.scene_kind == "forward" else 10
+    build_s = time.perf_counter() - t0
+    pre_psnr = float("nan")
+    phase_wall: dict[str, float] = {}
+    while not engine.done:
+        t = time.perf_counter()
+        rep = engine.step()
+        phase_wall[rep.phase] = phase_wall.get(rep.phase, 0.0) + time.perf_counter() - t
+        if rep.phase == "colour_match" and math.isnan(pre_psnr):
+            pre_psnr = psnr(engine)
+    total = time.perf_counter() - t0
+    q = evaluate_run(engine, scene_in, style_img, n_views=3, width=EVAL_WIDTH)
+    q.pop("images")
+    eval_cams = [engine.full_cameras[i].resized_to_width(EVAL_WIDTH) for i in choose_views(engine.full_cameras, 3)]
+    pairs = [(c, nearby_camera(c, NEARBY_SHIFT * median_depth(scene_in, c))) for c in eval_cams]
+    return {
+        "seconds": total, "build_s": build_s, **{f"s_{k}": v for k, v in phase_wall.items()},
+        "gaussians": engine.gaussian_count, "nnfm_before": q["initial"]["nnfm"], "nnfm_after": q["final"]["nnfm"],
+        "nnfm_drop": 1 - q["final"]["nnfm"] / max(q["initial"]["nnfm"], 1e-12), "content": q["final"]["content"],
+        "colour": q["final"]["colour"], "consistency": view_consistency(engine.stylized_scene(), pairs),
+        "consistency_input": view_consistency(scene_in, pairs), "preprocess_psnr": pre_psnr,
+        "working_width": engine.settings.working_width, "steps": engine.global_step,
+    }
+
+
+def pareto(points: list[dict]) -> list[bool]:
+    """True for points no other point beats on both time (lower) and NNFM drop (higher)."""
+    flags = []
+    for p in points:
+        dominated = any(q is not p and q["seconds"] <= p["seconds"] and q["nnfm_drop"] >= p["nnfm_drop"]
+                        and (q["seconds"] < p["seconds"] or q["nnfm_drop"] > p["nnfm_drop"]) for q in points)
+        flags.append(not dominated)
+    return flags
+
+
+def plot(rows: list[dict], path: Path) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib not installed (pip install -e .[bench]): no plot")
+        return False
+    groups = sorted({r["group"] for r in rows})
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.2 * len(groups), 4.2), squeeze=False)
+    for ax, g in zip(axes[0], groups, strict=True):
+        pts = [r for r in rows if r["group"] == g]
+        ax.scatter([r["seconds"] for r in pts], [100 * r["nnfm_drop"] for r in pts], c="tab:blue", s=22)
+        front = sorted((r for r in pts if r["pareto"]), key=lambda r: r["seconds"])
+        ax.plot([r["seconds"] for r in front], [100 * r["nnfm_drop"] for r in front], "-o", c="tab:red", ms=5,
+                label="Pareto front")
+        for r in pts:
+            ax.annotate(r["label"], (r["seconds"], 100 * r["nnfm_drop"]), fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")
+        ax.set_title(g)
+        ax.set_xlabel("wall time (s, 2 CPU cores)")
+        ax.set_ylabel("NNFM distance to the style: drop (%)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    from gstyle_core.atomic import atomic_write
+
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=110)
+    return True
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--fern", default=str(ROOT / "out" / "fern.ply"), help="fitted fern scene (gstyle fit)")
+    p.add_argument("--groups", default="demo:starry,demo:mandelbrot,fern:starry,fern:mandelbrot",
+                   help="scene:style pairs; the first gets the full sweep, the others a short one")
+    p.add_argument("--quick", action="store_true", help="two tiny points on the demo (a smoke test, minutes)")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--out", default=str(ROOT / "docs" / "tradeoff"), help="CSV/PNG path without suffix")
+    args = p.parse_args()
+    torch.set_num_threads(args.threads)
+    scenes = dict(SCENES)
+    if Path(args.fern).is_file():
+        scenes["fern"] = args.fern
+    groups = [g.split(":") for g in args.groups.split(",")] if not args.quick else [["demo", "starry"]]
+    rows: list[dict] = []
+    for gi, (scene_name, style_name) in enumerate(groups):
+        if scene_name not in scenes:
+            print(f"skip {scene_name}: not found (fit it first: gstyle fit ../shared/data/scenes/llff_fern "
+                  f"--out out/fern.ply)")
+            continue
+        if not STYLES[style_name].is_file():
+            print(f"skip {style_name}: {STYLES[style_name]} not found")
+            continue
+        sweep = QUICK_SWEEP if args.quick else (FULL_SWEEP if gi == 0 else SHORT_SWEEP)
+        for label, preset, overrides in sweep:
+            res = run_point(scenes[scene_name], STYLES[style_name], preset, overrides)
+            row = {"group": f"{scene_name} / {style_name}", "label": label, **res}
+            rows.append(row)
+            print(f"{row['group']:<20} {label:<16} {res['seconds']:7.1f} s  NNFM drop {100 * res['nnfm_drop']:5.1f} %"
+                  f"  content {res['content']:7.2f}  colour {res['colour']:.3f}  consistency {res['consistency']:.4f}"
+                  f" (input {res['consistency_input']:.4f})  preprocess PSNR {res['preprocess_psnr']:.2f} dB",
+                  flush=True)
+    for g in {r["group"] for r in rows}:
+        pts = [r for r in rows if r["group"] == g]
+        for r, flag in zip(pts, pareto(pts), strict=True):
+            r["pareto"] = flag
+    out = Path(args.out)
+    fields = sorted({k for r in rows for k in r}, key=lambda k: (k not in ("group", "label", "pareto"), k))
+    from gstyle_core.atomic import atomic_write_text
+
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=fields)
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({k: (f"{v:.5g}" if isinstance(v, float) else v) for k, v in r.items()})
+    atomic_write_text(out.with_suffix(".csv"), buf.getvalue())
+    plot(rows, out.with_suffix(".png"))
+    print(f"wrote {out.with_suffix('.csv')} and {out.with_suffix('.png')}")
+    print(f"RESULT points={len(rows)} pareto={sum(r['pareto'] for r in rows)}")
+
+
+if __name__ == "__main__":
+    main()
