@@ -12,7 +12,8 @@ On llvmpipe a splat frame costs its fragments: 40k Gaussians at 800×600 cover e
    streaming), the full-resolution image is built progressively: consecutive slices of the back-to-front order
    are blended into an accumulation texture, as many per frame as fit the budget (the slice size adapts to the
    measured time). Back-to-front slices drawn in order without clearing compose to exactly the one-pass image.
-   It is shown when complete; a newer change waits for the running build to finish, so streaming never starves it.
+   It is shown when complete; a newer change waits for the running build to finish, so streaming never starves it,
+   and streamed changes start at most one build per ``rebuild_interval`` (the worker keeps its CPU share).
 """
 
 from __future__ import annotations
@@ -89,11 +90,13 @@ class SceneView:
     """Draws the scene through offscreen textures with the three rules of this module's docstring."""
 
     def __init__(self, ctx: moderngl.Context, *, budget_ms: float = 20.0, still_delay: float = 0.15,
-                 clock: Callable[[], float] = time.perf_counter) -> None:
+                 rebuild_interval: float = 0.5, clock: Callable[[], float] = time.perf_counter) -> None:
         self.ctx = ctx
         self.governor = ResolutionGovernor(budget_ms)
         self.budget_ms = budget_ms
         self.still_delay = still_delay
+        self.rebuild_interval = rebuild_interval  # streamed colours: at most one new build per this many seconds
+        self._last_build_start = -math.inf
         self.clock = clock
         self.stats = ViewStats()
         self.progressive = True  # False: every change is drawn at full resolution at once (tests, screenshots)
@@ -134,9 +137,11 @@ class SceneView:
                 drew = self._immediate(camera, passes, key)
             if self._shown_key != key or not self.stats.shown_full:
                 self._queue(key, camera, passes, cancel=moved)
-        if self._build is None and self._pending is not None and now - self._last_move >= self.still_delay:
+        if (self._build is None and self._pending is not None and now - self._last_move >= self.still_delay
+                and (not self.stats.shown_full or now - self._last_build_start >= self.rebuild_interval)):
             self._build = _Build(*self._pending)
             self._pending = None
+            self._last_build_start = now
         if self._build is not None and now - self._last_move >= self.still_delay:
             drew = self._advance_build() or drew
         if not drew:

@@ -61,8 +61,9 @@ def _open(path: Path, max_pixels: int) -> Image.Image:
         raise StyleImageError(f"style image {path} is too large to decode safely ({exc.__class__.__name__})") from exc
     except UnidentifiedImageError as exc:
         raise StyleImageError(f"{path} is not an image file Pillow can read") from exc
-    except OSError as exc:
-        raise StyleImageError(f"cannot open style image {path}: {exc}") from exc
+    except (OSError, ValueError, EOFError) as exc:  # ValueError: e.g. Pillow's "Truncated IHDR chunk"
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise StyleImageError(f"cannot open style image {path}: {reason}") from exc
     width, height = image.size
     if width * height > max_pixels:
         image.close()

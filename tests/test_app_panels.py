@@ -11,22 +11,11 @@ from imgui_bundle import imgui  # noqa: E402, I001 - before glfw (gl-stack.md)
 from app.panels import PanelState, draw_panel, format_eta  # noqa: E402
 from app.renderer import read_rgb  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
-from app.window import DisplayUnavailableError, open_window  # noqa: E402
 from fakes import make_fake_engine  # noqa: E402
 from gstyle_core.scene import GaussianScene, logit, rgb_to_sh_dc  # noqa: E402
 from synthetic import look_at_camera  # noqa: E402
 
 W, H = 400, 300
-
-
-@pytest.fixture
-def window():
-    try:
-        win = open_window(W, H, headless=True)
-    except DisplayUnavailableError as exc:
-        pytest.skip(f"no headless GL window (glfw NULL + EGL): {exc}")
-    yield win
-    win.close()
 
 
 def wall_scene(rgb) -> GaussianScene:

@@ -14,16 +14,6 @@ from gstyle_core.cameras.camera import Camera  # noqa: E402
 W, H = 64, 48
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    try:
-        context = moderngl.create_standalone_context(backend="egl", require=330)
-    except Exception as exc:  # noqa: BLE001
-        pytest.skip(f"no EGL OpenGL 3.3 context: {exc}")
-    yield context
-    context.release()
-
-
 def float_fbo(ctx, w=W, h=H):
     return ctx.framebuffer([ctx.texture((w, h), 4, dtype="f4")])
 

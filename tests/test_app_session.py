@@ -12,22 +12,11 @@ from PIL import Image  # noqa: E402
 
 from app.panels import Command  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
-from app.window import DisplayUnavailableError, open_window  # noqa: E402
 from fakes import make_fake_engine  # noqa: E402
 from gstyle_core.pipeline.checkpoint import read_checkpoint  # noqa: E402
 from synthetic import blob_scene, look_at_camera  # noqa: E402
 
 W, H = 160, 120
-
-
-@pytest.fixture
-def window():
-    try:
-        win = open_window(W, H, headless=True)
-    except DisplayUnavailableError as exc:
-        pytest.skip(f"no headless GL window (glfw NULL + EGL): {exc}")
-    yield win
-    win.close()
 
 
 def _frame(win, app):

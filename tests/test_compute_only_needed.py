@@ -284,17 +284,6 @@ def test_all_zero_sh_bands_are_skipped_with_identical_ground_truth(sh_calls):
 
 
 # ====================================================================== the viewer: no re-sort, no re-upload
-@pytest.fixture(scope="module")
-def ctx():
-    moderngl = pytest.importorskip("moderngl")
-    try:
-        context = moderngl.create_standalone_context(backend="egl", require=330)
-    except Exception as exc:  # noqa: BLE001
-        pytest.skip(f"no EGL OpenGL 3.3 context: {exc}")
-    yield context
-    context.release()
-
-
 def viewer_arrays(n: int = 200, sh_degree: int = 0) -> dict[str, np.ndarray]:
     from app.studio import scene_arrays
 

@@ -6,15 +6,18 @@ header claimed, print a numpy warning, or accept cameras that later crashed (sin
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import struct
+import tracemalloc
 import warnings
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+import zstandard
 
 from gstyle_core.cameras import load_cameras, save_cameras_json
 from gstyle_core.errors import CameraFormatError, SceneFormatError
@@ -77,6 +80,13 @@ def _npz(path: Path, **arrays: np.ndarray) -> Path:
 def test_gsplat_npz(tmp_path, arrays, message):
     with pytest.raises(CameraFormatError, match=message):
         load_cameras(_npz(tmp_path / "c.npz", **arrays))
+
+
+def test_gsplat_npz_with_a_nameless_member(tmp_path):
+    path = _npz(tmp_path / "n.npz")
+    with zipfile.ZipFile(path, "a") as archive:
+        archive.writestr(zipfile.ZipInfo(""), b"x")  # ZipInfo.is_dir() raised IndexError on it
+    assert len(load_cameras(path)) == 1
 
 
 def test_gsplat_npz_points_beyond_float32_and_nan_colours_are_repaired(tmp_path):
@@ -164,6 +174,39 @@ def test_colmap(tmp_path):
     cs = load_cameras(_colmap(tmp_path / "d", pinhole, _image(b"a.png"), struct.pack("<Q", 2) + point + good))
     np.testing.assert_array_equal(cs.points, [[1, 2, 3]])
     assert check_camera_source(tmp_path / "d") == "ok"
+
+
+def _spz_v4(n: int, alphas_frame: bytes | None = None) -> bytes:
+    """SPZ v4, SH degree 0, all streams zero; ``alphas_frame`` replaces the compressed alphas stream."""
+    sizes = [9 * n, n, 3 * n, 3 * n, 4 * n]
+    frames = [zstandard.ZstdCompressor().compress(bytes(size)) for size in sizes]
+    if alphas_frame is not None:
+        frames[1] = alphas_frame
+    head = struct.pack("<IIIBBBBI", 0x5053474E, 4, n, 0, 12, 0, 5, 32) + bytes(12)
+    toc = b"".join(struct.pack("<QQ", len(f), size) for f, size in zip(frames, sizes, strict=True))
+    return head + toc + b"".join(frames)
+
+
+def test_spz_v4_frames_that_lie_about_their_size(tmp_path):
+    buffer = io.BytesIO()
+    writer = zstandard.ZstdCompressor().stream_writer(buffer, size=2**31, closefd=False)
+    writer.write(bytes(8))
+    writer.flush(zstandard.FLUSH_BLOCK)  # a frame header declaring 2 GiB of content
+    cases = {"frame.spz": (_spz_v4(8, buffer.getvalue()), "declares 2,147,483,648 bytes"),
+             "points.spz": (_spz_v4(10**7), "claims 10,000,000 points")}  # a zstd bomb: 200 MB from a few KB
+    assert len(cases["points.spz"][0]) < 200e6 / 1100
+    for name, (data, message) in cases.items():
+        (tmp_path / name).write_bytes(data)
+        tracemalloc.start()
+        try:
+            with pytest.raises(SceneFormatError, match=message):
+                load_scene(tmp_path / name)
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        assert peak < 8 << 20, f"{name}: {peak:,} bytes"
+    (tmp_path / "ok.spz").write_bytes(_spz_v4(8))
+    assert load_scene(tmp_path / "ok.spz")[0].count == 8
 
 
 def _ply(header_lines: list[str], body: bytes = b"") -> bytes:

@@ -251,3 +251,12 @@ def test_files_larger_than_any_image_of_the_pixel_limit_are_refused(tmp_path):
     (tmp_path / "big.png").write_bytes(b"\x89PNG" + bytes(17 << 20))  # over 8 x 100 + 16 MiB
     with pytest.raises(StyleImageError, match="8 bytes per pixel"):
         load_style_image(tmp_path / "big.png", max_pixels=100)
+
+
+def test_png_with_a_short_ihdr_chunk(tmp_path):
+    Image.fromarray(_gradient_rgb(30, 19)).save(tmp_path / "ok.png")
+    data = bytearray((tmp_path / "ok.png").read_bytes())
+    data[8:12] = struct.pack(">I", 11)  # IHDR claims 11 bytes: Pillow raised a bare ValueError
+    (tmp_path / "short.png").write_bytes(bytes(data))
+    with pytest.raises(StyleImageError, match="Truncated IHDR"):
+        load_style_image(tmp_path / "short.png")

@@ -122,3 +122,22 @@ def test_checkpoint_resume_matches_uninterrupted_run():
     b.run()
     assert a.gaussian_count == b.gaussian_count
     assert np.allclose(a.snapshot()["colors"], b.snapshot()["colors"], atol=1e-5)
+
+
+def test_content_targets_are_what_the_colour_matched_gaussians_render():
+    # Ground truth rendered from the scene (no photos): the background must stay black in the content targets, and
+    # where no colour clips, the target equals the render of the colour-matched c_s (render linear in colours).
+    style = np.random.default_rng(0).uniform(0.3, 0.6, (16, 16, 3)).astype(np.float32)  # mild: little clipping
+    scene = blob_scene(200, seed=3)
+    settings = resolve_settings("preview", "forward", 4, max_views=4, working_width=40, preprocess_rounds=0)
+    eng = Stylizer(scene, ring_cameras(4), style, settings, objective_factory=MeanColourObjective)
+    while eng.phase != "stylize":
+        eng.step()
+    A, b = eng.colour_transform
+    assert np.all((eng._gt_rgb().numpy() @ A.T + b >= 0) & (eng._gt_rgb().numpy() @ A.T + b <= 1))  # no clipping
+    for view, (target, alpha) in enumerate(zip(eng.content_images, eng.coverage, strict=True)):
+        with torch.no_grad():
+            render = eng._render_cs(view, eng.c_s)
+        assert float((render - target).abs().max()) < 1e-4
+        assert bool((alpha < 1e-6).any())
+        assert float(target[alpha < 1e-6].abs().max()) == 0.0  # uncovered background stays black

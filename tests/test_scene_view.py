@@ -26,16 +26,6 @@ class FakeClock:
         return self.t
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    try:
-        context = moderngl.create_standalone_context(backend="egl", require=330)
-    except Exception as exc:  # noqa: BLE001
-        pytest.skip(f"no EGL OpenGL 3.3 context: {exc}")
-    yield context
-    context.release()
-
-
 @pytest.fixture()
 def scene(ctx):
     r = SplatRenderer(ctx)

@@ -25,7 +25,8 @@ from gstyle_core.errors import CameraFormatError
 MAX_ZIP_RATIO = 1100  # deflate cannot expand more than ~1032:1
 # What numpy's header parser and zipfile raise on malformed input.
 _DECODE_ERRORS = (OSError, ValueError, EOFError, SyntaxError, TokenError, zipfile.BadZipFile, zlib.error,
-                  lzma.LZMAError, NotImplementedError, RuntimeError, KeyError, struct.error, OverflowError)
+                  lzma.LZMAError, NotImplementedError, RuntimeError, KeyError, IndexError, struct.error,
+                  OverflowError)
 
 
 def _short(exc: BaseException) -> str:
@@ -73,7 +74,7 @@ def load_npz(path: Path) -> dict[str, np.ndarray]:
     try:
         with zipfile.ZipFile(path) as archive:
             for info in archive.infolist():
-                if info.is_dir() or not info.filename.endswith(".npy"):
+                if not info.filename.endswith(".npy"):  # also skips folders (and nameless members)
                     continue
                 if info.file_size > MAX_ZIP_RATIO * info.compress_size + 4096:
                     raise CameraFormatError(f"{path.name}: member {info.filename} claims {info.file_size:,} bytes "

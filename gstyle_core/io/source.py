@@ -51,6 +51,10 @@ def zstd_decompress_exact(frame: bytes, size: int, name: str, what: str) -> byte
     import zstandard
 
     try:
+        # the frame header's content size is what decompress() allocates: check it before trusting it
+        declared = zstandard.frame_content_size(frame)
+        if declared not in (zstandard.CONTENTSIZE_UNKNOWN, size):
+            raise SceneFormatError(f"{name}: {what} zstd frame declares {declared:,} bytes, expected {size:,}")
         out = zstandard.ZstdDecompressor().decompress(frame, max_output_size=max(size, 1))
     except zstandard.ZstdError as exc:
         raise SceneFormatError(f"{name}: unreadable zstd data in {what} ({exc})") from None

@@ -32,7 +32,7 @@ from .source import GZIP_MAGIC, gunzip_limited, zstd_decompress_exact
 MAGIC = 0x5053474E
 COLOR_SCALE = 0.15
 MAX_POINTS = 100_000_000
-MAX_GZIP_RATIO = 1100  # deflate cannot expand more than ~1032:1
+MAX_GZIP_RATIO = 1100  # deflate cannot expand more than ~1032:1; v4 (zstd) files are held to the same bound
 SH_DIMS = {0: 0, 1: 3, 2: 8, 3: 15, 4: 24}
 # Sign of each SH coefficient (3DGS order) under (x, y, z) -> (x, -y, -z): RUB <-> RDF.
 SH_FLIP_RUB_RDF = np.array([-1, -1, 1, -1, 1, 1, -1, 1, -1, 1, -1, -1, 1, -1, 1], np.float32)
@@ -120,6 +120,8 @@ def _decode_v4(
     sizes = _stream_sizes(n, 4, SH_DIMS[degree])
     if count not in (5, 6) or (count == 5 and sizes[5]):
         raise SceneFormatError(f"{name}: SPZ v4 has {count} streams, expected {6 if sizes[5] else 5}")
+    if sum(sizes) > MAX_GZIP_RATIO * len(data):  # zstd could expand further; no real splat data does
+        raise SceneFormatError(f"{name}: SPZ header claims {n:,} points but the file is only {len(data):,} bytes")
     if toc < 32 or toc + 16 * count > len(data):
         raise SceneFormatError(f"{name}: truncated: SPZ v4 stream table at {toc} lies outside the file")
     table = struct.unpack_from(f"<{2 * count}Q", data, toc)

@@ -106,7 +106,7 @@ class Stylizer:
         self.params = params_from_scene(scene.with_sh_degree(0))
         self.c_s = torch.zeros((scene.count, 3))
         self.gt_images: list[torch.Tensor] = []
-        self.coverage: list[torch.Tensor] = []  # pixels the scene covers (photos: all); colour statistics use these
+        self.coverage: list[torch.Tensor] = []  # alpha of each ground-truth view (photos: 1); see _step_colour_match
         self._input_params = None
         self.content_images: list[torch.Tensor] = []
         self.phase = "ground_truth"
@@ -308,14 +308,14 @@ class Stylizer:
         if self.photos is not None:
             photo = np.clip(np.asarray(self.photos[i], np.float32), 0, 1)
             gt = torch.as_tensor(resize_image(photo, (cam.width, cam.height)))
-            covered = torch.ones(gt.shape[:2], dtype=torch.bool)
+            covered = torch.ones(gt.shape[:2])
         else:
             if self._input_params is None:
                 self._input_params = params_from_scene(self.input_scene, requires_grad=False)
             with torch.no_grad():
                 out = render_params(self._input_params, cam, sh_degree=self._gt_sh_degree)
             gt = out.image.clamp(0, 1)
-            covered = out.alpha > 0.5
+            covered = out.alpha.clamp(0, 1)
         self.gt_images.append(gt)
         self.coverage.append(covered)
         msg = f"ground truth {i + 1}/{len(self.cameras)} ({'photo' if self.photos is not None else 'render'})"
@@ -427,7 +427,7 @@ class Stylizer:
     def _step_colour_match(self) -> StepReport:
         from ..style.colour_match import apply_colour_transform, colour_transfer_matrix
 
-        gt_pixels = torch.cat([g[m] for g, m in zip(self.gt_images, self.coverage, strict=True)]).numpy()
+        gt_pixels = torch.cat([g[m > 0.5] for g, m in zip(self.gt_images, self.coverage, strict=True)]).numpy()
         if len(gt_pixels) < 2:  # the scene covers no pixel: use whole frames
             gt_pixels = torch.cat([g.reshape(-1, 3) for g in self.gt_images]).numpy()
         style_pixels = self.style.reshape(-1, 3)
@@ -435,10 +435,13 @@ class Stylizer:
         self.colour_transform = (A, b)
         c_gt = self._gt_rgb().numpy()
         self.c_s = torch.as_tensor(apply_colour_transform(c_gt, A, b), dtype=torch.float32)
+        # The content targets are what the colour-matched Gaussians render: a render is Σ w_i c_i with Σ w_i = alpha
+        # over a black background, so c -> A c + b turns a pixel p into A p + alpha b. The background stays black
+        # (transforming it too would ask c_s for a change no Gaussian can make, and pull at every silhouette).
         self.content_images = [
-            torch.as_tensor(apply_colour_transform(g.reshape(-1, 3).numpy(), A, b), dtype=torch.float32).reshape(
-                g.shape)
-            for g in self.gt_images
+            torch.as_tensor(np.clip(apply_colour_transform(g.reshape(-1, 3).numpy(), A, np.zeros(3), clip=False)
+                                    + a.reshape(-1, 1).numpy() * b, 0.0, 1.0), dtype=torch.float32).reshape(g.shape)
+            for g, a in zip(self.gt_images, self.coverage, strict=True)
         ]
         self._grad_acc = torch.zeros(self.gaussian_count)
         self._enter("stylize")
