@@ -173,6 +173,24 @@ def plot(rows: list[dict], path: Path) -> bool:
     return True
 
 
+def write_outputs(rows: list[dict], out: Path) -> None:
+    """Mark each group's Pareto front, write the CSV and the plot (after every point: nothing is lost)."""
+    from gstyle_core.atomic import atomic_write_text
+
+    for g in {r["group"] for r in rows}:
+        pts = [r for r in rows if r["group"] == g]
+        for r, flag in zip(pts, pareto(pts), strict=True):
+            r["pareto"] = flag
+    fields = sorted({k for r in rows for k in r}, key=lambda k: (k not in ("group", "label", "pareto"), k))
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=fields)
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({k: (f"{v:.5g}" if isinstance(v, float) else v) for k, v in r.items()})
+    atomic_write_text(out.with_suffix(".csv"), buf.getvalue())
+    plot(rows, out.with_suffix(".png"))
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--fern", default=str(ROOT / "out" / "fern.ply"), help="fitted fern scene (gstyle fit)")
@@ -186,6 +204,7 @@ def main() -> None:
     scenes = dict(SCENES)
     if Path(args.fern).is_file():
         scenes["fern"] = args.fern
+    out = Path(args.out)
     groups = [g.split(":") for g in args.groups.split(",")] if not args.quick else [["demo", "starry"]]
     rows: list[dict] = []
     for gi, (scene_name, style_name) in enumerate(groups):
@@ -205,21 +224,7 @@ def main() -> None:
                   f"  content {res['content']:7.2f}  colour {res['colour']:.3f}  consistency {res['consistency']:.4f}"
                   f" (input {res['consistency_input']:.4f})  preprocess PSNR {res['preprocess_psnr']:.2f} dB",
                   flush=True)
-    for g in {r["group"] for r in rows}:
-        pts = [r for r in rows if r["group"] == g]
-        for r, flag in zip(pts, pareto(pts), strict=True):
-            r["pareto"] = flag
-    out = Path(args.out)
-    fields = sorted({k for r in rows for k in r}, key=lambda k: (k not in ("group", "label", "pareto"), k))
-    from gstyle_core.atomic import atomic_write_text
-
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=fields)
-    writer.writeheader()
-    for r in rows:
-        writer.writerow({k: (f"{v:.5g}" if isinstance(v, float) else v) for k, v in r.items()})
-    atomic_write_text(out.with_suffix(".csv"), buf.getvalue())
-    plot(rows, out.with_suffix(".png"))
+            write_outputs(rows, out)
     print(f"wrote {out.with_suffix('.csv')} and {out.with_suffix('.png')}")
     print(f"RESULT points={len(rows)} pareto={sum(r['pareto'] for r in rows)}")
 
