@@ -3,7 +3,8 @@
     .venv/bin/python bench/tradeoff.py [--fern out/fern.ply] [--groups demo:starry,...] [--quick]
 
 Each point is one full stylization (the real ``Stylizer`` driven to the end, as ``gstyle stylize`` does) with the
-``preview`` preset and one knob changed: working resolution, epochs, VGG in bf16 (channels_last), pre-processing
+``preview`` preset and one knob changed: working resolution, epochs, VGG in bf16 (channels_last, with
+``--with-slow``), pre-processing
 rounds (0, the preset's 1, the paper's 5 forward-facing / 10 for 360°), colour-gradient splitting off, culling of
 Gaussians no camera sees off, and the ``balanced`` preset. Scenes: the bundled demo (360°) and the fern
 (forward-facing; fit it first with ``gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply``).
@@ -48,15 +49,17 @@ FULL_SWEEP = [
     ("preview", "preview", {}),
     ("width 128", "preview", {"working_width": 128}),
     ("width 256", "preview", {"working_width": 256}),
-    ("width 320", "preview", {"working_width": 320}),
     ("epochs 3", "preview", {"epochs": 3.0, "min_steps": 30}),
     ("epochs 12", "preview", {"epochs": 12.0, "min_steps": 120}),
-    ("bf16 VGG", "preview", {"vgg_dtype": "bfloat16"}),
     ("no preprocess", "preview", {"preprocess_rounds": 0}),
     ("paper rounds", "preview", {"preprocess_rounds": "paper"}),
     ("no colour split", "preview", {"split_rate": 0.0}),
     ("no culling", "preview", {"cull_unseen": False}),
     ("balanced", "balanced", {}),
+]
+SLOW_POINTS = [  # --with-slow: measured once (see the README), left out of the default sweep for its time
+    ("width 320", "preview", {"working_width": 320}),
+    ("bf16 VGG", "preview", {"vgg_dtype": "bfloat16"}),  # 5-13x slower VGG on this CPU (no AVX512-BF16)
 ]
 SHORT_SWEEP = [p for p in FULL_SWEEP if p[0] in ("preview", "width 128", "width 256", "epochs 3", "epochs 12")]
 QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5}),
@@ -197,6 +200,7 @@ def main() -> None:
     p.add_argument("--groups", default="demo:starry,demo:mandelbrot,fern:starry,fern:mandelbrot",
                    help="scene:style pairs; the first gets the full sweep, the others a short one")
     p.add_argument("--quick", action="store_true", help="two tiny points on the demo (a smoke test, minutes)")
+    p.add_argument("--with-slow", action="store_true", help="also the width-320 and bf16 points of the first group")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--out", default=str(ROOT / "docs" / "tradeoff"), help="CSV/PNG path without suffix")
     args = p.parse_args()
@@ -216,6 +220,8 @@ def main() -> None:
             print(f"skip {style_name}: {STYLES[style_name]} not found")
             continue
         sweep = QUICK_SWEEP if args.quick else (FULL_SWEEP if gi == 0 else SHORT_SWEEP)
+        if gi == 0 and args.with_slow and not args.quick:
+            sweep = sweep + SLOW_POINTS
         for label, preset, overrides in sweep:
             res = run_point(scenes[scene_name], STYLES[style_name], preset, overrides)
             row = {"group": f"{scene_name} / {style_name}", "label": label, **res}
