@@ -189,8 +189,8 @@ class SceneView:
     def _immediate(self, camera: Camera, passes: list[ViewPass], key: tuple) -> bool:
         scale = self.governor.scale if self.progressive else 1.0
         cam = camera if scale >= 1.0 else camera.scaled(scale)
-        name = "full" if scale >= 1.0 else "low"
-        fbo = self._fbo(name if name == "low" else self._spare_full(), (cam.width, cam.height))
+        name = "low" if scale < 1.0 else self._spare_full()
+        fbo = self._fbo(name, (cam.width, cam.height))
         fbo.use()
         fbo.clear(*self._background, 1.0)
         t0 = self.clock()
@@ -198,7 +198,7 @@ class SceneView:
         self.ctx.finish()
         if self.progressive:
             self.governor.observe((self.clock() - t0) * 1e3, scale)
-        self._shown = name if name == "low" else self._fbo_name(fbo)
+        self._shown = name
         self._shown_key = key
         self.stats.immediate += 1
         self.stats.last_scale = scale
