@@ -1,9 +1,19 @@
 """GL splat renderer: owns the GL objects that draw one set of Gaussians with one or more colour layers.
 
-Per-Gaussian data lives in RGBA32F textures (4096 Gaussians per row), fetched in the vertex shader by the
-instance's index; the per-instance attribute is only that index, in back-to-front order. The order is
-re-sorted (numpy argsort of view-space depth) only when the view matrix or the geometry changed, so a static
-camera costs no CPU work per frame. Uploads are split: ``update_colors`` rewrites one colour texture,
+Per-Gaussian data lives in RGBA32F textures (4096 Gaussians per row). Drawing takes two passes:
+
+* projection (``shaders/splat_project.vert``, transform feedback): one vertex-shader invocation per Gaussian, in
+  back-to-front order, writes its 2D centre, conic, opacity and quad axes into a buffer. It runs only when the
+  camera, the target or the geometry changed: streamed colours, the compare view's second layer and the slices of
+  a progressive build all reuse it;
+* draw (``shaders/splat.vert`` + ``splat.geom`` + ``splat.frag``): one non-instanced draw of points, which the
+  geometry stage expands into each splat's quad (its 3-sigma box along its own axes, shrunk to where the fragment
+  stage would discard alpha < 1/255 anyway); the vertex stage only fetches the colour. Measured with
+  ``bench/bench_gl_splats.py`` and a 200x150 profile of the demo: instancing cost a fixed amount per instance on
+  llvmpipe; what remains is fill (every splat covers at least ~18 pixels after the 0.3 px^2 dilation).
+
+The order is re-sorted (numpy argsort of view-space depth) only when the view matrix or the geometry changed, so a
+static camera costs no CPU work per frame. Uploads are split: ``update_colors`` rewrites one colour texture,
 ``update_geometry`` the four geometry textures.
 
 Colour layers: any name -> [N, 3] RGB. The special layer ``"sh"`` (present when the scene was given SH
@@ -22,7 +32,7 @@ import numpy as np
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.raster.sh import used_sh_degree
 
-from .shader_loader import program_sources
+from .shader_loader import program_sources, shader_source
 from .splat_data import (
     TEXTURE_WIDTH,
     back_to_front_order,
@@ -36,7 +46,8 @@ from .splat_data import (
 SH_LAYER = "sh"
 DIFFUSE_LAYER = "diffuse"
 NEAR = 0.01
-_CORNERS = np.array([-1, -1, 1, -1, -1, 1, 1, 1], np.float32)
+PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes")  # 2 + 4 + 4 floats per Gaussian
+PROJECTED_STRIDE = 40  # bytes per projected Gaussian
 
 
 class SplatRenderer:
@@ -45,9 +56,14 @@ class SplatRenderer:
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self.program = ctx.program(**program_sources("splat"))
-        self._corners = ctx.buffer(_CORNERS.tobytes())
+        self.project_program = ctx.program(vertex_shader=shader_source("splat_project.vert"),
+                                           varyings=list(PROJECTED_VARYINGS))
         self._index_buffer = ctx.buffer(reserve=4)
-        self._vao = self._make_vao()
+        self._projected = ctx.buffer(reserve=PROJECTED_STRIDE)
+        self._vao = ctx.vertex_array(self.program, [(self._projected, "2f 4f 4f", "in_center", "in_conic", "in_axes"),
+                                                    (self._index_buffer, "1i", "in_index")])
+        self._project_vao = ctx.vertex_array(self.project_program, [(self._index_buffer, "1i", "in_index")])
+        self._projected_for: tuple | None = None
         self._geometry: list[moderngl.Texture] = []
         self._layers: dict[str, moderngl.Texture] = {}
         self._means = np.zeros((0, 3), np.float32)
@@ -58,6 +74,7 @@ class SplatRenderer:
         self.geometry_version = 0
         self.content_version = 0  # bumped by every geometry or colour upload (the view cache's key)
         self.sort_count = 0  # how many times the depth order was recomputed (for tests and stats)
+        self.projection_count = 0  # how many projection passes ran (one per new camera/target/geometry)
         self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
         self.sh_evaluations = 0  # view-dependent SH evaluations (one per camera position, original scene only)
 
@@ -155,7 +172,8 @@ class SplatRenderer:
         if self.count:
             self._prepare_view(camera, layer)
             colour_tex = self._colour_texture(layer)
-            self._bind(camera, width, height, colour_tex)
+            self._project(camera)
+            self._bind(width, height, colour_tex)
             self.ctx.enable(moderngl.BLEND)
             self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
             self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
@@ -163,17 +181,15 @@ class SplatRenderer:
             first = min(max(int(first), 0), self._instances)
             count = min(max(int(count), 0), self._instances - first)
             if count:
-                self._vao.bind(self.program["in_index"].location, "i", self._index_buffer, "1i", offset=4 * first,
-                               divisor=1)
-                self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=count)
+                self._vao.render(moderngl.POINTS, vertices=count, first=first)
             self.ctx.disable(moderngl.BLEND)
         self.ctx.scissor = None
         return self._instances if self.count else 0
 
     def release(self) -> None:
         """Free all GL objects."""
-        for obj in [*self._geometry, *self._layers.values(), self._vao, self._corners, self._index_buffer,
-                    self.program]:
+        for obj in [*self._geometry, *self._layers.values(), self._vao, self._project_vao,
+                    self._index_buffer, self._projected, self.program, self.project_program]:
             obj.release()
         self._geometry, self._layers = [], {}
 
@@ -183,9 +199,30 @@ class SplatRenderer:
         tex.filter = moderngl.NEAREST, moderngl.NEAREST
         return tex
 
-    def _make_vao(self) -> moderngl.VertexArray:
-        return self.ctx.vertex_array(self.program, [(self._corners, "2f", "in_corner"),
-                                                    (self._index_buffer, "1i/i", "in_index")])
+    def _project(self, camera: Camera) -> None:
+        """Run the projection pass unless its inputs (camera, order, geometry) are those of the last run."""
+        key = (np.asarray(camera.world_to_cam, np.float32).tobytes(), float(camera.fx), float(camera.fy),
+               float(camera.cx), float(camera.cy), int(camera.width), int(camera.height), self.geometry_version,
+               self.sort_count)
+        if key == self._projected_for or not self._instances:
+            return
+        needed = PROJECTED_STRIDE * self._instances
+        if needed > self._projected.size:
+            self._projected.orphan(needed)
+        prog = self.project_program
+        for unit, tex in enumerate(self._geometry):
+            tex.use(unit)
+        for unit, name in enumerate(("u_geom0", "u_geom1", "u_geom2", "u_geom3")):
+            prog[name].value = unit
+        prog["u_tex_width"].value = TEXTURE_WIDTH
+        prog["u_world_to_cam"].write(np.asarray(camera.world_to_cam, np.float32).T.tobytes())
+        prog["u_intrinsics"].value = (float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy))
+        prog["u_image_size"].value = (float(camera.width), float(camera.height))
+        prog["u_viewport_origin"].value = (0.0, 0.0)
+        prog["u_near"].value = NEAR
+        self._project_vao.transform(self._projected, mode=moderngl.POINTS, vertices=self._instances)
+        self._projected_for = key
+        self.projection_count += 1
 
     def _colour_texture(self, layer: str) -> moderngl.Texture:
         if layer == SH_LAYER:
@@ -218,19 +255,12 @@ class SplatRenderer:
                 self.update_colors(rgb, "__sh__")
                 self._sh_camera = position
 
-    def _bind(self, camera: Camera, width: int, height: int, colour_tex: moderngl.Texture) -> None:
+    def _bind(self, width: int, height: int, colour_tex: moderngl.Texture) -> None:
+        colour_tex.use(0)
         prog = self.program
-        for unit, tex in enumerate([*self._geometry, colour_tex]):
-            tex.use(unit)
-        for unit, name in enumerate(("u_geom0", "u_geom1", "u_geom2", "u_geom3", "u_color")):
-            prog[name].value = unit
+        prog["u_color"].value = 0
         prog["u_tex_width"].value = TEXTURE_WIDTH
-        prog["u_world_to_cam"].write(np.asarray(camera.world_to_cam, np.float32).T.tobytes())
-        prog["u_intrinsics"].value = (float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy))
-        prog["u_image_size"].value = (float(camera.width), float(camera.height))
-        prog["u_viewport_origin"].value = (0.0, 0.0)
         prog["u_target_size"].value = (float(width), float(height))
-        prog["u_near"].value = NEAR
 
 
 def target_size(fbo: moderngl.Framebuffer) -> tuple[int, int]:

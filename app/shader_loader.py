@@ -5,7 +5,9 @@ from __future__ import annotations
 from functools import cache
 from pathlib import Path
 
-SHADER_DIR = Path(__file__).resolve().parents[1] / "shaders"
+_CHECKOUT_DIR = Path(__file__).resolve().parents[1] / "shaders"  # the repository's shaders/ (editable install)
+_INSTALLED_DIR = Path(__file__).resolve().parent / "shaders"  # where a regular install puts them (app.shaders)
+SHADER_DIR = _CHECKOUT_DIR if _CHECKOUT_DIR.is_dir() else _INSTALLED_DIR
 
 
 @cache
@@ -18,5 +20,9 @@ def shader_source(name: str) -> str:
 
 
 def program_sources(stem: str) -> dict[str, str]:
-    """Vertex and fragment shader sources for ``<stem>.vert`` / ``<stem>.frag`` as moderngl keyword arguments."""
-    return {"vertex_shader": shader_source(f"{stem}.vert"), "fragment_shader": shader_source(f"{stem}.frag")}
+    """Vertex, fragment (and, when ``<stem>.geom`` exists, geometry) shader sources for ``<stem>.*`` as moderngl
+    keyword arguments."""
+    sources = {"vertex_shader": shader_source(f"{stem}.vert"), "fragment_shader": shader_source(f"{stem}.frag")}
+    if (SHADER_DIR / f"{stem}.geom").is_file():
+        sources["geometry_shader"] = shader_source(f"{stem}.geom")
+    return sources

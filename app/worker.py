@@ -285,10 +285,14 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
     return str(path)
 
 
-def _lower_priority() -> None:
-    """Nice the worker (+10) so the UI thread wins the CPU."""
+WORKER_NICE = 10  # default niceness increment of the worker process (env GSTYLE_WORKER_NICE overrides it)
+
+
+def _lower_priority(increment: int = WORKER_NICE) -> None:
+    """Nice the worker (+10 by default) so the UI thread wins the CPU."""
     try:
-        os.nice(10)
+        if increment:
+            os.nice(int(increment))
     except OSError:
         pass
 
@@ -303,7 +307,10 @@ def _single_torch_thread() -> None:
 def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: Any, events: Any, credits: Any,
                 checkpoint_path: str | None, start_paused: bool, resume_from: str | None = None) -> None:
     """Entry point of the spawned process."""
-    _lower_priority()
+    try:
+        _lower_priority(int(os.environ.get("GSTYLE_WORKER_NICE", WORKER_NICE)))
+    except ValueError:
+        _lower_priority()
     host = _EngineHost(factory, config, events, credits, checkpoint_path)
     host.paused = start_paused
     host.build(resume_from=resume_from)

@@ -42,7 +42,8 @@ from gstyle_core.pipeline.cli import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.consistency import nearby_camera, view_consistency  # noqa: E402
 from gstyle_core.pipeline.stylizer import choose_views  # noqa: E402
 
-SCENES = {"demo": None}  # None = the bundled demo
+SCENES: dict[str, tuple[str | None, str | None]] = {"demo": (None, None)}  # (scene, cameras); None = the demo
+FERN_CAMERAS = ROOT.parent / "shared" / "data" / "scenes" / "llff_fern"  # photos + poses: the fern's ground truth
 STYLES = {"starry": ROOT / "assets" / "styles" / "starry_night.jpg",
           "mandelbrot": ROOT.parent / "shared" / "data" / "styles" / "mandelbrot_color.png"}
 FULL_SWEEP = [
@@ -76,8 +77,8 @@ def median_depth(scene, camera) -> float:
     return float(np.median(z)) if z.size else 1.0
 
 
-def make_args(scene: str | None, style: Path, preset: str) -> argparse.Namespace:
-    return argparse.Namespace(scene=scene, style=str(style), cameras=None, preset=preset, scene_kind="auto",
+def make_args(scene: str | None, style: Path, preset: str, cameras: str | None = None) -> argparse.Namespace:
+    return argparse.Namespace(scene=scene, style=str(style), cameras=cameras, preset=preset, scene_kind="auto",
                               lambda_clip=None, lambda_nnfm=None, lambda_content=None, lambda_tv=None,
                               split_rate=None, working_width=None, clip_weights=None, vgg_weights=None,
                               max_gaussians=None)
@@ -95,7 +96,7 @@ def psnr(engine) -> float:
     return float(-10 * math.log10(max(np.mean(errors), 1e-12)))
 
 
-def run_point(scene: str | None, style: Path, preset: str, overrides: dict) -> dict:
+def run_point(scene: str | None, style: Path, preset: str, overrides: dict, cameras: str | None = None) -> dict:
     """One stylization with ``overrides``; wall time per phase and the quality figures."""
     from gstyle_core.pipeline.cli import evaluate_run
 
@@ -106,7 +107,7 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict) -> d
     else:
         paper = False
     t0 = time.perf_counter()
-    engine, scene_in, _, _, style_img = build_stylizer(make_args(scene, style, preset), **kw)
+    engine, scene_in, _, _, style_img = build_stylizer(make_args(scene, style, preset, cameras), **kw)
     if paper:
         engine.settings.preprocess_rounds = 5 if engine.settings.scene_kind == "forward" else 10
     build_s = time.perf_counter() - t0
@@ -194,6 +195,28 @@ def write_outputs(rows: list[dict], out: Path) -> None:
     plot(rows, out.with_suffix(".png"))
 
 
+def read_rows(path: Path, replaced: set[str]) -> list[dict]:
+    """Rows of an earlier CSV whose group is not in ``replaced`` (numbers back to floats, pareto recomputed)."""
+    if not path.is_file():
+        return []
+    rows = []
+    with path.open(newline="") as fh:
+        for r in csv.DictReader(fh):
+            if r["group"] in replaced:
+                continue
+            row: dict = {}
+            for k, v in r.items():
+                if k in ("group", "label", "pareto") or v == "":
+                    row[k] = v if k != "pareto" else v == "True"
+                    continue
+                try:
+                    row[k] = int(v) if k in ("gaussians", "steps", "working_width") else float(v)
+                except ValueError:
+                    row[k] = v
+            rows.append({k: v for k, v in row.items() if v != ""})
+    return rows
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--fern", default=str(ROOT / "out" / "fern.ply"), help="fitted fern scene (gstyle fit)")
@@ -203,14 +226,16 @@ def main() -> None:
     p.add_argument("--with-slow", action="store_true", help="also the width-320 and bf16 points of the first group")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--out", default=str(ROOT / "docs" / "tradeoff"), help="CSV/PNG path without suffix")
+    p.add_argument("--merge", action="store_true",
+                   help="keep the rows of other groups already in the CSV (re-measure only the groups given)")
     args = p.parse_args()
     torch.set_num_threads(args.threads)
     scenes = dict(SCENES)
     if Path(args.fern).is_file():
-        scenes["fern"] = args.fern
+        scenes["fern"] = (args.fern, str(FERN_CAMERAS))
     out = Path(args.out)
     groups = [g.split(":") for g in args.groups.split(",")] if not args.quick else [["demo", "starry"]]
-    rows: list[dict] = []
+    rows: list[dict] = read_rows(out.with_suffix(".csv"), {f"{a} / {b}" for a, b in groups}) if args.merge else []
     for gi, (scene_name, style_name) in enumerate(groups):
         if scene_name not in scenes:
             print(f"skip {scene_name}: not found (fit it first: gstyle fit ../shared/data/scenes/llff_fern "
@@ -223,7 +248,8 @@ def main() -> None:
         if gi == 0 and args.with_slow and not args.quick:
             sweep = sweep + SLOW_POINTS
         for label, preset, overrides in sweep:
-            res = run_point(scenes[scene_name], STYLES[style_name], preset, overrides)
+            scene_path, cameras = scenes[scene_name]
+            res = run_point(scene_path, STYLES[style_name], preset, overrides, cameras=cameras)
             row = {"group": f"{scene_name} / {style_name}", "label": label, **res}
             rows.append(row)
             print(f"{row['group']:<20} {label:<16} {res['seconds']:7.1f} s  NNFM drop {100 * res['nnfm_drop']:5.1f} %"

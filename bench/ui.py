@@ -16,6 +16,7 @@ Frame time = interval between consecutive frame starts (what the user sees), eac
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -129,12 +130,21 @@ def main() -> None:
     p.add_argument("--fps", type=float, default=60.0, help="the app's frame cap (the studio's default is 60)")
     p.add_argument("--no-pacing", dest="pacing", action="store_false")
     p.add_argument("--warmup-timeout", type=float, default=600.0)
+    p.add_argument("--gl-threads", type=int, default=None,
+                   help="llvmpipe rasteriser threads of the UI (LP_NUM_THREADS; default: the app's choice)")
+    p.add_argument("--worker-nice", type=int, default=None, help="niceness added to the worker (default: the app's)")
     args = p.parse_args()
+    if args.gl_threads is not None:
+        os.environ["LP_NUM_THREADS"] = str(args.gl_threads)  # read by Mesa when the GL context is created
+    if args.worker_nice is not None:
+        os.environ["GSTYLE_WORKER_NICE"] = str(args.worker_nice)
     config = {"scene": args.scene, "style": args.style, "cameras": None, "preset": "preview"}
     ui = ui_session(args, config)
     alone = worker_alone(config, args.seconds, args.warmup_timeout)
     print(f"scene {args.scene or 'bundled demo'}: {ui['gaussians']} Gaussians, {args.size[0]}x{args.size[1]}, "
-          f"cap {args.fps:g} fps, pacing {'on' if args.pacing else 'off'}; {args.seconds:g} s measured")
+          f"cap {args.fps:g} fps, pacing {'on' if args.pacing else 'off'}; {args.seconds:g} s measured; "
+          f"LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS', 'unset')}, "
+          f"worker nice +{os.environ.get('GSTYLE_WORKER_NICE', 'default')}")
     print(f"{'segment':<8} {'frames':>6} {'fps (median)':>12} {'p95 ms':>8} {'max ms':>8}")
     for name, ms in ui["frames"].items():
         if ms:

@@ -7,7 +7,6 @@ uniform vec2 u_target_size;
 flat in vec2 v_center;
 flat in vec3 v_conic;
 flat in vec4 v_color;
-in vec2 v_pixel;
 
 out vec4 f_color;
 

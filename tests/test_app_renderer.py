@@ -102,6 +102,35 @@ def test_sort_happens_only_when_the_view_changes(ctx):
     assert r.sort_count == 2
 
 
+def test_projection_runs_once_per_camera_and_is_shared_by_colours_layers_and_slices(ctx):
+    scene = blob_scene(500, seed=4)
+    r = SplatRenderer(ctx)
+    r.set_scene({"means": scene.means, "log_scales": scene.log_scales, "quats": scene.quats,
+                 "opacity_logits": scene.opacity_logits, "sh_dc": scene.sh_dc})
+    fbo = float_fbo(ctx)
+    cam = look_at_camera((0, 0, -3), (0, 0, 0), W, H)
+    whole = r.render(cam, fbo)
+    full = read_rgb_float(fbo)
+    r.update_colors(np.full((500, 3), 0.5, np.float32), "other")
+    r.render(cam, fbo, layer="other")
+    r.update_colors(np.random.default_rng(0).uniform(0, 1, (500, 3)).astype(np.float32), "streamed")
+    r.render(cam, fbo, layer="streamed")
+    r.render(cam, fbo, instances=(0, whole // 2))
+    r.render(cam, fbo, clear=False, instances=(whole // 2, whole))
+    assert r.projection_count == 1
+    np.testing.assert_array_equal(read_rgb_float(fbo), full)  # slices of one projection add up to the whole
+    r.render(look_at_camera((0, 0.1, -3), (0, 0, 0), W, H), fbo)  # new camera: projected again
+    assert r.projection_count == 2
+    r.render(look_at_camera((0, 0.1, -3), (0, 0, 0), W, H, fov_deg=70.0), fbo)  # same pose, new intrinsics
+    assert r.projection_count == 3
+    geometry = {"means": scene.means + 0.01, "log_scales": scene.log_scales, "quats": scene.quats,
+                "opacity_logits": scene.opacity_logits}
+    r.update_geometry(geometry)
+    r.update_colors(np.full((500, 3), 0.5, np.float32))
+    r.render(cam, fbo)
+    assert r.projection_count == 4
+
+
 def test_bad_colour_shape_is_a_clear_error(ctx):
     r = SplatRenderer(ctx)
     r.set_scene(gaussians([[0, 0, 2.0]], 0.1, 0.0, [[1, 0, 0]]))
