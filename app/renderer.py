@@ -24,6 +24,7 @@ uses plain diffuse layers.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import moderngl
@@ -39,6 +40,7 @@ from .splat_data import (
     check_geometry,
     colors_from_arrays,
     geometry_textures,
+    importance_ranks,
     pack_rgba,
     sh_colors,
 )
@@ -67,9 +69,11 @@ class SplatRenderer:
         self._geometry: list[moderngl.Texture] = []
         self._layers: dict[str, moderngl.Texture] = {}
         self._means = np.zeros((0, 3), np.float32)
+        self._ranks = np.zeros(0, np.int32)
         self._sh: np.ndarray | None = None
         self._sh_camera: np.ndarray | None = None
         self._sorted_for: np.ndarray | None = None
+        self._sorted_keep = 0
         self._instances = 0
         self.geometry_version = 0
         self.content_version = 0  # bumped by every geometry or colour upload (the view cache's key)
@@ -122,6 +126,7 @@ class SplatRenderer:
                 tex.release()
             self._geometry = [self._texture(content) for content in data]
         self._means = np.asarray(arrays["means"], np.float32).copy()
+        self._ranks = importance_ranks(arrays["log_scales"], arrays["opacity_logits"])
         if self._sh is not None and self._sh.shape[0] != n:
             self._sh = None
         for name in [k for k, v in self._layers.items() if getattr(v, "extra", None) != n]:
@@ -156,13 +161,15 @@ class SplatRenderer:
     # ----------------------------------------------------------------- drawing
     def render(self, camera: Camera, fbo: moderngl.Framebuffer, background: Sequence[float] = (0.0, 0.0, 0.0),
                layer: str = DIFFUSE_LAYER, scissor: tuple[int, int, int, int] | None = None,
-               clear: bool = True, instances: tuple[int, int] | None = None) -> int:
+               clear: bool = True, instances: tuple[int, int] | None = None, detail: float = 1.0) -> int:
         """Draw with ``camera`` into ``fbo``'s viewport (whose size should be camera.width x camera.height).
 
         ``scissor`` = (x, y, width, height) in GL framebuffer pixels (y up) limits drawing (and clearing).
         ``instances`` = (first, count) draws only that slice of the back-to-front order (progressive rendering:
-        slices drawn in order, without clearing in between, add up to the whole image). Returns the number of
-        Gaussians in the whole order (those in front of the camera).
+        slices drawn in order, without clearing in between, add up to the whole image). ``detail`` < 1 draws only
+        that fraction of the Gaussians, the most important first (opacity × area, ``importance_ranks``): the quick
+        preview of a moving camera. Returns the number of Gaussians in the order drawn from (those in front of the
+        camera).
         """
         fbo.use()
         width, height = target_size(fbo)
@@ -170,7 +177,7 @@ class SplatRenderer:
         if clear:
             fbo.clear(*[float(c) for c in background[:3]], 1.0)
         if self.count:
-            self._prepare_view(camera, layer)
+            self._prepare_view(camera, layer, detail)
             colour_tex = self._colour_texture(layer)
             self._project(camera)
             self._bind(width, height, colour_tex)
@@ -233,11 +240,16 @@ class SplatRenderer:
             raise ValueError(f"unknown colour layer {layer!r}; have {', '.join(self.layers) or 'none'}")
         return self._layers[layer]
 
-    def _prepare_view(self, camera: Camera, layer: str) -> None:
-        """Re-sort and re-evaluate SH only when the view (or the geometry) changed."""
+    def _prepare_view(self, camera: Camera, layer: str, detail: float = 1.0) -> None:
+        """Re-sort and re-evaluate SH only when the view, the detail level (or the geometry) changed."""
         view = np.asarray(camera.world_to_cam, np.float64)
-        if self._sorted_for is None or not np.array_equal(view, self._sorted_for):
+        keep = self.count if detail >= 1.0 else max(1, int(math.ceil(float(detail) * self.count)))
+        if (self._sorted_for is None or keep != self._sorted_keep
+                or not np.array_equal(view, self._sorted_for)):
             order = back_to_front_order(self._means, view, NEAR)
+            if keep < self.count:
+                order = order[self._ranks[order] < keep]
+            self._sorted_keep = keep
             self._instances = int(order.size)
             if order.nbytes > self._index_buffer.size:
                 self._index_buffer.orphan(max(order.nbytes, 4))

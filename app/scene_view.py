@@ -7,13 +7,17 @@ On llvmpipe a splat frame costs its fragments: 40k Gaussians at 800×600 cover e
 1. Nothing changed (same camera, same colours and geometry, same view mode) -> the last image is shown again;
    no splat is drawn.
 2. The camera moved -> the scene is drawn at once at a reduced resolution chosen by ``ResolutionGovernor`` from
-   the measured cost of earlier frames (fill cost ∝ pixels, so scale ∝ sqrt(budget / cost)), and upscaled.
+   the measured cost of earlier frames (fill cost ∝ pixels, so scale ∝ sqrt(budget / cost)), and upscaled; when
+   even the smallest scale is over budget, only the most important fraction of the Gaussians is drawn (every
+   splat covers ~18 pixels at any resolution, so below that scale the cost follows the count).
 3. Once the camera has been still for ``still_delay`` seconds, or when only colours/geometry changed (the worker
    streaming), the full-resolution image is built progressively: consecutive slices of the back-to-front order
    are blended into an accumulation texture, as many per frame as fit the budget (the slice size adapts to the
    measured time). Back-to-front slices drawn in order without clearing compose to exactly the one-pass image.
    It is shown when complete; a newer change waits for the running build to finish, so streaming never starves it,
-   and streamed changes start at most one build per ``rebuild_interval`` (the worker keeps its CPU share).
+   and streamed changes start at most one build per ``rebuild_interval`` seconds, and only when builds so far took
+   at most ``build_duty`` of the wall time (a build of a large scene costs hundreds of ms of both cores: the
+   worker keeps its CPU share).
 """
 
 from __future__ import annotations
@@ -35,22 +39,40 @@ _CORNERS = np.array([-1, -1, 1, -1, -1, 1, 1, 1], np.float32)
 
 
 class ResolutionGovernor:
-    """Chooses the render scale (fraction of the window's pixels per side) for immediate renders."""
+    """Chooses the render scale (fraction of the window's pixels per side) and, below the smallest scale, the detail
+    (fraction of the Gaussians drawn, most important first) of immediate renders.
 
-    def __init__(self, budget_ms: float = 20.0, min_scale: float = 0.25, step: float = 1 / 16) -> None:
+    Scale goes first: fill cost ∝ pixels, so scale ∝ sqrt(budget / cost). But every splat covers some pixels whatever
+    the resolution (the 0.3 px² dilation: ~18 px at least), so at ``min_scale`` the cost is ∝ Gaussians drawn and
+    the detail goes down ∝ budget / cost, and comes back up before the scale does."""
+
+    def __init__(self, budget_ms: float = 20.0, min_scale: float = 0.25, step: float = 1 / 16,
+                 min_detail: float = 0.1) -> None:
         self.budget_ms = budget_ms
         self.min_scale = min_scale
         self.step = step
+        self.min_detail = min_detail
         self.scale = 1.0
+        self.detail = 1.0
 
-    def observe(self, ms: float, scale: float) -> float:
-        """Record that a render at ``scale`` took ``ms``; returns the scale to use next."""
-        ideal = scale * math.sqrt(self.budget_ms / max(ms, 1e-3))
-        blended = math.sqrt(self.scale * min(ideal, 1.0))  # geometric mean: damp oscillation
-        steps = blended / self.step  # few distinct sizes: few texture reallocations; round towards the change
-        quantised = (math.ceil(steps - 1e-9) if blended > self.scale else math.floor(steps + 1e-9)) * self.step
-        self.scale = float(min(1.0, max(self.min_scale, quantised)))
+    def observe(self, ms: float, scale: float, detail: float = 1.0) -> float:
+        """Record that a render at ``scale`` and ``detail`` took ``ms``; returns the scale to use next (the detail
+        to use next is ``self.detail``)."""
+        ratio = self.budget_ms / max(ms, 1e-3)
+        if detail < 1.0 or (scale <= self.min_scale and ratio < 1.0):
+            ideal = min(detail * ratio, 1.0)
+            blended = math.sqrt(self.detail * ideal)  # geometric mean: damp oscillation
+            self.detail = float(min(1.0, max(self.min_detail, self._quantise(blended, self.detail))))
+            return self.scale
+        ideal = scale * math.sqrt(ratio)
+        blended = math.sqrt(self.scale * min(ideal, 1.0))
+        self.scale = float(min(1.0, max(self.min_scale, self._quantise(blended, self.scale))))
         return self.scale
+
+    def _quantise(self, value: float, current: float) -> float:
+        """Few distinct levels (few texture reallocations and re-sorts); round towards the change."""
+        steps = value / self.step
+        return (math.ceil(steps - 1e-9) if value > current else math.floor(steps + 1e-9)) * self.step
 
 
 @dataclass
@@ -80,6 +102,7 @@ class ViewStats:
     frames: int = 0
     reused: int = 0  # frames that drew no splat
     immediate: int = 0  # reduced-resolution renders after a camera move
+    last_detail: float = 1.0  # fraction of the Gaussians the last immediate render drew
     slices: int = 0  # progressive slices drawn
     builds_completed: int = 0
     last_scale: float = 1.0
@@ -90,13 +113,17 @@ class SceneView:
     """Draws the scene through offscreen textures with the three rules of this module's docstring."""
 
     def __init__(self, ctx: moderngl.Context, *, budget_ms: float = 20.0, still_delay: float = 0.15,
-                 rebuild_interval: float = 0.5, clock: Callable[[], float] = time.perf_counter) -> None:
+                 rebuild_interval: float = 0.5, build_duty: float = 0.25,
+                 clock: Callable[[], float] = time.perf_counter) -> None:
         self.ctx = ctx
         self.governor = ResolutionGovernor(budget_ms)
         self.budget_ms = budget_ms
         self.still_delay = still_delay
         self.rebuild_interval = rebuild_interval  # streamed colours: at most one new build per this many seconds
         self._last_build_start = -math.inf
+        self.build_duty = build_duty  # streamed colours: builds take at most this fraction of the wall time
+        self._last_build_ms = 0.0  # drawing time of the last completed build
+        self._build_ms = 0.0
         self.clock = clock
         self.stats = ViewStats()
         self.progressive = True  # False: every change is drawn at full resolution at once (tests, screenshots)
@@ -138,7 +165,7 @@ class SceneView:
             if self._shown_key != key or not self.stats.shown_full:
                 self._queue(key, camera, passes, cancel=moved)
         if (self._build is None and self._pending is not None and now - self._last_move >= self.still_delay
-                and (not self.stats.shown_full or now - self._last_build_start >= self.rebuild_interval)):
+                and (not self.stats.shown_full or now - self._last_build_start >= self._streamed_gap())):
             self._build = _Build(*self._pending)
             self._pending = None
             self._last_build_start = now
@@ -159,6 +186,10 @@ class SceneView:
             obj.release()
 
     # ----------------------------------------------------------------- internals
+    def _streamed_gap(self) -> float:
+        """Seconds between the starts of two builds for streamed changes."""
+        return max(self.rebuild_interval, self._last_build_ms / 1e3 / max(self.build_duty, 1e-3))
+
     def _fbo(self, name: str, size: tuple[int, int]) -> moderngl.Framebuffer:
         fbo = self._fbos.get(name)
         if fbo is None or fbo.size != size:
@@ -172,7 +203,7 @@ class SceneView:
         return fbo
 
     def _draw_passes(self, fbo: moderngl.Framebuffer, camera: Camera, passes: Sequence[ViewPass],
-                     instances: tuple[int, int] | None = None, only: int | None = None) -> int:
+                     instances: tuple[int, int] | None = None, only: int | None = None, detail: float = 1.0) -> int:
         width = camera.width
         total = 0
         for i, p in enumerate(passes):
@@ -183,26 +214,28 @@ class SceneView:
             if scissor is not None and scissor[2] == 0:
                 continue
             total += p.renderer.render(camera, fbo, self._background, p.layer, scissor=scissor, clear=False,
-                                       instances=instances)
+                                       instances=instances, detail=detail)
         return total
 
     def _immediate(self, camera: Camera, passes: list[ViewPass], key: tuple) -> bool:
         scale = self.governor.scale if self.progressive else 1.0
+        detail = self.governor.detail if self.progressive else 1.0
         cam = camera if scale >= 1.0 else camera.scaled(scale)
         name = "low" if scale < 1.0 else self._spare_full()
         fbo = self._fbo(name, (cam.width, cam.height))
         fbo.use()
         fbo.clear(*self._background, 1.0)
         t0 = self.clock()
-        self._draw_passes(fbo, cam, passes)
+        self._draw_passes(fbo, cam, passes, detail=detail)
         self.ctx.finish()
         if self.progressive:
-            self.governor.observe((self.clock() - t0) * 1e3, scale)
+            self.governor.observe((self.clock() - t0) * 1e3, scale, detail)
         self._shown = name
         self._shown_key = key
         self.stats.immediate += 1
         self.stats.last_scale = scale
-        self.stats.shown_full = scale >= 1.0
+        self.stats.last_detail = detail
+        self.stats.shown_full = scale >= 1.0 and detail >= 1.0
         return True
 
     def _fbo_name(self, fbo: moderngl.Framebuffer) -> str:
@@ -226,6 +259,7 @@ class SceneView:
             fbo.use()
             fbo.clear(*self._background, 1.0)
             b.started = True
+            self._build_ms = 0.0
         spent = 0.0
         drew = False
         while b.pass_index < len(b.passes) and spent < self.budget_ms:
@@ -238,6 +272,7 @@ class SceneView:
             self.ctx.finish()
             ms = (self.clock() - t0) * 1e3
             spent += ms
+            self._build_ms += ms
             drawn = min(count, max(total - b.first, 0))
             if drawn:
                 rate = drawn / max(ms, 1e-3)
@@ -252,6 +287,7 @@ class SceneView:
             self._shown = self._fbo_name(fbo)
             self._shown_key = b.key
             self._build = None
+            self._last_build_ms = self._build_ms
             self.stats.builds_completed += 1
             self.stats.shown_full = True
             self.stats.last_scale = 1.0

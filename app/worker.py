@@ -298,15 +298,26 @@ def _lower_priority(increment: int = WORKER_NICE) -> None:
 
 
 def _single_torch_thread() -> None:
-    """One torch thread in the worker (measured best on 2 cores, gl-stack.md §3), if the engine uses torch."""
+    """One compute thread in the worker: torch's (measured best on 2 cores, gl-stack.md §3) and numba's (the
+    rasterizer's parallel loops). With two numba threads the worker kept 20 % of its stand-alone step rate beside
+    the UI although the UI used under one core of two: every parallel loop waited for its thread that the UI had
+    preempted (``bench/ui.py``)."""
     torch = sys.modules.get("torch")
     if torch is not None:
         torch.set_num_threads(1)
+    os.environ["NUMBA_NUM_THREADS"] = "1"  # numba reads it at import (the engine imports it lazily)
+    numba = sys.modules.get("numba")
+    if numba is not None:
+        try:
+            numba.set_num_threads(1)
+        except (ValueError, RuntimeError):  # a threading layer that cannot change its size: keep it
+            pass
 
 
 def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: Any, events: Any, credits: Any,
                 checkpoint_path: str | None, start_paused: bool, resume_from: str | None = None) -> None:
     """Entry point of the spawned process."""
+    _single_torch_thread()
     try:
         _lower_priority(int(os.environ.get("GSTYLE_WORKER_NICE", WORKER_NICE)))
     except ValueError:

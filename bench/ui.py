@@ -40,6 +40,15 @@ def stylize_started(bridge: WorkerBridge) -> bool:
     return rep.get("phase") in ("stylize", "refit", "finish", "done")
 
 
+def process_cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of a process so far (Linux /proc; NaN elsewhere)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return float("nan")
+
+
 def worker_alone(config: dict, seconds: float, warmup_timeout: float) -> float:
     """Worker steps per second from the start of its stylize phase, with nobody drawing."""
     bridge = WorkerBridge(make_stylizer, config)
@@ -52,10 +61,13 @@ def worker_alone(config: dict, seconds: float, warmup_timeout: float) -> float:
                 raise SystemExit(f"worker did not reach stylize: {bridge.state.error or 'timeout'}")
             time.sleep(0.03)
         start_steps, t0 = bridge.state.reports_received, time.perf_counter()
+        cpu0 = process_cpu_seconds(bridge._process.pid)
         while time.perf_counter() - t0 < seconds:
             bridge.poll()
             time.sleep(0.03)
-        return (bridge.state.reports_received - start_steps) / (time.perf_counter() - t0)
+        wall = time.perf_counter() - t0
+        print(f"worker alone: {(process_cpu_seconds(bridge._process.pid) - cpu0) / wall:.2f} cores")
+        return (bridge.state.reports_received - start_steps) / wall
     finally:
         bridge.quit()
 
@@ -72,6 +84,7 @@ def ui_session(args, config: dict) -> dict:
     period = 1.0 / args.fps if args.fps > 0 else 0.0
     frames = {"moving": [], "still": []}
     scales: list[float] = []
+    details: list[float] = []
     try:
         app.start_engine()
         t_measure = None
@@ -83,6 +96,8 @@ def ui_session(args, config: dict) -> dict:
             start = time.perf_counter()
             if t_measure is None and app.bridge is not None and stylize_started(app.bridge):
                 t_measure, start_steps, last_start = start, app.bridge.state.reports_received, None
+                cpu0 = time.process_time()
+                worker_cpu0 = process_cpu_seconds(app.bridge._process.pid)
             elapsed = start - (t_measure if t_measure is not None else start)
             if t_measure is not None and elapsed >= args.seconds:
                 break
@@ -104,12 +119,19 @@ def ui_session(args, config: dict) -> dict:
             window.ctx.finish()
             if t_measure is not None:
                 scales.append(app.view.stats.last_scale)
+                if moving:
+                    details.append(app.view.stats.last_detail)
             if period:
                 deadline = max(deadline + period, time.perf_counter() - period)
                 time.sleep(max(0.0, deadline - time.perf_counter()))
-        steps = (app.bridge.state.reports_received - start_steps) / (time.perf_counter() - t_measure)
+        wall = time.perf_counter() - t_measure
+        steps = (app.bridge.state.reports_received - start_steps) / wall
+        ui_cores = (time.process_time() - cpu0) / wall  # the UI process, all its threads (llvmpipe's included)
+        worker_cores = (process_cpu_seconds(app.bridge._process.pid) - worker_cpu0) / wall
         stats = app.view.stats
         return {"frames": frames, "steps_per_s": steps, "median_scale": float(np.median(scales)),
+                "moving_detail": float(np.median(details)) if details else 1.0, "ui_cores": ui_cores,
+                "worker_cores": worker_cores,
                 "builds": stats.builds_completed, "gaussians": app.stylized.count}
     finally:
         app.close()
@@ -153,9 +175,11 @@ def main() -> None:
     every = ui["frames"]["moving"] + ui["frames"]["still"]
     fps, p95, worst = summary(every)
     print(f"{'all':<8} {len(every):>6} {fps:>12.1f} {p95:>8.1f} {worst:>8.1f}")
-    print(f"median render scale while measured: {ui['median_scale']:.2f}; full-resolution builds completed: "
-          f"{ui['builds']}")
+    print(f"median render scale while measured: {ui['median_scale']:.2f}; median detail while moving: "
+          f"{ui['moving_detail']:.2f} of the Gaussians; full-resolution builds completed: {ui['builds']}")
     share = ui["steps_per_s"] / max(alone, 1e-9)
+    print(f"CPU used: UI process (all threads) {ui['ui_cores']:.2f}, worker {ui['worker_cores']:.2f} of "
+          f"{os.cpu_count()} cores")
     print(f"worker steps/s: {ui['steps_per_s']:.2f} with the UI, {alone:.2f} alone ({100 * share:.0f} %)")
     print(f"RESULT ui_fps={fps:.1f} ui_p95_ms={p95:.1f} worker_steps_per_s={ui['steps_per_s']:.2f} "
           f"worker_share={share:.2f}")

@@ -62,6 +62,46 @@ def test_governor_lowers_scale_for_slow_frames_and_recovers():
     assert g.scale == 1.0
 
 
+def test_governor_lowers_detail_once_the_smallest_scale_is_over_budget_and_restores_it_first():
+    g = ResolutionGovernor(budget_ms=20.0, min_scale=0.25, min_detail=0.1)
+
+    def cost(scale, detail):  # every splat covers some pixels at any scale: 60 ms per whole set, + fill
+        return detail * (60.0 + 100.0 * scale**2)
+
+    for _ in range(30):
+        g.observe(cost(g.scale, g.detail), g.scale, g.detail)
+    assert g.scale == 0.25
+    assert 0.2 <= g.detail <= 0.35  # 20 / 66 ms = 0.3 of the Gaussians
+    assert cost(g.scale, g.detail) <= 25.0
+    g.observe(1e6, g.scale, g.detail)
+    assert g.detail >= 0.1  # never below the floor
+    seen = []
+    for _ in range(40):  # a cheaper scene: detail comes back to 1 before the scale grows
+        g.observe(0.2 * cost(g.scale, g.detail), g.scale, g.detail)
+        seen.append((g.detail, g.scale))
+    assert all(scale == 0.25 for detail, scale in seen if detail < 1.0)
+    assert g.detail == 1.0 and g.scale > 0.25
+
+
+def test_reduced_detail_draws_the_most_important_gaussians_only(ctx):
+    from app.splat_data import importance_ranks
+
+    scene = blob_scene(2000, seed=5)
+    renderer = SplatRenderer(ctx)
+    renderer.set_scene(scene_arrays(scene))
+    fbo = ctx.framebuffer([ctx.texture((W, H), 4)])
+    cam = camera(0.0)
+    everything = renderer.render(cam, fbo)
+    part = renderer.render(cam, fbo, detail=0.25)
+    ranks = importance_ranks(scene.log_scales, scene.opacity_logits)
+    in_front = renderer._means @ cam.world_to_cam[:3, :3].T + cam.world_to_cam[:3, 3]
+    expected = int(np.sum((ranks < int(np.ceil(0.25 * scene.count))) & (in_front[:, 2] > 0.01)))
+    assert part == expected < everything
+    s = np.sort(scene.log_scales, axis=1)
+    score = s[:, 1] + s[:, 2] + np.log(1 / (1 + np.exp(-scene.opacity_logits)))
+    assert score[ranks == 0] == score.max()
+
+
 def test_progressive_slices_compose_to_the_one_pass_image(ctx, scene):
     clock = FakeClock()
     view = SceneView(ctx, budget_ms=1e-6, clock=clock)  # budget below any slice: one slice per frame
@@ -131,6 +171,23 @@ def test_streamed_colours_do_not_starve_the_build(ctx, scene):
         clock.t += 0.05
         img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
     assert np.array_equal(img, one_pass(ctx, scene, cam))
+
+
+def test_expensive_builds_of_streamed_colours_keep_to_their_duty_cycle(ctx, scene):
+    clock = FakeClock()  # a slice 'takes' 1 ms: a build of 10 slices 10 ms
+    view = SceneView(ctx, budget_ms=1e-6, rebuild_interval=0.0, build_duty=0.002, clock=clock)
+    view.first_slice = view.min_slice = 300  # 3000 Gaussians: 10 slices per build, one per frame
+    view.progressive = False
+    cam = camera(0.2)
+    shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+    view.progressive = True
+    rng = np.random.default_rng(1)
+    for _ in range(100):  # new colours every frame for 5 s
+        clock.t += 0.05
+        scene.update_colors(rng.uniform(0, 1, (scene.count, 3)).astype(np.float32))
+        shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
+    # 10 ms of drawing at a duty of 0.2 %: one build per 5 s (without the rule: one every 10 frames, 10 in all)
+    assert 1 <= view.stats.builds_completed <= 2
 
 
 def test_compare_passes_split_the_view(ctx, scene):
