@@ -70,6 +70,7 @@ class SplatRenderer:
         self._layers: dict[str, moderngl.Texture] = {}
         self._means = np.zeros((0, 3), np.float32)
         self._ranks = np.zeros(0, np.int32)
+        self._subset: tuple[int, np.ndarray] | None = None
         self._sh: np.ndarray | None = None
         self._sh_camera: np.ndarray | None = None
         self._sorted_for: np.ndarray | None = None
@@ -127,6 +128,7 @@ class SplatRenderer:
             self._geometry = [self._texture(content) for content in data]
         self._means = np.asarray(arrays["means"], np.float32).copy()
         self._ranks = importance_ranks(arrays["log_scales"], arrays["opacity_logits"])
+        self._subset: tuple[int, np.ndarray] | None = None  # (keep, indices of the `keep` most important)
         if self._sh is not None and self._sh.shape[0] != n:
             self._sh = None
         for name in [k for k, v in self._layers.items() if getattr(v, "extra", None) != n]:
@@ -246,9 +248,13 @@ class SplatRenderer:
         keep = self.count if detail >= 1.0 else max(1, int(math.ceil(float(detail) * self.count)))
         if (self._sorted_for is None or keep != self._sorted_keep
                 or not np.array_equal(view, self._sorted_for)):
-            order = back_to_front_order(self._means, view, NEAR)
-            if keep < self.count:
-                order = order[self._ranks[order] < keep]
+            if keep < self.count:  # sort only the kept Gaussians (a moving camera re-sorts every frame)
+                if self._subset is None or self._subset[0] != keep:
+                    self._subset = (keep, np.flatnonzero(self._ranks < keep).astype(np.int32))
+                subset = self._subset[1]
+                order = subset[back_to_front_order(self._means[subset], view, NEAR)]
+            else:
+                order = back_to_front_order(self._means, view, NEAR)
             self._sorted_keep = keep
             self._instances = int(order.size)
             if order.nbytes > self._index_buffer.size:

@@ -47,7 +47,7 @@ class ResolutionGovernor:
     the detail goes down ∝ budget / cost, and comes back up before the scale does."""
 
     def __init__(self, budget_ms: float = 20.0, min_scale: float = 0.25, step: float = 1 / 16,
-                 min_detail: float = 0.1) -> None:
+                 min_detail: float = 0.05) -> None:
         self.budget_ms = budget_ms
         self.min_scale = min_scale
         self.step = step

@@ -19,6 +19,7 @@ Quality is measured on 3 fixed evaluation views at one width (256 px) for every 
 - ``preprocess_psnr``: PSNR of the pre-processed scene against the ground truth on the training views.
 Writes ``docs/tradeoff.csv`` and ``docs/tradeoff.png`` (NNFM drop against time per scene/style, Pareto front =
 no other point of the group is both faster and more stylized) and prints ``RESULT points=N pareto=M`` last.
+``--merge --points "width 320,bf16 VGG" --with-slow`` re-measures only those points and keeps the other rows.
 Run it on a quiet machine: the times are wall-clock seconds on this one.
 """
 
@@ -61,6 +62,7 @@ FULL_SWEEP = [
 SLOW_POINTS = [  # --with-slow: measured once (see the README), left out of the default sweep for its time
     ("width 320", "preview", {"working_width": 320}),
     ("bf16 VGG", "preview", {"vgg_dtype": "bfloat16"}),  # 5-13x slower VGG on this CPU (no AVX512-BF16)
+    ("reference raster", "preview", {"raster_backend": "reference"}),  # pure-torch rasterizer for GT and refits
 ]
 SHORT_SWEEP = [p for p in FULL_SWEEP if p[0] in ("preview", "width 128", "width 256", "epochs 3", "epochs 12")]
 QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5}),
@@ -195,14 +197,15 @@ def write_outputs(rows: list[dict], out: Path) -> None:
     plot(rows, out.with_suffix(".png"))
 
 
-def read_rows(path: Path, replaced: set[str]) -> list[dict]:
-    """Rows of an earlier CSV whose group is not in ``replaced`` (numbers back to floats, pareto recomputed)."""
+def read_rows(path: Path, groups: set[str], labels: set[str] | None = None) -> list[dict]:
+    """Rows of an earlier CSV that this run does not re-measure: those outside ``groups``, or (with ``labels``)
+    whose label is not among them (numbers back to floats; the Pareto flags are recomputed)."""
     if not path.is_file():
         return []
     rows = []
     with path.open(newline="") as fh:
         for r in csv.DictReader(fh):
-            if r["group"] in replaced:
+            if r["group"] in groups and (labels is None or r["label"] in labels):
                 continue
             row: dict = {}
             for k, v in r.items():
@@ -227,7 +230,9 @@ def main() -> None:
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--out", default=str(ROOT / "docs" / "tradeoff"), help="CSV/PNG path without suffix")
     p.add_argument("--merge", action="store_true",
-                   help="keep the rows of other groups already in the CSV (re-measure only the groups given)")
+                   help="keep the rows already in the CSV that this run does not re-measure")
+    p.add_argument("--points", default=None,
+                   help="comma-separated point labels to run (of the sweep, with --with-slow its slow points too)")
     args = p.parse_args()
     torch.set_num_threads(args.threads)
     scenes = dict(SCENES)
@@ -235,7 +240,9 @@ def main() -> None:
         scenes["fern"] = (args.fern, str(FERN_CAMERAS))
     out = Path(args.out)
     groups = [g.split(":") for g in args.groups.split(",")] if not args.quick else [["demo", "starry"]]
-    rows: list[dict] = read_rows(out.with_suffix(".csv"), {f"{a} / {b}" for a, b in groups}) if args.merge else []
+    wanted = None if args.points is None else {x.strip() for x in args.points.split(",")}
+    names = {f"{a} / {b}" for a, b in groups}
+    rows: list[dict] = read_rows(out.with_suffix(".csv"), names, wanted) if args.merge else []
     for gi, (scene_name, style_name) in enumerate(groups):
         if scene_name not in scenes:
             print(f"skip {scene_name}: not found (fit it first: gstyle fit ../shared/data/scenes/llff_fern "
@@ -248,6 +255,8 @@ def main() -> None:
         if gi == 0 and args.with_slow and not args.quick:
             sweep = sweep + SLOW_POINTS
         for label, preset, overrides in sweep:
+            if wanted is not None and label not in wanted:
+                continue
             scene_path, cameras = scenes[scene_name]
             res = run_point(scene_path, STYLES[style_name], preset, overrides, cameras=cameras)
             row = {"group": f"{scene_name} / {style_name}", "label": label, **res}

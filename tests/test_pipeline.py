@@ -141,3 +141,30 @@ def test_content_targets_are_what_the_colour_matched_gaussians_render():
         assert float((render - target).abs().max()) < 1e-4
         assert bool((alpha < 1e-6).any())
         assert float(target[alpha < 1e-6].abs().max()) == 0.0  # uncovered background stays black
+
+
+def test_raster_backend_setting_reaches_ground_truth_and_refits_with_the_same_result(monkeypatch):
+    import gstyle_core.fit.trainer as trainer_module
+    import gstyle_core.pipeline.stylizer as stylizer_module
+
+    used: list[str] = []
+    for module in (stylizer_module, trainer_module):
+        original = module.render_params
+
+        def recording(*args, _original=original, **kw):
+            used.append(kw.get("backend", "fast"))
+            return _original(*args, **kw)
+
+        monkeypatch.setattr(module, "render_params", recording)
+    runs = {}
+    for backend in ("fast", "reference"):
+        used.clear()
+        eng, _ = _engine(raster_backend=backend, force_preprocess=True)
+        while eng.phase != "stylize":
+            eng.step()
+        assert used and set(used) == {backend}  # every ground-truth render and refit iteration
+        runs[backend] = (torch.stack(eng.gt_images), eng.params["means"].detach().clone())
+    assert torch.allclose(runs["fast"][0], runs["reference"][0], atol=2e-4)
+    assert torch.allclose(runs["fast"][1], runs["reference"][1], atol=1e-3)
+    with pytest.raises(ValueError, match="raster backend"):
+        resolve_settings("preview", "forward", 4, raster_backend="opengl")

@@ -51,6 +51,8 @@ class StylizeSettings:
     colour_match_after: bool = True
     cull_unseen: bool = True  # skip Gaussians no training camera sees (see the class docstring)
     force_preprocess: bool = False  # pre-process even when the sizes are already even
+    raster_backend: str = "fast"  # "fast" (numba) or "reference" (pure torch) for ground truth, pre-processing and
+    # refits; stylization steps always render through the colour cache
     seed: int = 0
 
     def to_dict(self) -> dict:
@@ -74,7 +76,9 @@ KIND_DEFAULTS = {
 
 # CPU budgets. Rounds/iterations for "final" follow the paper (rounds: 5 forward-facing, 10 for 360°).
 PRESETS = {
-    "preview": dict(working_width=192, epochs=6.0, min_steps=60, preprocess_rounds=1, refit_iterations=60,
+    # preview = the "epochs 3" point of bench/tradeoff.py: on the Pareto front of every group measured (README). It
+    # ends where the first colour-gradient split would happen, so it never splits.
+    "preview": dict(working_width=192, epochs=3.0, min_steps=30, preprocess_rounds=1, refit_iterations=60,
                     max_views=16),
     "balanced": dict(working_width=256, epochs=10.0, min_steps=150, preprocess_rounds=2, refit_iterations=200,
                      max_views=24),
@@ -104,4 +108,7 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     if w:
         s.weights = replace(s.weights, **{k: float(v) for k, v in w.items() if k in weight_keys})
     rest = {k: v for k, v in overrides.items() if not k.startswith("lambda_") and v is not None}
-    return replace(s, **rest)
+    s = replace(s, **rest)
+    if s.raster_backend not in ("fast", "reference"):
+        raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
+    return s

@@ -313,7 +313,8 @@ class Stylizer:
             if self._input_params is None:
                 self._input_params = params_from_scene(self.input_scene, requires_grad=False)
             with torch.no_grad():
-                out = render_params(self._input_params, cam, sh_degree=self._gt_sh_degree)
+                out = render_params(self._input_params, cam, sh_degree=self._gt_sh_degree,
+                                    backend=self.settings.raster_backend)
             gt = out.image.clamp(0, 1)
             covered = out.alpha.clamp(0, 1)
         self.gt_images.append(gt)
@@ -353,7 +354,8 @@ class Stylizer:
     def _make_trainer(self, strategy: Strategy, trainable: tuple[str, ...]) -> Trainer:
         """A refit of the seen Gaussians (a copy when some are unseen; ``_trainer_step`` writes it back)."""
         cfg = FitConfig(iterations=self.settings.refit_iterations, sh_degree=0, sh_increase_every=10**9,
-                        trainable=trainable, seed=self.settings.seed + self.global_step)
+                        trainable=trainable, seed=self.settings.seed + self.global_step,
+                        backend=self.settings.raster_backend)
         ids = self._seen()
         params = self.params if ids is None else torch.nn.ParameterDict(
             {k: torch.nn.Parameter(v.detach()[ids].clone()) for k, v in self.params.items()})
