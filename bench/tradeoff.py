@@ -3,11 +3,12 @@
     .venv/bin/python bench/tradeoff.py [--fern out/fern.ply] [--groups demo:starry,...] [--quick]
 
 Each point is one full stylization (the real ``Stylizer`` driven to the end, as ``gstyle stylize`` does) with the
-sweep's base (``BASE``: the 6-epoch preview the sweep was first measured with) and one knob changed: working resolution, epochs, VGG in bf16 (channels_last, with
-``--with-slow``), pre-processing
-rounds (0, the preset's 1, the paper's 5 forward-facing / 10 for 360°), colour-gradient splitting off, culling of
-Gaussians no camera sees off, and the ``balanced`` preset. Scenes: the bundled demo (360°) and the fern
-(forward-facing; fit it first with ``gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply``).
+sweep's base (``BASE``: the 6-epoch preview the sweep was first measured with) and one knob changed: working
+resolution, epochs, pre-processing rounds (0, the preset's 1, the paper's 5 forward-facing / 10 for 360°),
+colour-gradient splitting off, culling of Gaussians no camera sees off, the ``balanced`` preset, and with
+``--with-slow`` VGG in bf16 (channels_last) and the pure-torch reference rasterizer for ground truth and refits.
+Scenes: the bundled demo (360°) and the fern (forward-facing; fit it first with
+``gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply``).
 
 Quality is measured on 3 fixed evaluation views at one width (256 px) for every point:
 - ``nnfm_drop``: 1 − NNFM distance to the style after / before (coverage-weighted; higher = more stylized),
