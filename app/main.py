@@ -111,7 +111,7 @@ def loop(window, args: argparse.Namespace) -> int:
         if not 1 <= args.camera <= len(app.cameras):
             raise GStyleError(f"--camera must be 1..{len(app.cameras)}, got {args.camera}")
         app.control.snap_to(app.cameras[args.camera - 1])
-    glfw.set_drop_callback(window.handle, lambda _w, paths: [app.open_path(p) for p in paths[:1]])
+    glfw.set_drop_callback(window.handle, lambda _w, paths: app.on_drop(paths))
     if not app.start_engine(resume=args.resume) and args.resume:
         print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",
               file=sys.stderr)

@@ -397,6 +397,14 @@ class StudioApp:
         self.bridge.export(path)
         self.panel.status = f"exporting {path} ..."
 
+    def on_drop(self, paths) -> None:
+        """glfw drop callback: open the first dropped file (a scene or a style image); more files are ignored."""
+        paths = list(paths)
+        if paths:
+            self.open_path(paths[0])
+            if len(paths) > 1:
+                self.panel.status += f" ({len(paths) - 1} more dropped file(s) ignored)"
+
     def open_path(self, path: str) -> None:
         """Open a dropped or chosen file: a scene (.ply/.splat/.spz) or a style image."""
         suffix = Path(path).suffix.lower()

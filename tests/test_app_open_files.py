@@ -1,0 +1,86 @@
+"""Opening files in the studio: dropped files and the file dialogs' answers reach ``StudioApp.open_path``; scenes and
+style images load, anything else or a broken file leaves the studio as it was with a one-line status."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("imgui_bundle")
+pytest.importorskip("moderngl")
+
+from imgui_bundle import imgui  # noqa: E402, F401, I001 - before glfw (gl-stack.md)
+from PIL import Image  # noqa: E402
+
+from app.studio import LoadedScene, StudioApp  # noqa: E402
+from gstyle_core.io import save_scene  # noqa: E402
+from synthetic import blob_scene, look_at_camera  # noqa: E402
+
+W, H = 160, 120
+
+
+@pytest.fixture()
+def studio(window, tmp_path):
+    loaded = LoadedScene(str(tmp_path / "first.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), W, H)])
+    app = StudioApp(window.ctx, loaded=loaded, style_path=None, engine_factory=None, engine_config={},
+                    output_dir=tmp_path / "out")
+    yield app
+    app.close()
+
+
+def _style_png(path, colour):
+    noise = np.random.default_rng(0).integers(-20, 20, (12, 12, 3))
+    Image.fromarray(np.clip(np.array(colour) + noise, 0, 255).astype(np.uint8)).save(path)
+    return path
+
+
+def test_dropped_scene_and_style_are_opened(studio, tmp_path):
+    scene_path = tmp_path / "dropped.ply"
+    save_scene(blob_scene(120, seed=2), scene_path)
+    studio.on_drop([str(scene_path), str(tmp_path / "ignored.ply")])
+    assert studio.stylized.count == 120
+    assert "opened dropped.ply" in studio.panel.status and "1 more dropped file(s) ignored" in studio.panel.status
+    style = _style_png(tmp_path / "style.png", (200, 40, 40))
+    studio.on_drop([str(style)])
+    assert studio.panel.style_path == str(style)
+    studio.on_drop([])  # an empty drop changes nothing
+    assert studio.stylized.count == 120
+
+
+def test_unknown_or_broken_files_leave_the_studio_as_it_was(studio, tmp_path):
+    (tmp_path / "notes.txt").write_text("hello")
+    studio.on_drop([str(tmp_path / "notes.txt")])
+    assert studio.stylized.count == 50 and studio.panel.status == "not a scene or image: notes.txt"
+    broken = tmp_path / "broken.ply"
+    broken.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nend_header\n")
+    studio.open_path(str(broken))
+    assert studio.stylized.count == 50
+    assert studio.panel.status.startswith("could not open broken.ply: ") and "\n" not in studio.panel.status
+    fake_image = tmp_path / "fake.png"
+    fake_image.write_bytes(b"not a png")
+    studio.open_path(str(fake_image))
+    assert studio.panel.status.startswith("could not open fake.png: ")
+
+
+class _FakeDialog:
+    def __init__(self, answer):
+        self.answer = answer
+        self.polls = 0
+
+    def ready(self, _timeout):
+        self.polls += 1
+        return self.polls >= 2  # the user takes a frame to choose
+
+    def result(self):
+        return self.answer
+
+
+def test_a_dialog_answer_is_opened_when_ready_and_a_cancel_changes_nothing(studio, tmp_path):
+    style = _style_png(tmp_path / "chosen.jpg", (30, 90, 200))
+    studio._dialog = ("open_style", _FakeDialog([str(style)]))
+    studio._poll_dialog()
+    assert studio.panel.style_path != str(style)  # not ready yet
+    studio._poll_dialog()
+    assert studio.panel.style_path == str(style) and studio._dialog is None
+    studio._dialog = ("open_scene", _FakeDialog([]))  # cancelled
+    studio._poll_dialog()
+    studio._poll_dialog()
+    assert studio._dialog is None and studio.stylized.count == 50
