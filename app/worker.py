@@ -30,6 +30,8 @@ from pathlib import Path
 from typing import Any
 
 GEOMETRY_FIELDS = ("means", "log_scales", "quats", "opacity_logits")
+# Sent only with a new geometry version: c_gt changes only when the geometry is refitted (the UI reads it then).
+FOLLOW_GEOMETRY = (*GEOMETRY_FIELDS, "colors_gt")
 SNAPSHOT_CREDITS = 2
 IDLE_POLL_SECONDS = 0.05
 REPORT_FIELDS = ("phase", "step", "total_steps", "losses", "seconds", "gaussians", "colours_changed",
@@ -53,6 +55,7 @@ class WorkerState:
     reports_received: int = 0
     step_seconds: float = 0.0  # sum of the reports' step times (for the ETA)
     geometry_received: int = 0
+    gt_colours_received: int = 0  # snapshots that carried c_gt (only those with new geometry)
     params: dict[str, float] = field(default_factory=dict)
     decisions: dict[str, Any] = field(default_factory=dict)  # the engine's "what this scene needs" decisions
     exported: list[str] = field(default_factory=list)
@@ -170,7 +173,7 @@ class _EngineHost:
             self.fail(exc, "snapshot")
             return
         if snap.get("geometry_version") == self.sent_geometry_version:
-            for key in GEOMETRY_FIELDS:
+            for key in FOLLOW_GEOMETRY:
                 snap.pop(key, None)
         else:
             self.sent_geometry_version = snap.get("geometry_version")
@@ -503,6 +506,8 @@ class WorkerBridge:
                 self._credits.release()
             if "means" in payload:
                 st.geometry_received += 1
+            if "colors_gt" in payload:
+                st.gt_colours_received += 1
             st.snapshot.update(payload)
             st.snapshots_received += 1
         elif kind == "error":

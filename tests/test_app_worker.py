@@ -76,6 +76,7 @@ def test_geometry_only_sent_when_its_version_changes(bridge_factory):
     b.poll()
     st = b.state
     assert 1 <= st.geometry_received < st.snapshots_received
+    assert st.gt_colours_received == st.geometry_received  # c_gt travels with new geometry only
     assert len(st.snapshot["means"]) == len(st.snapshot["colors"]) == 8 + st.snapshot["geometry_version"]
 
 
