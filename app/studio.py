@@ -22,7 +22,7 @@ from .camera_control import CameraControl
 from .panels import Command, PanelState, draw_panel
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
 from .scene_view import SceneView, ViewPass
-from .worker import WorkerBridge
+from .worker import ThreadWorkerBridge, WorkerBridge
 
 SCENE_SUFFIXES = (".ply", ".splat", ".spz")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
@@ -72,8 +72,9 @@ class StudioApp:
 
     def __init__(self, ctx: moderngl.Context, *, loaded: LoadedScene | None = None, style_path: str | None = None,
                  engine_factory: Callable[..., Any] | None = None, engine_config: dict[str, Any] | None = None,
-                 output_dir: str | Path = "out", show_ui: bool = True) -> None:
+                 output_dir: str | Path = "out", show_ui: bool = True, worker_mode: str = "process") -> None:
         self.ctx = ctx
+        self.worker_mode = worker_mode  # "process" (the default, measured better) or "thread" (bench/ui.py)
         self.original = SplatRenderer(ctx)
         self.stylized = SplatRenderer(ctx)
         self.view = SceneView(ctx)
@@ -177,7 +178,8 @@ class StudioApp:
         resume_from = path if resume and path is not None and path.is_file() else None
         self._resumed_from = resume_from
         if self.bridge is None:
-            self.bridge = WorkerBridge(self.engine_factory, self.engine_config, checkpoint_path=path,
+            bridge_class = ThreadWorkerBridge if self.worker_mode == "thread" else WorkerBridge
+            self.bridge = bridge_class(self.engine_factory, self.engine_config, checkpoint_path=path,
                                        resume_from=resume_from)
             self.bridge.start()
         else:

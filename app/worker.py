@@ -162,7 +162,7 @@ class _EngineHost:
         """Send the engine's current snapshot if one is owed and a credit is free (``force``: even without)."""
         if not self.snapshot_pending or self.engine is None:
             return
-        credit = bool(self.credits.acquire(block=False))
+        credit = bool(self.credits.acquire(False))  # positional: mp and threading semaphores both take it
         if not credit and not force:
             return
         try:
@@ -318,17 +318,20 @@ def _single_torch_thread() -> None:
 
 
 def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: Any, events: Any, credits: Any,
-                checkpoint_path: str | None, start_paused: bool, resume_from: str | None = None) -> None:
-    """Entry point of the spawned process."""
+                checkpoint_path: str | None, start_paused: bool, resume_from: str | None = None,
+                in_thread: bool = False) -> None:
+    """Entry point of the spawned process (or, with ``in_thread``, of the UI process's worker thread: no nice,
+    which would apply to the whole process)."""
     _single_torch_thread()
-    try:
-        _lower_priority(int(os.environ.get("GSTYLE_WORKER_NICE", WORKER_NICE)))
-    except ValueError:
-        _lower_priority()
+    if not in_thread:
+        try:
+            _lower_priority(int(os.environ.get("GSTYLE_WORKER_NICE", WORKER_NICE)))
+        except ValueError:
+            _lower_priority()
     host = _EngineHost(factory, config, events, credits, checkpoint_path)
     host.paused = start_paused
     host.build(resume_from=resume_from)
-    parent = mp.parent_process()
+    parent = None if in_thread else mp.parent_process()
     running = True
     while running:
         try:
@@ -485,9 +488,11 @@ class WorkerBridge:
         self.state.alive = self.alive
         if self._process is not None and not self.state.alive and self.state.error is None and not any(
                 k == "bye" for k, _ in messages):
-            code = self._process.exitcode
+            code = getattr(self._process, "exitcode", None)  # a thread (thread mode) has none
             if code not in (0, None):
                 self.state.error = f"the engine process exited with code {code}"
+            elif code is None and not hasattr(self._process, "exitcode"):
+                self.state.error = "the engine thread stopped unexpectedly (see the console)"
         return messages
 
     def _apply(self, kind: str, payload: Any) -> None:
@@ -536,3 +541,43 @@ class WorkerBridge:
             time.sleep(0.01)
         self.poll()
         return predicate(self.state)
+
+
+class ThreadWorkerBridge(WorkerBridge):
+    """The same engine loop in a thread of the UI process instead of a spawned process (same protocol, queues
+    without pickling). Kept to measure both ways (``bench/ui.py --worker thread``); the studio uses the process:
+    the engine's Python work holds the GIL and competes with the UI thread (README, "The studio")."""
+
+    def start(self) -> None:
+        """Start the worker thread (the engine is built inside it)."""
+        import queue as queue_module
+        import threading
+
+        self._commands, self._events = queue_module.Queue(), queue_module.Queue()
+        self._credits = threading.Semaphore(SNAPSHOT_CREDITS)
+        self._process = threading.Thread(
+            target=worker_main, name="gstyle-engine", daemon=True,
+            args=(self.factory, self.config, self._commands, self._events, self._credits, self.checkpoint_path,
+                  self.start_paused, self.resume_from), kwargs={"in_thread": True})
+        self.resume_from = None
+        self._process.start()
+        self.state = WorkerState(alive=True, paused=self.start_paused, started_at=time.monotonic())
+
+    def quit(self, timeout: float = 10.0) -> bool:
+        """Ask the worker thread to checkpoint and stop; a thread cannot be killed, so one that does not stop
+        within ``timeout`` is left behind (daemon) and reported."""
+        if self._process is None:
+            return True
+        if self.alive:
+            self._send("quit")
+            deadline = time.monotonic() + timeout
+            while self.alive and time.monotonic() < deadline:
+                self.poll()
+                self._process.join(0.05)
+        self.poll()
+        clean = not self.alive
+        if not clean:
+            self.state.error = f"the engine thread did not stop within {timeout:g} s"
+        self.state.alive = False
+        self._process = None
+        return clean

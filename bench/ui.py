@@ -30,7 +30,7 @@ from app.engine_factory import make_stylizer  # noqa: E402
 from app.main import parse_size  # noqa: E402
 from app.studio import StudioApp, load_scene_with_cameras  # noqa: E402
 from app.window import open_window  # noqa: E402
-from app.worker import WorkerBridge  # noqa: E402
+from app.worker import ThreadWorkerBridge, WorkerBridge  # noqa: E402
 
 SEGMENT_S = 3.0
 
@@ -49,9 +49,21 @@ def process_cpu_seconds(pid: int) -> float:
         return float("nan")
 
 
-def worker_alone(config: dict, seconds: float, warmup_timeout: float) -> float:
+def worker_cpu_seconds(bridge: WorkerBridge) -> float:
+    """CPU seconds of the worker so far: its process, or its thread's task in this process (thread mode)."""
+    handle = bridge._process
+    if hasattr(handle, "pid"):
+        return process_cpu_seconds(handle.pid)
+    try:
+        fields = Path(f"/proc/self/task/{handle.native_id}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError, TypeError):
+        return float("nan")
+
+
+def worker_alone(config: dict, seconds: float, warmup_timeout: float, mode: str = "process") -> float:
     """Worker steps per second from the start of its stylize phase, with nobody drawing."""
-    bridge = WorkerBridge(make_stylizer, config)
+    bridge = (ThreadWorkerBridge if mode == "thread" else WorkerBridge)(make_stylizer, config)
     bridge.start()
     try:
         deadline = time.perf_counter() + warmup_timeout
@@ -61,12 +73,12 @@ def worker_alone(config: dict, seconds: float, warmup_timeout: float) -> float:
                 raise SystemExit(f"worker did not reach stylize: {bridge.state.error or 'timeout'}")
             time.sleep(0.03)
         start_steps, t0 = bridge.state.reports_received, time.perf_counter()
-        cpu0 = process_cpu_seconds(bridge._process.pid)
+        cpu0 = worker_cpu_seconds(bridge)
         while time.perf_counter() - t0 < seconds:
             bridge.poll()
             time.sleep(0.03)
         wall = time.perf_counter() - t0
-        print(f"worker alone: {(process_cpu_seconds(bridge._process.pid) - cpu0) / wall:.2f} cores")
+        print(f"worker alone: {(worker_cpu_seconds(bridge) - cpu0) / wall:.2f} cores")
         return (bridge.state.reports_received - start_steps) / wall
     finally:
         bridge.quit()
@@ -79,7 +91,7 @@ def ui_session(args, config: dict) -> dict:
     window = open_window(*args.size, headless=True)
     loaded = load_scene_with_cameras(args.scene, None)
     app = StudioApp(window.ctx, loaded=loaded, style_path=config["style"], engine_factory=make_stylizer,
-                    engine_config=dict(config), output_dir=str(ROOT / "out" / "bench_ui"))
+                    engine_config=dict(config), output_dir=str(ROOT / "out" / "bench_ui"), worker_mode=args.worker)
     app.progressive = args.pacing
     period = 1.0 / args.fps if args.fps > 0 else 0.0
     frames = {"moving": [], "still": []}
@@ -97,7 +109,7 @@ def ui_session(args, config: dict) -> dict:
             if t_measure is None and app.bridge is not None and stylize_started(app.bridge):
                 t_measure, start_steps, last_start = start, app.bridge.state.reports_received, None
                 cpu0 = time.process_time()
-                worker_cpu0 = process_cpu_seconds(app.bridge._process.pid)
+                worker_cpu0 = worker_cpu_seconds(app.bridge)
             elapsed = start - (t_measure if t_measure is not None else start)
             if t_measure is not None and elapsed >= args.seconds:
                 break
@@ -127,7 +139,9 @@ def ui_session(args, config: dict) -> dict:
         wall = time.perf_counter() - t_measure
         steps = (app.bridge.state.reports_received - start_steps) / wall
         ui_cores = (time.process_time() - cpu0) / wall  # the UI process, all its threads (llvmpipe's included)
-        worker_cores = (process_cpu_seconds(app.bridge._process.pid) - worker_cpu0) / wall
+        worker_cores = (worker_cpu_seconds(app.bridge) - worker_cpu0) / wall
+        if args.worker == "thread":
+            ui_cores -= worker_cores  # the worker thread is part of the UI process
         stats = app.view.stats
         return {"frames": frames, "steps_per_s": steps, "median_scale": float(np.median(scales)),
                 "moving_detail": float(np.median(details)) if details else 1.0, "ui_cores": ui_cores,
@@ -155,6 +169,8 @@ def main() -> None:
     p.add_argument("--gl-threads", type=int, default=None,
                    help="llvmpipe rasteriser threads of the UI (LP_NUM_THREADS; default: the app's choice)")
     p.add_argument("--worker-nice", type=int, default=None, help="niceness added to the worker (default: the app's)")
+    p.add_argument("--worker", choices=["process", "thread"], default="process",
+                   help="run the engine in a spawned process (the app's choice) or in a thread of the UI process")
     args = p.parse_args()
     if args.gl_threads is not None:
         os.environ["LP_NUM_THREADS"] = str(args.gl_threads)  # read by Mesa when the GL context is created
@@ -162,11 +178,11 @@ def main() -> None:
         os.environ["GSTYLE_WORKER_NICE"] = str(args.worker_nice)
     config = {"scene": args.scene, "style": args.style, "cameras": None, "preset": "preview"}
     ui = ui_session(args, config)
-    alone = worker_alone(config, args.seconds, args.warmup_timeout)
+    alone = worker_alone(config, args.seconds, args.warmup_timeout, args.worker)
     print(f"scene {args.scene or 'bundled demo'}: {ui['gaussians']} Gaussians, {args.size[0]}x{args.size[1]}, "
           f"cap {args.fps:g} fps, pacing {'on' if args.pacing else 'off'}; {args.seconds:g} s measured; "
           f"LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS', 'unset')}, "
-          f"worker nice +{os.environ.get('GSTYLE_WORKER_NICE', 'default')}")
+          f"worker: {args.worker}, nice +{os.environ.get('GSTYLE_WORKER_NICE', 'default')}")
     print(f"{'segment':<8} {'frames':>6} {'fps (median)':>12} {'p95 ms':>8} {'max ms':>8}")
     for name, ms in ui["frames"].items():
         if ms:

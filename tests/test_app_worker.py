@@ -5,7 +5,7 @@ import time
 import pytest
 from fakes import FakeReport, make_fake_engine
 
-from app.worker import WorkerBridge, one_line_error, report_to_dict
+from app.worker import ThreadWorkerBridge, WorkerBridge, one_line_error, report_to_dict
 
 
 @pytest.fixture
@@ -200,3 +200,23 @@ def test_real_stylizer_runs_to_the_end_through_the_bridge():
         assert snap["colors"][:, 0].mean() > snap["colors"][:, 2].mean()  # pulled towards the red style
     finally:
         b.quit()
+
+
+def test_thread_mode_runs_the_same_protocol_and_stops_cleanly():
+    b = ThreadWorkerBridge(make_fake_engine, {"n": 16})
+    b.start()
+    try:
+        assert b.wait_until(lambda s: s.snapshots_received >= 3, 30), b.state.error
+        b.set_params(lambda_nnfm=7.0)
+        assert b.wait_until(lambda s: (s.params or {}).get("lambda_nnfm") == 7.0, 10)
+        b.pause()
+        assert b.wait_until(lambda s: s.paused, 10)
+        time.sleep(0.1)
+        b.poll()
+        version = b.state.snapshot["colour_version"]
+        time.sleep(0.3)
+        b.poll()
+        assert b.state.snapshot["colour_version"] == version  # paused: no colour updates
+    finally:
+        assert b.quit(timeout=10)
+    assert not b.alive
