@@ -63,6 +63,7 @@ FULL_SWEEP = [
     ("no colour split", "preview", {"split_rate": 0.0}),
     ("no culling", "preview", {"cull_unseen": False}),
     ("balanced", "balanced", {}),
+    ("no CLIP term", "preview", {"lambda_clip": 0.0}),  # λ 0: the term (here its coarse-VGG substitute) never runs
 ]
 SLOW_POINTS = [  # --with-slow: measured once (see the README), left out of the default sweep for its time
     ("width 320", "preview", {"working_width": 320}),
@@ -246,6 +247,11 @@ def main() -> None:
     out = Path(args.out)
     groups = [g.split(":") for g in args.groups.split(",")] if not args.quick else [["demo", "starry"]]
     wanted = None if args.points is None else {x.strip() for x in args.points.split(",")}
+    if not args.quick:  # the first stylization of a process pays imports, weight loading and kernel loading
+        label, preset, overrides = QUICK_SWEEP[0]
+        t0 = time.perf_counter()
+        run_point(None, STYLES["starry"], preset, overrides)
+        print(f"warm-up (not recorded): {time.perf_counter() - t0:.1f} s", flush=True)
     names = {f"{a} / {b}" for a, b in groups}
     rows: list[dict] = read_rows(out.with_suffix(".csv"), names, wanted) if args.merge else []
     for gi, (scene_name, style_name) in enumerate(groups):
