@@ -392,13 +392,7 @@ class WorkerBridge:
         if self._process is None:
             return True
         clean = True
-        if self.alive:
-            self._send("quit")
-            deadline = time.monotonic() + timeout
-            while self.alive and time.monotonic() < deadline:
-                self.poll()
-                self._process.join(0.05)
-        self.poll()
+        self._ask_to_quit(timeout)
         if self.alive:
             clean = False
             self._process.terminate()
@@ -410,6 +404,16 @@ class WorkerBridge:
         self.state.alive = False
         self._process = None
         return clean
+
+    def _ask_to_quit(self, timeout: float) -> None:
+        """Send "quit" and keep polling (the worker's last messages) until it stops or ``timeout`` s pass."""
+        if self.alive:
+            self._send("quit")
+            deadline = time.monotonic() + timeout
+            while self.alive and time.monotonic() < deadline:
+                self.poll()
+                self._process.join(0.05)
+        self.poll()
 
     # ----------------------------------------------------------------- commands
     def pause(self) -> None:
@@ -568,13 +572,7 @@ class ThreadWorkerBridge(WorkerBridge):
         within ``timeout`` is left behind (daemon) and reported."""
         if self._process is None:
             return True
-        if self.alive:
-            self._send("quit")
-            deadline = time.monotonic() + timeout
-            while self.alive and time.monotonic() < deadline:
-                self.poll()
-                self._process.join(0.05)
-        self.poll()
+        self._ask_to_quit(timeout)
         clean = not self.alive
         if not clean:
             self.state.error = f"the engine thread did not stop within {timeout:g} s"

@@ -27,6 +27,15 @@ def gaussians(means, scale, opacity_logit, colors):
             "colors": np.asarray(colors, np.float32)}
 
 
+def blob_setup(ctx, seed):
+    """500 random Gaussians loaded into a renderer, a float FBO and a camera looking at them."""
+    scene = blob_scene(500, seed=seed)
+    r = SplatRenderer(ctx)
+    r.set_scene({"means": scene.means, "log_scales": scene.log_scales, "quats": scene.quats,
+                 "opacity_logits": scene.opacity_logits, "sh_dc": scene.sh_dc})
+    return scene, r, float_fbo(ctx), look_at_camera((0, 0, -3), (0, 0, 0), W, H)
+
+
 def test_single_gaussian_lands_where_projected(ctx):
     # Off-centre principal point and a mean off the axis: centre at pixel (fx*X/Z+cx, fy*Y/Z+cy) = (40.5, 12.5)
     cam = Camera(W, H, 50.0, 50.0, 30.0, 20.0, np.eye(4))
@@ -87,12 +96,7 @@ def test_behind_camera_and_non_finite_gaussians_are_not_drawn(ctx):
 
 
 def test_sort_happens_only_when_the_view_changes(ctx):
-    scene = blob_scene(500, seed=3)
-    r = SplatRenderer(ctx)
-    r.set_scene({"means": scene.means, "log_scales": scene.log_scales, "quats": scene.quats,
-                 "opacity_logits": scene.opacity_logits, "sh_dc": scene.sh_dc})
-    fbo = float_fbo(ctx)
-    cam = look_at_camera((0, 0, -3), (0, 0, 0), W, H)
+    scene, r, fbo, cam = blob_setup(ctx, seed=3)
     r.render(cam, fbo)
     r.render(cam, fbo)
     r.update_colors(np.zeros((500, 3), np.float32))  # colour upload: no re-sort
@@ -103,12 +107,7 @@ def test_sort_happens_only_when_the_view_changes(ctx):
 
 
 def test_projection_runs_once_per_camera_and_is_shared_by_colours_layers_and_slices(ctx):
-    scene = blob_scene(500, seed=4)
-    r = SplatRenderer(ctx)
-    r.set_scene({"means": scene.means, "log_scales": scene.log_scales, "quats": scene.quats,
-                 "opacity_logits": scene.opacity_logits, "sh_dc": scene.sh_dc})
-    fbo = float_fbo(ctx)
-    cam = look_at_camera((0, 0, -3), (0, 0, 0), W, H)
+    scene, r, fbo, cam = blob_setup(ctx, seed=4)
     whole = r.render(cam, fbo)
     full = read_rgb_float(fbo)
     r.update_colors(np.full((500, 3), 0.5, np.float32), "other")
