@@ -8,9 +8,9 @@ Per-Gaussian data lives in RGBA32F textures (4096 Gaussians per row). Drawing ta
   a progressive build all reuse it;
 * draw (``shaders/splat.vert`` + ``splat.geom`` + ``splat.frag``): one non-instanced draw of points, which the
   geometry stage expands into each splat's quad (its 3-sigma box along its own axes, shrunk to where the fragment
-  stage would discard alpha < 1/255 anyway); the vertex stage only fetches the colour. Measured with
-  ``bench/bench_gl_splats.py`` and a 200x150 profile of the demo: instancing cost a fixed amount per instance on
-  llvmpipe; what remains is fill (every splat covers at least ~18 pixels after the 0.3 px^2 dilation).
+  stage would discard alpha < 1/255 anyway); the vertex stage only fetches the colour. Instancing cost a fixed
+  amount per instance on llvmpipe; what remains is fill (every splat covers at least ~18 pixels after the
+  0.3 px^2 dilation): ``bench/gl_frame_parts.py`` splits a moving frame's time into its parts.
 
 The order is re-sorted (numpy argsort of view-space depth) only when the view matrix or the geometry changed, so a
 static camera costs no CPU work per frame. Uploads are split: ``update_colors`` rewrites one colour texture,
@@ -70,7 +70,7 @@ class SplatRenderer:
         self._layers: dict[str, moderngl.Texture] = {}
         self._means = np.zeros((0, 3), np.float32)
         self._ranks = np.zeros(0, np.int32)
-        self._subset: tuple[int, np.ndarray] | None = None
+        self._subset: tuple[int, np.ndarray] | None = None  # (keep, indices of the `keep` most important)
         self._sh: np.ndarray | None = None
         self._sh_camera: np.ndarray | None = None
         self._sorted_for: np.ndarray | None = None
@@ -128,7 +128,7 @@ class SplatRenderer:
             self._geometry = [self._texture(content) for content in data]
         self._means = np.asarray(arrays["means"], np.float32).copy()
         self._ranks = importance_ranks(arrays["log_scales"], arrays["opacity_logits"])
-        self._subset: tuple[int, np.ndarray] | None = None  # (keep, indices of the `keep` most important)
+        self._subset = None  # (keep, indices of the `keep` most important): recomputed for the new ranks
         if self._sh is not None and self._sh.shape[0] != n:
             self._sh = None
         for name in [k for k, v in self._layers.items() if getattr(v, "extra", None) != n]:

@@ -368,14 +368,21 @@ class WorkerBridge:
         self._credits: Any = None
 
     # ----------------------------------------------------------------- lifecycle
+    in_thread = False  # ThreadWorkerBridge: the same loop in a thread of this process
+
+    def _runtime(self) -> Any:
+        """Where queues, the credit semaphore and the runner come from (``Queue``, ``Semaphore``, ``Process``)."""
+        return self._mp
+
     def start(self) -> None:
-        """Spawn the worker process (the engine is built inside it)."""
-        self._commands, self._events = self._mp.Queue(), self._mp.Queue()
-        self._credits = self._mp.Semaphore(SNAPSHOT_CREDITS)
-        self._process = self._mp.Process(
+        """Start the worker (the engine is built inside it): a spawned process, or a thread in thread mode."""
+        rt = self._runtime()
+        self._commands, self._events = rt.Queue(), rt.Queue()
+        self._credits = rt.Semaphore(SNAPSHOT_CREDITS)
+        self._process = rt.Process(
             target=worker_main, name="gstyle-engine", daemon=True,
             args=(self.factory, self.config, self._commands, self._events, self._credits, self.checkpoint_path,
-                  self.start_paused, self.resume_from))
+                  self.start_paused, self.resume_from), kwargs={"in_thread": self.in_thread})
         self.resume_from = None
         self._process.start()
         self.state = WorkerState(alive=True, paused=self.start_paused, started_at=time.monotonic())
@@ -552,20 +559,14 @@ class ThreadWorkerBridge(WorkerBridge):
     without pickling). Kept to measure both ways (``bench/ui.py --worker thread``); the studio uses the process:
     the engine's Python work holds the GIL and competes with the UI thread (README, "The studio")."""
 
-    def start(self) -> None:
-        """Start the worker thread (the engine is built inside it)."""
+    in_thread = True
+
+    def _runtime(self) -> Any:
         import queue as queue_module
         import threading
+        from types import SimpleNamespace
 
-        self._commands, self._events = queue_module.Queue(), queue_module.Queue()
-        self._credits = threading.Semaphore(SNAPSHOT_CREDITS)
-        self._process = threading.Thread(
-            target=worker_main, name="gstyle-engine", daemon=True,
-            args=(self.factory, self.config, self._commands, self._events, self._credits, self.checkpoint_path,
-                  self.start_paused, self.resume_from), kwargs={"in_thread": True})
-        self.resume_from = None
-        self._process.start()
-        self.state = WorkerState(alive=True, paused=self.start_paused, started_at=time.monotonic())
+        return SimpleNamespace(Queue=queue_module.Queue, Semaphore=threading.Semaphore, Process=threading.Thread)
 
     def quit(self, timeout: float = 10.0) -> bool:
         """Ask the worker thread to checkpoint and stop; a thread cannot be killed, so one that does not stop

@@ -40,10 +40,10 @@ def stylize_started(bridge: WorkerBridge) -> bool:
     return rep.get("phase") in ("stylize", "refit", "finish", "done")
 
 
-def process_cpu_seconds(pid: int) -> float:
-    """User + system CPU seconds of a process so far (Linux /proc; NaN elsewhere)."""
+def stat_cpu_seconds(stat_path: str) -> float:
+    """User + system CPU seconds from a Linux /proc ``stat`` file (a process's or a thread's); NaN elsewhere."""
     try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        fields = Path(stat_path).read_text().rsplit(")", 1)[1].split()
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
     except (OSError, IndexError, ValueError):
         return float("nan")
@@ -53,12 +53,8 @@ def worker_cpu_seconds(bridge: WorkerBridge) -> float:
     """CPU seconds of the worker so far: its process, or its thread's task in this process (thread mode)."""
     handle = bridge._process
     if hasattr(handle, "pid"):
-        return process_cpu_seconds(handle.pid)
-    try:
-        fields = Path(f"/proc/self/task/{handle.native_id}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-    except (OSError, IndexError, ValueError, TypeError):
-        return float("nan")
+        return stat_cpu_seconds(f"/proc/{handle.pid}/stat")
+    return stat_cpu_seconds(f"/proc/self/task/{handle.native_id}/stat")
 
 
 def worker_alone(config: dict, seconds: float, warmup_timeout: float, mode: str = "process") -> float:

@@ -109,6 +109,15 @@ def one_line(exc: BaseException) -> None:
         raise FuzzFailure(f"error message is not one printable line: {text!r}")
 
 
+def rejected(exc: BaseException) -> str:
+    """A reader's format error on hostile input: it must be one printable line, and must not be a MemoryError
+    turned into a format error (the claimed size has to be checked against the file before allocating)."""
+    one_line(exc)
+    if "MemoryError" in str(exc):
+        raise FuzzFailure(f"allocation attempted before the size check: {exc}") from None
+    return "error"
+
+
 MEMORY_LIMIT = 64 << 20  # bytes a reader may allocate on these small inputs (tracemalloc peak)
 
 

@@ -24,7 +24,7 @@ from gstyle_core.io.ply_3dgs import encode_3dgs_body, encode_3dgs_header, rest_f
 from gstyle_core.io.splat import encode_splat
 from gstyle_core.io.validate import LOG_SCALE_MAX, LOG_SCALE_MIN, OPACITY_LOGIT_LIMIT
 from gstyle_core.scene import GaussianScene
-from tests.fuzzcases.common import HUGE_COUNTS, NASTY_FLOATS, Draw, FuzzFailure, draw_bytes, mutate_bytes, one_line
+from tests.fuzzcases.common import HUGE_COUNTS, NASTY_FLOATS, Draw, FuzzFailure, draw_bytes, mutate_bytes, rejected
 from tests.synthetic import blob_scene
 
 SCENE_FORMATS = [
@@ -339,10 +339,7 @@ def check_scene_file(path: Path) -> str:
     try:
         scene, report = load_scene(path)
     except SceneFormatError as exc:
-        one_line(exc)
-        if "MemoryError" in str(exc):
-            raise FuzzFailure(f"allocation attempted before the size check: {exc}") from None
-        return "error"
+        return rejected(exc)
     check_scene(scene)
     if report.count_loaded != scene.count or report.sh_degree != scene.sh_degree:
         raise FuzzFailure(f"report disagrees with the scene: {report}")
