@@ -123,6 +123,23 @@ class StudioApp:
         self.panel.camera_count = len(self.cameras)
         self._frame_scene()
         self.engine_config["scene"] = loaded.path
+        self.panel.params = self._default_params()
+
+    def _default_params(self) -> dict[str, float]:
+        """The sliders' values before the worker reports its engine's: the preset's for this scene's kind."""
+        from gstyle_core.cameras import classify_scene_kind
+        from gstyle_core.pipeline.settings import resolve_settings, ui_params
+
+        kind = self.engine_config.get("scene_kind", "auto")
+        if kind == "auto":
+            kind = classify_scene_kind(self.cameras)
+        preset = self.engine_config.get("preset") or "preview"
+        overrides = {k: self.engine_config.get(k) for k in ("lambda_clip", "lambda_nnfm", "lambda_content",
+                                                             "lambda_tv", "split_rate")}
+        try:
+            return ui_params(resolve_settings(preset, kind, max(1, len(self.cameras)), **overrides))
+        except ValueError:  # an unknown preset: the worker reports the error when it starts
+            return dict(self.panel.params)
 
     def _frame_scene(self) -> None:
         from gstyle_core.cameras.generate import finite_points, robust_centre_radius

@@ -105,7 +105,7 @@ class MeanColourPull:
     def set_weights(self, weights) -> None:
         self.weights = weights
 
-    def __call__(self, image, content, view):
+    def __call__(self, image, content, view, coverage=None):
         loss = self.weights.nnfm * ((image.reshape(-1, 3).mean(0) - self.target) ** 2).sum()
         return loss, {"nnfm": float(loss.detach())}
 

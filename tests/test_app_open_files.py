@@ -84,3 +84,18 @@ def test_a_dialog_answer_is_opened_when_ready_and_a_cancel_changes_nothing(studi
     studio._poll_dialog()
     studio._poll_dialog()
     assert studio._dialog is None and studio.stylized.count == 50
+
+
+def test_sliders_show_the_preset_of_the_scene_kind_before_any_engine_runs(window, tmp_path):
+    from synthetic import ring_cameras
+
+    forward = [look_at_camera((x, 0, -3), (x, 0, 0), W, H) for x in (-0.2, 0.0, 0.2)]
+    app = StudioApp(window.ctx, loaded=LoadedScene("f.ply", blob_scene(30), forward), engine_factory=None,
+                    engine_config={}, output_dir=tmp_path / "out")
+    try:
+        assert app.panel.params["lambda_nnfm"] == 100.0 and app.panel.params["lr"] == 0.1
+        app.set_scene(LoadedScene("o.ply", blob_scene(30), ring_cameras(8)))  # cameras all around: 360°
+        assert app.panel.params["lambda_nnfm"] == 10.0 and app.panel.params["lr"] == 0.01
+        assert app.panel.params["split_rate"] == 0.02
+    finally:
+        app.close()

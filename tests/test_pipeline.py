@@ -23,7 +23,7 @@ class MeanColourObjective:
     def set_weights(self, weights):
         self.weights = weights
 
-    def __call__(self, image, content, view):
+    def __call__(self, image, content, view, coverage=None):
         self.calls += 1
         loss = self.weights.nnfm * ((image.reshape(-1, 3).mean(0) - self.target) ** 2).sum()
         return loss, {"nnfm": float(loss.detach())}

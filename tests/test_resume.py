@@ -187,7 +187,7 @@ class RandomWeightsPull:
     def set_weights(self, weights):
         pass
 
-    def __call__(self, image, content, view):
+    def __call__(self, image, content, view, coverage=None):
         import torch
 
         w = torch.rand(3, generator=self.loss.clip_term.generator)

@@ -350,7 +350,7 @@ class _RecordingObjective(StyleObjective):
         super().__init__(style, settings, vgg=_MiniVGG())
         self.render_min, self.render_max, self.render_finite = math.inf, -math.inf, True
 
-    def __call__(self, image, content, view):
+    def __call__(self, image, content, view, coverage=None):
         self.render_finite &= bool(torch.isfinite(image).all())
         self.render_min = min(self.render_min, float(image.detach().min()))
         self.render_max = max(self.render_max, float(image.detach().max()))

@@ -39,7 +39,7 @@ class Evaluator:
         (rendered alpha, pooled to the feature grid) when ``coverage`` is given: background that no Gaussian covers
         cannot change, so it is left out. ``colour`` uses covered pixels (alpha > 0.5) the same way.
         """
-        from ..style.losses import concat_features, content_loss, nnfm_loss
+        from ..style.losses import concat_features, content_loss, feature_weights, nnfm_loss, weighted_mean
 
         nnfm, nnfm_full, content, pixels = [], [], [], []
         for i, (img, gt) in enumerate(zip(renders, ground_truth, strict=True)):
@@ -48,9 +48,8 @@ class Evaluator:
             d = nnfm_loss(concat_features(f), self.target, reduction="none")[0]
             nnfm_full.append(float(d.mean()))
             if coverage is not None:
-                a = torch.as_tensor(np.asarray(coverage[i], np.float32))[None, None]
-                w = torch.nn.functional.adaptive_avg_pool2d(a, d.shape)[0, 0]
-                nnfm.append(float((d * w).sum() / w.sum().clamp_min(1e-6)))
+                w = feature_weights(torch.as_tensor(np.asarray(coverage[i], np.float32)), d.shape)
+                nnfm.append(float(weighted_mean(d[None, None], w)))
                 pixels.append(img.reshape(-1, 3)[np.asarray(coverage[i]).reshape(-1) > 0.5])
             else:
                 nnfm.append(float(d.mean()))

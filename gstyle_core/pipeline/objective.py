@@ -67,7 +67,10 @@ class StyleObjective:
             w["clip"] = 0.0
         self.loss.weights = w
 
-    def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int) -> tuple[torch.Tensor, dict]:
+    def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int,
+                 coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, dict]:
+        """Loss of a render [H,W,3] of training view ``view``; ``content`` is its colour-matched ground truth and
+        ``coverage`` [H,W] the scene's alpha there (None for photos: the whole frame is the scene)."""
         render = image.permute(2, 0, 1)[None]
         gt_feats = None
         if self.loss.weights.content > 0:
@@ -75,5 +78,5 @@ class StyleObjective:
             if gt_feats is None:
                 gt_feats = self.loss.content_features(content.permute(2, 0, 1)[None], render.shape[-2:])
                 self._content_cache[view] = gt_feats
-        return self.loss(render, gt_feats=gt_feats)
+        return self.loss(render, gt_feats=gt_feats, coverage=coverage)
 

@@ -112,3 +112,10 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
     return s
+
+
+def ui_params(settings: StylizeSettings) -> dict[str, float]:
+    """The values ``Stylizer.set_params`` accepts (λ weights, split rate, starting lr) for ``settings``."""
+    w = settings.weights
+    return {"lambda_clip": w.clip, "lambda_nnfm": w.nnfm, "lambda_content": w.content, "lambda_tv": w.tv,
+            "split_rate": settings.split_rate, "lr": settings.lr_start}

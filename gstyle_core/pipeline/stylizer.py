@@ -39,7 +39,7 @@ from ..raster import ColourCache, ColourCacheStore
 from ..raster.sh import used_sh_degree
 from ..scene import GaussianScene, rgb_to_sh_dc, sh_dc_to_rgb
 from .preprocess import ElongationClampStrategy, evenness_verdict, flat_split_mask, size_evenness
-from .settings import StylizeSettings
+from .settings import StylizeSettings, ui_params
 from .visibility import culling_note, seen_mask
 
 GEOMETRY_AND_GT = ("means", "log_scales", "quats", "opacity_logits", "sh_dc")  # refit: all but c_s
@@ -192,9 +192,7 @@ class Stylizer:
 
     def current_params(self) -> dict[str, float]:
         """The values ``set_params`` accepts, as they are now (for UIs to show)."""
-        w = self.settings.weights
-        return {"lambda_clip": w.clip, "lambda_nnfm": w.nnfm, "lambda_content": w.content, "lambda_tv": w.tv,
-                "split_rate": self.settings.split_rate, "lr": self.settings.lr_start}
+        return ui_params(self.settings)
 
     def snapshot(self) -> dict[str, Any]:
         """Arrays a viewer needs (numpy copies): geometry, stylized and ground-truth colours, versions."""
@@ -500,7 +498,8 @@ class Stylizer:
             g["lr"] = self._lr()
         view = self._stylize_step % len(self.cameras)
         image = self._render_cs(view, self._c_opt)
-        total, terms = self._objective_fn()(image, self.content_images[view], view)
+        coverage = None if self.photos is not None else self.coverage[view]  # photos: the whole frame is the scene
+        total, terms = self._objective_fn()(image, self.content_images[view], view, coverage=coverage)
         self._opt.zero_grad(set_to_none=True)
         total.backward()
         grad = self._c_opt.grad

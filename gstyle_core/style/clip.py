@@ -18,7 +18,10 @@ CLIP carries the low-frequency part of the style (large patterns, overall palett
 match AdaIN-style statistics (per-channel mean and standard deviation) of VGG relu3_1…relu3_3 features of
 the render and of the style image, both downsampled 4x first so the receptive field of relu3 (40 px)
 covers about 160 px of the original image; the error is relative (scale-free, about 0…1 like the CLIP
-distance) so the same λ_CLIP applies. It is not CLIP, only a substitute for the coarse scale.
+distance) so the same λ_CLIP applies. The render's statistics are taken over the scene only, weighted by its
+coverage (rendered alpha) when the caller gives it: an object on an empty background would otherwise be
+pushed to make background and object together look like the painting. It is not CLIP, only a substitute for the
+coarse scale.
 """
 
 from __future__ import annotations
@@ -295,6 +298,7 @@ class CoarseStyleLoss(nn.Module):
     statistics), so λ_CLIP can be kept."""
 
     network = "vgg"
+    takes_coverage = True
     label = COARSE_LABEL
 
     def __init__(self, vgg: Callable[[torch.Tensor], dict[str, torch.Tensor]], style_image: torch.Tensor,
@@ -306,7 +310,10 @@ class CoarseStyleLoss(nn.Module):
             stats = self._statistics(_as_batch(style_image))
         self.style_stats = {name: (m.detach(), s.detach()) for name, (m, s) in stats.items()}
 
-    def _statistics(self, img: torch.Tensor) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+    def _statistics(self, img: torch.Tensor, coverage: torch.Tensor | None = None
+                    ) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+        from .losses import feature_weights
+
         height, width = img.shape[-2:]
         size = (max(16, height // self.downsample), max(16, width // self.downsample))
         small = F.interpolate(img, size=size, mode="bilinear", align_corners=False, antialias=True)
@@ -314,12 +321,21 @@ class CoarseStyleLoss(nn.Module):
         out = {}
         for name, f in feats.items():
             flat = f.flatten(2)  # [B, C, h*w]
-            out[name] = (flat.mean(-1), (flat.var(-1, unbiased=False) + 1e-8).sqrt())
+            w = feature_weights(coverage, f.shape[-2:])
+            if w is None or float(w.sum()) <= 0.0:
+                out[name] = (flat.mean(-1), (flat.var(-1, unbiased=False) + 1e-8).sqrt())
+                continue
+            w = w.flatten(2) / w.flatten(2).sum(-1, keepdim=True)  # [B, 1, h*w], sums to 1
+            mean = (flat * w).sum(-1)
+            var = (((flat - mean[..., None]) ** 2) * w).sum(-1)
+            out[name] = (mean, (var + 1e-8).sqrt())
         return out
 
-    def forward(self, render: torch.Tensor) -> torch.Tensor:
+    def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
+        """Relative error of the render's feature statistics (over the scene: ``coverage`` [H,W] or [B,1,H,W]
+        weights each position; None: the whole frame) against the style image's."""
         terms = []
-        for name, (mean, std) in self._statistics(_as_batch(render)).items():
+        for name, (mean, std) in self._statistics(_as_batch(render), coverage).items():
             style_mean, style_std = self.style_stats[name]
             error = ((mean - style_mean) ** 2).sum(-1) + ((std - style_std) ** 2).sum(-1)  # [B]
             scale = (style_mean**2).sum(-1) + (style_std**2).sum(-1) + 1e-8

@@ -99,6 +99,25 @@ class StyleTarget:
         return cls(normalise_vectors(style_feats.detach().flatten(1).float(), dim=0))
 
 
+def feature_weights(coverage: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> torch.Tensor | None:
+    """The scene's coverage (rendered alpha, [H,W], [1,H,W] or [B,1,H,W] in [0, 1]) averaged over each cell of a
+    feature grid of ``size`` (h, w) → [B,1,h,w] weights; None stays None (every feature vector counts fully)."""
+    if coverage is None:
+        return None
+    c = torch.as_tensor(coverage, dtype=torch.float32)
+    c = c.reshape((1, 1) + tuple(c.shape[-2:])) if c.ndim < 4 else c
+    return F.adaptive_avg_pool2d(c, tuple(size)).clamp(0.0, 1.0)
+
+
+def weighted_mean(values: torch.Tensor, weights: torch.Tensor | None) -> torch.Tensor:
+    """Mean of ``values`` [B,...,h,w] weighted per feature position by ``weights`` [B,1,h,w] (None: plain mean).
+    All-zero weights give 0 (nothing of the scene in view: nothing to match)."""
+    if weights is None:
+        return values.mean()
+    w = weights.reshape(weights.shape[0], *([1] * (values.ndim - 3)), *weights.shape[-2:]).expand_as(values)
+    return (values * w).sum() / w.sum().clamp_min(_NORM_EPS)
+
+
 def _style_matrix(style: StyleTarget | torch.Tensor) -> torch.Tensor:
     if isinstance(style, StyleTarget):
         return style.matrix
@@ -108,10 +127,11 @@ def _style_matrix(style: StyleTarget | torch.Tensor) -> torch.Tensor:
 
 
 def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chunk: int = 4096,
-              reduction: str = "mean") -> torch.Tensor:
+              reduction: str = "mean", weights: torch.Tensor | None = None) -> torch.Tensor:
     """Mean over render vectors of min over style vectors of (1 − cos). ``render_feats`` [B,C,h,w];
     ``style`` a :class:`StyleTarget`, raw features [C,hs,ws] or a normalised matrix [C,M]. The
     nearest-neighbour search runs in chunks of ``chunk`` render vectors, without gradients.
+    ``weights`` [B,1,h,w] (:func:`feature_weights`) make it a weighted mean over the scene's feature vectors.
     ``reduction="none"`` returns the distance of every render vector, [B, h, w]."""
     style_matrix = _style_matrix(style).to(render_feats.device)
     if render_feats.ndim != 4 or render_feats.shape[1] != style_matrix.shape[0]:
@@ -130,19 +150,24 @@ def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chu
     if reduction == "none":
         b, _, h, w = render_feats.shape
         return distances.reshape(b, h, w)
+    if weights is not None:
+        b, _, h, w = render_feats.shape
+        return weighted_mean(distances.reshape(b, 1, h, w), weights)
     return distances.mean()
 
 
 def content_loss(render_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor,
-                 gt_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor) -> torch.Tensor:
-    """Mean squared feature difference; for per-layer dicts/lists, the sum over layers of each layer's mean."""
+                 gt_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor,
+                 weights: torch.Tensor | None = None) -> torch.Tensor:
+    """Mean squared feature difference; for per-layer dicts/lists, the sum over layers of each layer's mean.
+    ``weights`` [B,1,h,w] (:func:`feature_weights`) weight each feature position (the scene's coverage)."""
     if isinstance(render_feats, torch.Tensor):
-        return F.mse_loss(render_feats, gt_feats.detach())
-    if isinstance(render_feats, Mapping):
+        pairs = [(render_feats, gt_feats)]
+    elif isinstance(render_feats, Mapping):
         pairs = [(render_feats[name], gt_feats[name]) for name in FEATURE_LAYERS]
     else:
         pairs = list(zip(render_feats, gt_feats, strict=True))
-    return sum(F.mse_loss(r, g.detach()) for r, g in pairs)
+    return sum(weighted_mean((r - g.detach()) ** 2, weights) for r, g in pairs)
 
 
 def tv_loss(img: torch.Tensor, kind: str = "squared") -> torch.Tensor:
@@ -225,7 +250,11 @@ class StyleLoss(nn.Module):
         self._weights = value
 
     def forward(self, render: torch.Tensor, gt: torch.Tensor | None = None,
-                gt_feats: Mapping[str, torch.Tensor] | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+                gt_feats: Mapping[str, torch.Tensor] | None = None,
+                coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+        """``coverage``: the scene's rendered alpha ([H,W] or [1,1,H,W], render resolution) for scenes on an empty
+        background; NNFM, content and the coarse substitute then average over the scene's feature positions
+        (None: over the whole frame, as for photos)."""
         w = self._weights
         zero = render.new_zeros(())
         terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero}
@@ -233,14 +262,17 @@ class StyleLoss(nn.Module):
         if w.nnfm > 0 or w.content > 0:
             feats = self.vgg(upsample_for_vgg(small))
             self.calls["vgg"] += 1
+            stacked = concat_features(feats)
+            grid = feature_weights(coverage, stacked.shape[-2:])
             if w.nnfm > 0:
-                terms["nnfm"] = nnfm_loss(concat_features(feats), self.style_target, self.nnfm_chunk)
+                terms["nnfm"] = nnfm_loss(stacked, self.style_target, self.nnfm_chunk, weights=grid)
             if w.content > 0:
                 if gt_feats is None:
                     gt_feats = self.content_features(gt, small.shape[-2:])
-                terms["content"] = content_loss(feats, gt_feats)
+                terms["content"] = content_loss(feats, gt_feats, weights=grid)
         if w.clip > 0:
-            terms["clip"] = self.clip_term(small)
+            takes_coverage = getattr(self.clip_term, "takes_coverage", False)
+            terms["clip"] = self.clip_term(small, coverage) if takes_coverage else self.clip_term(small)
             self.calls[getattr(self.clip_term, "network", "clip")] += 1
         if w.tv > 0:
             terms["tv"] = tv_loss(render)
