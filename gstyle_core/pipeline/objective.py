@@ -8,6 +8,7 @@ import numpy as np
 import torch
 
 from ..cameras.images import resize_image
+from .scene_box import scene_box
 from .settings import StylizeSettings
 
 
@@ -54,6 +55,7 @@ class StyleObjective:
         self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=asdict(settings.weights))
         self._settings = settings
         self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
+        self._boxes: dict[tuple[int, tuple[int, ...]], tuple[slice, slice] | None] = {}
 
     @property
     def calls(self) -> dict[str, int]:
@@ -70,7 +72,13 @@ class StyleObjective:
     def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int,
                  coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, dict]:
         """Loss of a render [H,W,3] of training view ``view``; ``content`` is its colour-matched ground truth and
-        ``coverage`` [H,W] the scene's alpha there (None for photos: the whole frame is the scene)."""
+        ``coverage`` [H,W] the scene's alpha there (None for photos: the whole frame is the scene). With
+        ``crop_to_scene`` VGG sees only the box the scene covers (``pipeline/scene_box.py``)."""
+        box = self.network_box(view, coverage)
+        clip_view = None
+        if box is not None:  # VGG on the box; the CLIP term (or its coarse substitute) keeps the whole frame
+            clip_view = (image.permute(2, 0, 1)[None], coverage)
+            image, content, coverage = image[box], content[box], coverage[box]
         render = image.permute(2, 0, 1)[None]
         gt_feats = None
         if self.loss.weights.content > 0:
@@ -78,5 +86,14 @@ class StyleObjective:
             if gt_feats is None:
                 gt_feats = self.loss.content_features(content.permute(2, 0, 1)[None], render.shape[-2:])
                 self._content_cache[view] = gt_feats
-        return self.loss(render, gt_feats=gt_feats, coverage=coverage)
+        return self.loss(render, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view)
+
+    def network_box(self, view: int, coverage: torch.Tensor | None) -> tuple[slice, slice] | None:
+        """The view's scene box (fixed per view: the coverage is the ground truth's), None for the whole frame."""
+        if coverage is None or not self._settings.crop_to_scene or self.loss.working_width is not None:
+            return None
+        key = (view, tuple(coverage.shape))
+        if key not in self._boxes:
+            self._boxes[key] = scene_box(coverage)
+        return self._boxes[key]
 

@@ -19,7 +19,9 @@ class StylizeSettings:
     Switches of the "compute only what the scene needs" decisions (on by default; the trade-off bench times them):
     ``cull_unseen`` — Gaussians that no training camera sees are not rendered, optimised or split (False: every
     Gaussian goes through the colour caches, Adam and the split ranking); ``force_preprocess`` — run the
-    pre-processing rounds even when the Gaussian sizes are already even (by default they are skipped then).
+    pre-processing rounds even when the Gaussian sizes are already even (by default they are skipped then);
+    ``crop_to_scene`` — without photos, the networks see only the box of each view that the scene covers (False:
+    the whole frame, background included; the losses weight the background by 0 either way).
     """
 
     preset: str = "preview"
@@ -51,6 +53,7 @@ class StylizeSettings:
     colour_match_after: bool = True
     cull_unseen: bool = True  # skip Gaussians no training camera sees (see the class docstring)
     force_preprocess: bool = False  # pre-process even when the sizes are already even
+    crop_to_scene: bool = True  # networks see only the part of each rendered view the scene covers
     raster_backend: str = "fast"  # "fast" (numba) or "reference" (pure torch) for ground truth, pre-processing and
     # refits; stylization steps always render through the colour cache
     seed: int = 0

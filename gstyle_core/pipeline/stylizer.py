@@ -39,6 +39,7 @@ from ..raster import ColourCache, ColourCacheStore
 from ..raster.sh import used_sh_degree
 from ..scene import GaussianScene, rgb_to_sh_dc, sh_dc_to_rgb
 from .preprocess import ElongationClampStrategy, evenness_verdict, flat_split_mask, size_evenness
+from .scene_box import SCENE_BOX_MARGIN_PX, box_fraction, scene_box
 from .settings import StylizeSettings, ui_params
 from .visibility import culling_note, seen_mask
 
@@ -444,8 +445,19 @@ class Stylizer:
             for g, a in zip(self.gt_images, self.coverage, strict=True)
         ]
         self._grad_acc = torch.zeros(self.gaussian_count)
+        self.decisions["network_area"] = self._network_area_note()
         self._enter("stylize")
         return StepReport("colour_match", 0, 0, colours_changed=True, message="colours matched to the style")
+
+    def _network_area_note(self) -> str:
+        """What the networks look at during stylization (see ``pipeline/scene_box.py``)."""
+        if self.photos is not None:
+            return "whole frames (photos: the scene fills every view)"
+        if not self.settings.crop_to_scene:
+            return "whole frames (crop_to_scene = False)"
+        share = float(np.mean([box_fraction(scene_box(c), *c.shape) for c in self.coverage]))
+        return (f"the box of each view that the scene covers (+{SCENE_BOX_MARGIN_PX} px): {100 * share:.0f} % of the "
+                f"frame's pixels on average")
 
     def _objective_fn(self):
         if self._objective is None:

@@ -251,10 +251,14 @@ class StyleLoss(nn.Module):
 
     def forward(self, render: torch.Tensor, gt: torch.Tensor | None = None,
                 gt_feats: Mapping[str, torch.Tensor] | None = None,
-                coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+                coverage: torch.Tensor | None = None,
+                clip_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
+                ) -> tuple[torch.Tensor, dict[str, float]]:
         """``coverage``: the scene's rendered alpha ([H,W] or [1,1,H,W], render resolution) for scenes on an empty
         background; NNFM, content and the coarse substitute then average over the scene's feature positions
-        (None: over the whole frame, as for photos)."""
+        (None: over the whole frame, as for photos). ``clip_view`` = (render, coverage) gives the CLIP term (or its
+        substitute, whose context is a large part of the frame) another view of the same render than ``render``,
+        e.g. the whole frame when ``render`` is a crop of it."""
         w = self._weights
         zero = render.new_zeros(())
         terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero}
@@ -271,8 +275,10 @@ class StyleLoss(nn.Module):
                     gt_feats = self.content_features(gt, small.shape[-2:])
                 terms["content"] = content_loss(feats, gt_feats, weights=grid)
         if w.clip > 0:
+            clip_in, clip_cov = (small, coverage) if clip_view is None else (
+                resize_to_width(clip_view[0], self.working_width), clip_view[1])
             takes_coverage = getattr(self.clip_term, "takes_coverage", False)
-            terms["clip"] = self.clip_term(small, coverage) if takes_coverage else self.clip_term(small)
+            terms["clip"] = self.clip_term(clip_in, clip_cov) if takes_coverage else self.clip_term(clip_in)
             self.calls[getattr(self.clip_term, "network", "clip")] += 1
         if w.tv > 0:
             terms["tv"] = tv_loss(render)
