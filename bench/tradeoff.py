@@ -5,7 +5,8 @@
 Each point is one full stylization (the real ``Stylizer`` driven to the end, as ``gstyle stylize`` does) with the
 sweep's base (``BASE``: the 6-epoch preview the sweep was first measured with) and one knob changed: working
 resolution, epochs, pre-processing rounds (0, the preset's 1, the paper's 5 forward-facing / 10 for 360°),
-colour-gradient splitting off, culling of Gaussians no camera sees off, the ``balanced`` preset, and with
+colour-gradient splitting off, culling of Gaussians no camera sees off, VGG on whole frames instead of the scene's
+box (``crop_to_scene`` off; photos are whole frames anyway), the ``balanced`` preset, and with
 ``--with-slow`` VGG in bf16 (channels_last) and the pure-torch reference rasterizer for ground truth and refits.
 Scenes: the bundled demo (360°) and the fern (forward-facing; fit it first with
 ``gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply``).
@@ -62,6 +63,7 @@ FULL_SWEEP = [
     ("paper rounds", "preview", {"preprocess_rounds": "paper"}),
     ("no colour split", "preview", {"split_rate": 0.0}),
     ("no culling", "preview", {"cull_unseen": False}),
+    ("whole frames", "preview", {"crop_to_scene": False}),  # VGG on whole frames, not only the scene's box
     ("balanced", "balanced", {}),
     ("no CLIP term", "preview", {"lambda_clip": 0.0}),  # λ 0: the term (here its coarse-VGG substitute) never runs
 ]
