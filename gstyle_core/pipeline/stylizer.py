@@ -13,7 +13,9 @@ Phases, in order:
    Adam on c_s with an exponentially decaying learning rate; ‖∂L/∂c_s‖ is accumulated and at the scheduled steps the
    top ``split_rate`` fraction of Gaussians is split (children inherit c_s), followed by ``refit`` steps that refit
    geometry and c_gt to the ground truth with c_s held. Gaussians that no training camera sees (``cull_unseen``)
-   take no part: they are left out of the colour caches, the optimiser, the split ranking and the refits.
+   take no part: they are left out of the colour caches, the optimiser, the split ranking and the refits. Without
+   photos the objective gets each view's coverage: the losses count the scene, not the empty background, and VGG
+   sees only the scene's box (``crop_to_scene``, ``scene_box.py``).
 5. ``finish``: one step: colour-match the stylized renders to the style once more (affine transform of c_s).
 Then ``done``. There are no threads here: callers (CLI, app worker, tests) decide when to call ``step()``.
 """
