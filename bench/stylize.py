@@ -41,8 +41,7 @@ def network_sizes(engine) -> list[tuple[int, int]]:
     """(height, width) of what VGG sees in each training view: the view, or its scene box."""
     out = []
     for view, cam in enumerate(engine.cameras):
-        coverage = None if engine.photos is not None else engine.coverage[view]
-        box = engine._objective.network_box(view, coverage)
+        box = engine._objective.network_box(view, engine.objective_coverage(view))
         out.append((cam.height, cam.width) if box is None else (box[0].stop - box[0].start, box[1].stop - box[1].start))
     return out
 

@@ -18,6 +18,7 @@ from gstyle_core.style.losses import (
     weighted_mean,
 )
 from gstyle_core.style.vgg import VGGFeatures
+from tests.fakes import MeanColourPull
 from tests.synthetic import blob_scene, ring_cameras
 
 
@@ -95,19 +96,12 @@ def test_style_loss_with_full_coverage_equals_without(vgg):
     assert half["nnfm"] != pytest.approx(terms["nnfm"], rel=1e-4)
 
 
-class _CoverageRecorder:
+class _CoverageRecorder(MeanColourPull):
     seen: list = []
-
-    def __init__(self, style, settings) -> None:
-        self.weights = settings.weights
-
-    def set_weights(self, weights) -> None:
-        self.weights = weights
 
     def __call__(self, image, content, view, coverage=None):
         _CoverageRecorder.seen.append(None if coverage is None else coverage.clone())
-        loss = ((image - content) ** 2).mean()
-        return loss, {"nnfm": float(loss.detach())}
+        return super().__call__(image, content, view, coverage)
 
 
 @pytest.mark.parametrize("with_photos", [False, True])

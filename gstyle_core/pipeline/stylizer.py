@@ -451,6 +451,10 @@ class Stylizer:
         self._enter("stylize")
         return StepReport("colour_match", 0, 0, colours_changed=True, message="colours matched to the style")
 
+    def objective_coverage(self, view: int) -> torch.Tensor | None:
+        """The scene's coverage of a training view as the objective gets it: None for photos (they are all scene)."""
+        return None if self.photos is not None else self.coverage[view]
+
     def _network_area_note(self) -> str:
         """What the networks look at during stylization (see ``pipeline/scene_box.py``)."""
         if self.photos is not None:
@@ -512,8 +516,8 @@ class Stylizer:
             g["lr"] = self._lr()
         view = self._stylize_step % len(self.cameras)
         image = self._render_cs(view, self._c_opt)
-        coverage = None if self.photos is not None else self.coverage[view]  # photos: the whole frame is the scene
-        total, terms = self._objective_fn()(image, self.content_images[view], view, coverage=coverage)
+        total, terms = self._objective_fn()(image, self.content_images[view], view,
+                                            coverage=self.objective_coverage(view))
         self._opt.zero_grad(set_to_none=True)
         total.backward()
         grad = self._c_opt.grad
