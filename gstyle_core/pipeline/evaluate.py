@@ -18,6 +18,42 @@ def colour_stats_distance(pixels: np.ndarray, style_pixels: np.ndarray) -> float
     return float(np.linalg.norm(a.mean(0) - b.mean(0)) + np.linalg.norm(cov_a - cov_b))
 
 
+def luminance_edges(img: np.ndarray) -> np.ndarray:
+    """Sobel gradient magnitude of the luminance of an [H, W, 3] image in [0, 1] → [H, W] (borders replicated)."""
+    lum = np.asarray(img, np.float64)[..., :3] @ np.array([0.299, 0.587, 0.114])
+    p = np.pad(lum, 1, mode="edge")
+    gx = (p[:-2, 2:] + 2 * p[1:-1, 2:] + p[2:, 2:]) - (p[:-2, :-2] + 2 * p[1:-1, :-2] + p[2:, :-2])
+    gy = (p[2:, :-2] + 2 * p[2:, 1:-1] + p[2:, 2:]) - (p[:-2, :-2] + 2 * p[:-2, 1:-1] + p[:-2, 2:])
+    return np.hypot(gx, gy)
+
+
+def interior_mask(alpha: np.ndarray, radius: int = 2) -> np.ndarray:
+    """Pixels whose whole (2·radius+1)² neighbourhood is covered (alpha > 0.5): the scene without its silhouette."""
+    covered = np.asarray(alpha, np.float64).reshape(np.shape(alpha)[:2]) > 0.5
+    p = np.pad(covered, radius, mode="constant", constant_values=False)
+    h, w = covered.shape
+    out = np.ones_like(covered)
+    for dy in range(2 * radius + 1):
+        for dx in range(2 * radius + 1):
+            out &= p[dy:dy + h, dx:dx + w]
+    return out
+
+
+def structure_kept(before: list[np.ndarray], after: list[np.ndarray], alpha: list[np.ndarray] | None) -> float:
+    """How much of the scene's structure survived stylization: the Pearson correlation of the luminance edge maps of
+    the before/after renders over the pixels the scene covers (its silhouette left out, since every render of it
+    keeps that edge; whole frames when ``alpha`` is None). 1: the same edges; 0: unrelated edges."""
+    xs, ys = [], []
+    for i, (b, a) in enumerate(zip(before, after, strict=True)):
+        mask = np.ones(b.shape[:2], bool) if alpha is None else interior_mask(alpha[i])
+        xs.append(luminance_edges(b)[mask])
+        ys.append(luminance_edges(a)[mask])
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    if len(x) < 2 or x.std() == 0 or y.std() == 0:
+        return float("nan")
+    return float(np.corrcoef(x, y)[0, 1])
+
+
 class Evaluator:
     """Measures renders against the style image and ground-truth images with one VGG, at one resolution."""
 

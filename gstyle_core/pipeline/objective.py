@@ -52,8 +52,8 @@ class StyleObjective:
                 clip_term = CoarseStyleLoss(self.vgg, style_small)
         else:
             self.clip_status = "CLIP term off (λ_CLIP = 0)"
-        self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=asdict(settings.weights))
         self._settings = settings
+        self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=self._effective(settings.weights))
         self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
         self._boxes: dict[tuple[int, tuple[int, ...]], tuple[slice, slice] | None] = {}
 
@@ -62,9 +62,18 @@ class StyleObjective:
         """Network runs so far (``vgg``, ``clip``)."""
         return self.loss.calls
 
-    def set_weights(self, weights) -> None:
-        """Change λ weights (a ``StyleWeights``); a CLIP weight needs the CLIP term to have been built."""
+    def _effective(self, weights) -> dict[str, float]:
+        """λ weights as the loss uses them: the style terms (CLIP, NNFM) times the settings' style strength."""
         w = asdict(weights)
+        strength = float(self._settings.strength)
+        w["clip"] *= strength
+        w["nnfm"] *= strength
+        return w
+
+    def set_weights(self, weights) -> None:
+        """Change λ weights (a ``StyleWeights``; the settings' strength applies); a CLIP weight needs the CLIP term
+        to have been built."""
+        w = self._effective(weights)
         if w["clip"] > 0 and self.loss.clip_term is None:
             w["clip"] = 0.0
         self.loss.weights = w

@@ -27,6 +27,10 @@ class StylizeSettings:
     preset: str = "preview"
     scene_kind: str = "auto"  # "forward" | "360" | "auto" (from the cameras)
     weights: StyleWeights = field(default_factory=StyleWeights)
+    strength: float = 1.0  # style strength: multiplies λ_CLIP and λ_NNFM against content (the λ sliders stay)
+    optimizer: str = "adam"  # "adam" (every row) or "visible_adam" (only the Gaussians the view sees)
+    views_per_step: int = 1  # training views whose mean loss makes one optimiser step
+    view_order: str = "orbit"  # "orbit": views in camera order; "random": a new permutation every epoch
     working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
     style_scale: float = 1.0  # style image long side = this × the working render's long side
     epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
@@ -112,6 +116,11 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         s.weights = replace(s.weights, **{k: float(v) for k, v in w.items() if k in weight_keys})
     rest = {k: v for k, v in overrides.items() if not k.startswith("lambda_") and v is not None}
     s = replace(s, **rest)
+    for name, allowed in (("optimizer", ("adam", "visible_adam")), ("view_order", ("orbit", "random"))):
+        if getattr(s, name) not in allowed:
+            raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {getattr(s, name)!r}")
+    if not (s.strength >= 0 and s.strength == s.strength):
+        raise ValueError(f"strength must be 0 or more, got {s.strength}")
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
     return s

@@ -143,7 +143,9 @@ class Stylizer:
         self._pending: dict[str, float] = {}
         self.colour_transform: tuple[np.ndarray, np.ndarray] | None = None
         n = len(self.cameras)
-        self.stylize_steps = max(int(round(settings.epochs * n)), settings.min_steps)
+        # epochs and min_steps count views; a step takes views_per_step of them
+        views_total = max(int(round(settings.epochs * n)), settings.min_steps)
+        self.stylize_steps = max(1, int(math.ceil(views_total / max(1, settings.views_per_step))))
         planned = {int(round(e * n)) for e in settings.split_at_epochs}
         self.split_steps = sorted(k for k in planned if 0 < k < self.stylize_steps)
         if settings.split_rate <= 0:
@@ -177,11 +179,16 @@ class Stylizer:
 
     def set_params(self, **kw: float) -> None:
         """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), split_rate or lr; next step on."""
-        unknown = set(kw) - {"split_rate", "lr"} - {f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
+        known = {"split_rate", "lr", "strength"} | {f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
+        unknown = set(kw) - known
         if unknown:
             raise ValueError(f"unknown parameters: {', '.join(sorted(unknown))}")
         weights = {k[len("lambda_"):]: float(v) for k, v in kw.items() if k.startswith("lambda_") and v is not None}
-        if weights:
+        if kw.get("strength") is not None:
+            if not float(kw["strength"]) >= 0:
+                raise ValueError(f"strength must be 0 or more, got {kw['strength']}")
+            self.settings.strength = float(kw["strength"])
+        if weights or kw.get("strength") is not None:
             self.settings.weights = replace(self.settings.weights, **weights)
             if self._objective is not None:
                 self._objective.set_weights(self.settings.weights)
@@ -514,12 +521,17 @@ class Stylizer:
             self._start_colour_optimiser(ids)
         for g in self._opt.param_groups:
             g["lr"] = self._lr()
-        view = self._stylize_step % len(self.cameras)
-        image = self._render_cs(view, self._c_opt)
-        total, terms = self._objective_fn()(image, self.content_images[view], view,
-                                            coverage=self.objective_coverage(view))
+        views = [self._stylize_view(self._stylize_step * s.views_per_step + j) for j in range(s.views_per_step)]
         self._opt.zero_grad(set_to_none=True)
-        total.backward()
+        total, terms = 0.0, {}
+        for view in views:  # the mean loss over this step's views: gradients add up before one optimiser step
+            image = self._render_cs(view, self._c_opt)
+            loss, view_terms = self._objective_fn()(image, self.content_images[view], view,
+                                                    coverage=self.objective_coverage(view))
+            (loss / len(views)).backward()
+            total += float(loss.detach()) / len(views)
+            for k, v in view_terms.items():
+                terms[k] = terms.get(k, 0.0) + v / len(views)
         grad = self._c_opt.grad
         if self._stylize_step >= self.accumulate_from and grad is not None:
             norms = grad.detach().norm(dim=-1)
@@ -539,15 +551,31 @@ class Stylizer:
         if self._stylize_step >= self.stylize_steps:
             self._opt, self._c_opt = None, None
             self._enter("finish" if s.colour_match_after else "done")
-        return StepReport("stylize", 0, 0, losses={"total": float(total.detach()), **terms}, colours_changed=True,
-                          message=f"stylize view {view}")
+        return StepReport("stylize", 0, 0, losses={"total": total, **terms}, colours_changed=True,
+                          message=f"stylize view{'s' if len(views) > 1 else ''} {', '.join(map(str, views))}")
+
+    def _stylize_view(self, k: int) -> int:
+        """The training view of stylization step ``k``: camera order (``orbit``) or, as the reference does, a new
+        random permutation of the views every epoch (``random``; drawn from the seed and the epoch, so a resumed run
+        sees the same order)."""
+        n = len(self.cameras)
+        if self.settings.view_order == "orbit":
+            return k % n
+        epoch = torch.Generator().manual_seed(self.settings.seed * 1_000_003 + k // n)
+        return int(torch.randperm(n, generator=epoch)[k % n])
 
     def _start_colour_optimiser(self, ids: torch.Tensor | None) -> None:
-        """Adam on a copy of the seen Gaussians' c_s (unseen ones get no gradient and keep their colour)."""
+        """Adam on a copy of the seen Gaussians' c_s (unseen ones get no gradient and keep their colour); with
+        ``optimizer="visible_adam"`` only the Gaussians in the current view move (``visible_adam.py``)."""
+        from .visible_adam import VisibleAdam
+
         self.c_s = self.c_s.detach()
         self._c_opt = (self.c_s if ids is None else self.c_s[ids]).clone().requires_grad_(True)
         self.counters["optimised_colours"] = int(self._c_opt.shape[0])
-        self._opt = torch.optim.Adam([self._c_opt], lr=self._lr())
+        if self.settings.optimizer == "visible_adam":
+            self._opt = VisibleAdam(self._c_opt, lr=self._lr())
+        else:
+            self._opt = torch.optim.Adam([self._c_opt], lr=self._lr())
 
     def _do_colour_split(self) -> StepReport:
         s = self.settings
