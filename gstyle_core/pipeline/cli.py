@@ -23,6 +23,8 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     for term, help_text in (("clip", "CLIP (or substitute) large-pattern term"), ("nnfm", "NNFM brush-stroke term"),
                             ("content", "content preservation"), ("tv", "total-variation smoothness")):
         p.add_argument(f"--lambda-{term}", type=float, default=None, help=f"weight of the {help_text}")
+    p.add_argument("--strength", type=float, default=None,
+                   help="style strength: scales the style terms (CLIP, NNFM) against content; default 1")
     p.add_argument("--split-rate", type=float, default=None, help="fraction of Gaussians split by colour gradient")
     p.add_argument("--working-width", type=int, default=None, help="render width for the networks")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
@@ -52,7 +54,7 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
     kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams)
     overrides = dict(
         lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
-        lambda_tv=args.lambda_tv, split_rate=args.split_rate, working_width=args.working_width,
+        lambda_tv=args.lambda_tv, strength=getattr(args, "strength", None), split_rate=args.split_rate, working_width=args.working_width,
         clip_weights=args.clip_weights, max_gaussians=getattr(args, "max_gaussians", None),
     )
     overrides.update(setting_overrides)

@@ -127,7 +127,7 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
 
 
 def ui_params(settings: StylizeSettings) -> dict[str, float]:
-    """The values ``Stylizer.set_params`` accepts (λ weights, split rate, starting lr) for ``settings``."""
+    """The values ``Stylizer.set_params`` accepts (λ weights, strength, split rate, starting lr) for ``settings``."""
     w = settings.weights
     return {"lambda_clip": w.clip, "lambda_nnfm": w.nnfm, "lambda_content": w.content, "lambda_tv": w.tv,
-            "split_rate": settings.split_rate, "lr": settings.lr_start}
+            "strength": settings.strength, "split_rate": settings.split_rate, "lr": settings.lr_start}
