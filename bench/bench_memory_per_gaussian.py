@@ -47,7 +47,7 @@ def child(copies: int, width: int) -> dict:
                         np.tile(scene.sh_dc, (copies, 1)), np.tile(scene.sh_rest, (copies, 1, 1)))
     n_views = len(cams.cameras)
     settings = resolve_settings("preview", "360", n_views, refit_iterations=3, epochs=2.0, min_steps=0,
-                                split_at_epochs=(1.0,), preprocess_rounds=1,
+                                split_at=(1 / 3,), preprocess_rounds=1,
                                 working_width=width)
     style = np.random.default_rng(1).uniform(0, 1, (64, 64, 3)).astype(np.float32)
     engine = Stylizer(big, cams.cameras, style, settings, objective_factory=MeanColourPull)

@@ -151,7 +151,7 @@ def stylize_runs(runs: int, seed: int) -> int:
         rng = np.random.default_rng(seed + run)
         style = rng.uniform(0, 1, (16, 16, 3)).astype(np.float32)
         settings = resolve_settings("preview", "forward", 4, max_views=4, epochs=8, min_steps=0,
-                                    refit_iterations=3, split_at_epochs=(2.0,), working_width=40,
+                                    refit_iterations=3, split_at=(0.5,), working_width=40,
                                     preprocess_rounds=1)
         start, steps, result = time.perf_counter(), 0, "ok"
         try:

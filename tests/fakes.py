@@ -120,5 +120,5 @@ def make_small_stylizer(n: int = 150, **_ignored):
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0
     settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=3, min_steps=0, refit_iterations=2,
-                                split_at_epochs=(1.0,), working_width=32, preprocess_rounds=1)
+                                split_at=(1 / 3,), working_width=32, preprocess_rounds=1)
     return Stylizer(blob_scene(n, seed=5), ring_cameras(3), style, settings, objective_factory=MeanColourPull)

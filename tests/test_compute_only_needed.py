@@ -49,7 +49,7 @@ def style_image() -> np.ndarray:
 
 
 def engine(scene: GaussianScene, objective_factory=MeanColourPull, photos=None, **overrides) -> Stylizer:
-    opts = dict(max_views=3, epochs=3, min_steps=0, refit_iterations=2, split_at_epochs=(1.0,), working_width=40,
+    opts = dict(max_views=3, epochs=3, min_steps=0, refit_iterations=2, split_at=(1 / 3,), working_width=40,
                 preprocess_rounds=1)
     opts.update(overrides)
     settings = resolve_settings("preview", "forward", 3, **opts)

@@ -35,7 +35,7 @@ def _engine(**overrides):
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0  # red
     style[::2, :, 2] = 0.5
-    opts = dict(max_views=4, epochs=4, min_steps=0, refit_iterations=3, split_at_epochs=(2.0,),
+    opts = dict(max_views=4, epochs=4, min_steps=0, refit_iterations=3, split_at=(0.5,),
                 working_width=40, preprocess_rounds=1)
     opts.update(overrides)
     settings = resolve_settings("preview", "forward", 4, **opts)
@@ -50,7 +50,7 @@ def test_settings_follow_the_paper_per_scene_kind():
     assert (ff.lr_start, ff.lr_end, s360.lr_start, s360.lr_end) == (1e-1, 1e-2, 1e-2, 5e-3)
     assert (ff.preprocess_rounds, s360.preprocess_rounds) == (5, 10)
     assert (ff.refit_iterations, s360.refit_iterations) == (2000, 1000 * 0 + max(5 * 200, 2000))
-    assert ff.split_rate == 0.05 and s360.split_rate == 0.02 and s360.split_at_epochs == (3.0, 7.0)
+    assert ff.split_rate == 0.05 and s360.split_rate == 0.02 and s360.split_at == (0.2, 7 / 15)
     assert resolve_settings("preview", "360", 5, lambda_nnfm=3.0).weights.nnfm == 3.0
     with pytest.raises(ValueError):
         resolve_settings("nope", "forward", 5)
@@ -109,6 +109,54 @@ def test_zero_split_rate_never_splits():
     eng, scene = _engine(preprocess_rounds=0, split_rate=0.0)
     eng.run()
     assert eng.gaussian_count == scene.count
+
+
+@pytest.mark.parametrize("preset", ["preview", "balanced", "final"])
+@pytest.mark.parametrize("kind", ["forward", "360"])
+def test_every_preset_splits_and_the_split_rate_changes_the_result(preset, kind):
+    """Splits sit at fractions of the stylization, so the preset's own step count (and views per step) keeps them."""
+    counts = {}
+    for rate in (0.05, 0.2):
+        settings = resolve_settings(preset, kind, 4, split_rate=rate, preprocess_rounds=0, refit_iterations=1,
+                                    working_width=32, min_steps=0, epochs=3.0)
+        eng = Stylizer(blob_scene(200, seed=3), ring_cameras(4), np.ones((8, 8, 3), np.float32), settings,
+                       objective_factory=MeanColourObjective)
+        assert eng.split_steps, f"{preset}/{kind}: no split planned in {eng.stylize_steps} steps"
+        eng.run()
+        counts[rate] = eng.gaussian_count
+    assert counts[0.2] > counts[0.05] > 200
+
+
+def test_split_steps_count_optimiser_steps_with_several_views_per_step():
+    settings = resolve_settings("preview", "forward", 4, working_width=32, min_steps=0, epochs=8.0,
+                                views_per_step=4, split_at=(0.5,), grad_accumulate_from=0.25)
+    eng = Stylizer(blob_scene(50, seed=1), ring_cameras(4), np.ones((8, 8, 3), np.float32), settings,
+                   objective_factory=MeanColourObjective)
+    assert eng.stylize_steps == 8 and eng.split_steps == [4] and eng.accumulate_from == 2
+
+
+def test_colour_split_takes_the_gaussians_with_the_largest_accumulated_gradient(monkeypatch):
+    eng, _ = _engine(preprocess_rounds=0, split_rate=0.1)
+    while not (eng.phase == "stylize" and eng._stylize_step in eng.split_steps):
+        eng.step()
+    acc = eng._grad_acc.clone()
+    assert acc.max() > 0
+    seen = {}
+    real_split = eng._split
+
+    def spy(mask, *args, **kwargs):
+        seen["mask"] = mask.clone()
+        return real_split(mask, *args, **kwargs)
+
+    monkeypatch.setattr(eng, "_split", spy)
+    eng.step()
+    ids = eng._seen()
+    pool = acc if ids is None else acc[ids]
+    k = int(0.1 * len(pool))
+    chosen = acc[seen["mask"]]
+    assert int(seen["mask"].sum()) == k
+    assert chosen.min() >= torch.topk(pool, k).values.min()  # none outside the top k by ‖∂L/∂c_s‖
+    assert chosen.min() > pool.median()
 
 
 def test_checkpoint_resume_matches_uninterrupted_run():

@@ -202,7 +202,7 @@ def test_in_memory_resume_restores_the_objective_random_state():
 
     def engine():
         settings = resolve_settings("preview", "forward", 4, max_views=4, epochs=4, min_steps=0, refit_iterations=2,
-                                    split_at_epochs=(2.0,), working_width=32, preprocess_rounds=0)
+                                    split_at=(0.5,), working_width=32, preprocess_rounds=0)
         style = np.zeros((8, 8, 3), np.float32)
         style[..., 0] = 1.0
         return Stylizer(blob_scene(120, seed=4), ring_cameras(4), style, settings, objective_factory=RandomWeightsPull)

@@ -364,7 +364,7 @@ def test_long_stylization_run_stays_in_range_and_does_not_diverge():
     steps = 3000
     style = _painting(64, 64, 5)[0].permute(1, 2, 0).numpy()
     settings = resolve_settings("preview", "forward", 2, max_views=2, epochs=1.0, min_steps=steps, working_width=32,
-                                preprocess_rounds=0, refit_iterations=10, split_at_epochs=(50.0,), max_gaussians=5000)
+                                preprocess_rounds=0, refit_iterations=10, split_at=(), max_gaussians=5000)
     engine = Stylizer(blob_scene(200, seed=3), ring_cameras(2), style, settings, objective_factory=_RecordingObjective)
     totals = []
     while not engine.done:

@@ -46,10 +46,10 @@ class StylizeSettings:
     elongation_limit: float = 1.5
     refit_iterations: int = 100  # per pre-processing round and after each colour-gradient split
     split_rate: float = 0.05  # fraction of Gaussians split by accumulated ‖∂L/∂c_s‖
-    split_at_epochs: tuple[float, ...] = (3.0,)  # split at these multiples of n_views steps
+    split_at: tuple[float, ...] = (0.2,)  # split at these fractions of the stylization (paper: epoch 3 of 15)
     split_children: int = 4
     split_scale_divisor: float = 16.0
-    grad_accumulate_from_epoch: float = 2.0
+    grad_accumulate_from: float = 2.0 / 15.0  # fraction of the stylization from which ‖∂L/∂c_s‖ accumulates
     max_gaussians: int = 0  # cap on the count after splits; 0: from the free memory (pipeline/resources.py)
     max_views: int = 24  # at most this many training views (evenly chosen)
     vgg_dtype: str = "float32"  # or "bfloat16"
@@ -71,20 +71,20 @@ class StylizeSettings:
 KIND_DEFAULTS = {
     "forward": dict(
         lr_start=1e-1, lr_end=1e-2, preprocess_gamma=1.0, preprocess_gamma_growth=1.0, preprocess_children=4,
-        preprocess_scale_divisor=8.0, preprocess_cap=0.05, split_rate=0.05, split_at_epochs=(3.0,),
+        preprocess_scale_divisor=8.0, preprocess_cap=0.05, split_rate=0.05, split_at=(0.2,),
         split_scale_divisor=16.0, nnfm=100.0,
     ),
     "360": dict(
         lr_start=1e-2, lr_end=5e-3, preprocess_gamma=1.1, preprocess_gamma_growth=1.125, preprocess_children=8,
-        preprocess_scale_divisor=6.4, preprocess_cap=0.10, split_rate=0.02, split_at_epochs=(3.0, 7.0),
+        preprocess_scale_divisor=6.4, preprocess_cap=0.10, split_rate=0.02, split_at=(0.2, 7.0 / 15.0),
         split_scale_divisor=8.0, nnfm=10.0,
     ),
 }
 
 # CPU budgets. Rounds/iterations for "final" follow the paper (rounds: 5 forward-facing, 10 for 360°).
 PRESETS = {
-    # preview = the "epochs 3" point of bench/tradeoff.py: on the Pareto front of every group measured (README). It
-    # ends where the first colour-gradient split would happen, so it never splits.
+    # preview = the "epochs 3" point of bench/tradeoff.py: on the Pareto front of every group measured (README).
+    # Splits happen at fractions of the stylization (split_at), so every preset performs them.
     "preview": dict(working_width=192, epochs=3.0, min_steps=30, preprocess_rounds=1, refit_iterations=60,
                     max_views=16),
     "balanced": dict(working_width=256, epochs=10.0, min_steps=150, preprocess_rounds=2, refit_iterations=200,

@@ -146,11 +146,10 @@ class Stylizer:
         # epochs and min_steps count views; a step takes views_per_step of them
         views_total = max(int(round(settings.epochs * n)), settings.min_steps)
         self.stylize_steps = max(1, int(math.ceil(views_total / max(1, settings.views_per_step))))
-        planned = {int(round(e * n)) for e in settings.split_at_epochs}
+        # splits at fixed fractions of the stylization, in optimiser steps, so that every preset performs them
+        planned = {int(round(f * self.stylize_steps)) for f in settings.split_at}
         self.split_steps = sorted(k for k in planned if 0 < k < self.stylize_steps)
-        if settings.split_rate <= 0:
-            self.split_steps = []
-        self.accumulate_from = int(round(settings.grad_accumulate_from_epoch * n))
+        self.accumulate_from = int(round(settings.grad_accumulate_from * self.stylize_steps))
         self.max_gaussians, how = settings.max_gaussians, "max_gaussians setting"
         if self.max_gaussians <= 0:  # 0: derived from the memory available now (pipeline/resources.py)
             from .resources import default_max_gaussians
@@ -175,7 +174,8 @@ class Stylizer:
         s = self.settings
         n = len(self.cameras)
         pre = self._preprocess_rounds_planned() * (s.refit_iterations + 1)
-        return n + pre + 1 + self.stylize_steps + len(self.split_steps) * (s.refit_iterations + 1) + 1
+        splits = len(self.split_steps) if s.split_rate > 0 else 0
+        return n + pre + 1 + self.stylize_steps + splits * (s.refit_iterations + 1) + 1
 
     def set_params(self, **kw: float) -> None:
         """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), split_rate or lr; next step on."""
