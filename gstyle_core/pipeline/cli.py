@@ -54,8 +54,10 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
     kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams)
     overrides = dict(
         lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
-        lambda_tv=args.lambda_tv, strength=getattr(args, "strength", None), split_rate=args.split_rate, working_width=args.working_width,
-        clip_weights=args.clip_weights, max_gaussians=getattr(args, "max_gaussians", None),
+        lambda_tv=args.lambda_tv, strength=getattr(args, "strength", None), split_rate=args.split_rate,
+        working_width=args.working_width,
+        clip_weights=args.clip_weights, vgg_weights=getattr(args, "vgg_weights", None),
+        max_gaussians=getattr(args, "max_gaussians", None),
     )
     overrides.update(setting_overrides)
     settings = resolve_settings(args.preset, kind, len(cams.cameras), **overrides)
@@ -100,7 +102,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
-    for key in ("sh", "preprocess", "culled", "loss_terms", "clip"):  # what this scene needed (also in OUT.json)
+    for key in ("sh", "preprocess", "culled", "loss_terms", "clip", "vgg"):  # what this scene needed (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
@@ -193,7 +195,7 @@ def evaluate_run(engine, scene, style: np.ndarray, n_views: int = 3, width: int 
     if vgg is None:
         from ..style.vgg import load_vgg
 
-        vgg = load_vgg()
+        vgg = load_vgg(engine.settings.vgg_weights)
     ev = Evaluator(vgg, style, width)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
     after_scene = engine.stylized_scene()

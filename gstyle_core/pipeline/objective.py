@@ -38,7 +38,10 @@ class StyleObjective:
         from ..style.vgg import load_vgg
 
         dtype = torch.bfloat16 if settings.vgg_dtype == "bfloat16" else torch.float32
-        self.vgg = vgg if vgg is not None else load_vgg(dtype=dtype, channels_last=dtype == torch.bfloat16)
+        if vgg is None:
+            vgg = load_vgg(settings.vgg_weights, dtype=dtype, channels_last=dtype == torch.bfloat16)
+        self.vgg = vgg
+        self.vgg_status = f"VGG-16 weights from {getattr(vgg, 'weights_source', 'the caller')}"
         long_side = settings.working_width
         style_small = to_bchw(resize_long_side(style, max(64, int(long_side * settings.style_scale))))
         self.target = StyleTarget.from_image(self.vgg, style_small)

@@ -480,12 +480,19 @@ class Stylizer:
                 self._objective = StyleObjective(self.style, self.settings)
             else:
                 self._objective = self._objective_factory(self.style, self.settings)
-            self.decisions["clip"] = getattr(self._objective, "clip_status", "n/a")
+            self._note_networks()
             gen, saved = objective_generator(self._objective), getattr(self, "_objective_rng", None)
             if gen is not None and saved is not None:  # resumed: the CLIP crops continue where they were
                 gen.set_state(saved)
             self._note_loss_terms()
         return self._objective
+
+    def _note_networks(self) -> None:
+        """The objective's word on its networks: where the VGG weights and the CLIP term (or substitute) came from."""
+        for key, attr in (("clip", "clip_status"), ("vgg", "vgg_status")):
+            status = getattr(self._objective, attr, None)
+            if status is not None:
+                self.decisions[key] = status
 
     def _lr(self) -> float:
         s = self.settings
