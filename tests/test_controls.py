@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
 import pytest
 import torch
 from synthetic import blob_scene
@@ -69,3 +70,46 @@ def test_studio_command_line_takes_vgg_weights():
     args = build_parser().parse_args(["--vgg-weights", "v.pth", "--clip-weights", "c.pt"])
     assert (args.vgg_weights, args.clip_weights) == ("v.pth", "c.pt")
 
+
+
+# ====================================================================== terms switch on and off mid-run
+@pytest.fixture
+def small_engine(monkeypatch):
+    """A tiny real engine on the real StyleObjective (random VGG, no CLIP weights anywhere), built with overrides."""
+    from synthetic import ring_cameras
+
+    from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.style import clip as clip_module
+
+    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
+    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
+    torch.manual_seed(0)
+    vgg = VGGFeatures().eval()
+    style = np.random.default_rng(0).uniform(size=(16, 16, 3)).astype(np.float32)
+
+    def build(**overrides) -> Stylizer:
+        opts = dict(max_views=3, epochs=3, min_steps=0, preprocess_rounds=0, split_rate=0.0, working_width=32,
+                    **overrides)
+        settings = resolve_settings("preview", "forward", 3, **opts)
+        engine = Stylizer(blob_scene(150, seed=3), ring_cameras(3), style, settings,
+                          objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
+        while engine.phase != "stylize":
+            engine.step()
+        return engine
+
+    return build
+
+
+@pytest.mark.parametrize("term", ["nnfm", "clip", "content"])
+def test_a_term_that_starts_at_zero_turns_on_mid_run(small_engine, term):
+    engine = small_engine(**{f"lambda_{term}": 0.0})
+    assert engine.step().losses[term] == 0.0
+    engine.set_params(**{f"lambda_{term}": 5.0})
+    assert engine.step().losses[term] > 0.0
+    assert term in engine.decisions["loss_terms"].split(";")[0]  # "computed: ..."
+    if term == "clip":  # built on demand: the coarse substitute, as no CLIP weights exist here
+        assert "substitute" in engine.decisions["clip"]
+    engine.set_params(**{f"lambda_{term}": 0.0})
+    assert engine.step().losses[term] == 0.0

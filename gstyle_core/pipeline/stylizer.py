@@ -192,6 +192,7 @@ class Stylizer:
             self.settings.weights = replace(self.settings.weights, **weights)
             if self._objective is not None:
                 self._objective.set_weights(self.settings.weights)
+                self._note_networks()
             self._note_loss_terms()
         if kw.get("split_rate") is not None:
             self.settings.split_rate = float(kw["split_rate"])
