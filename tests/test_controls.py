@@ -113,3 +113,89 @@ def test_a_term_that_starts_at_zero_turns_on_mid_run(small_engine, term):
         assert "substitute" in engine.decisions["clip"]
     engine.set_params(**{f"lambda_{term}": 0.0})
     assert engine.step().losses[term] == 0.0
+
+
+# ====================================================================== the CLIP term says what it is
+@pytest.fixture
+def no_clip_weights(monkeypatch):
+    from gstyle_core.style import clip as clip_module
+
+    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
+    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
+
+
+class StopBeforeStepping(Exception):
+    """Raised instead of the first step."""
+
+
+def test_cli_names_the_coarse_substitute_before_stepping(tiny_scene, tmp_path, monkeypatch, capsys, no_clip_weights):
+    from gstyle_core.pipeline import cli
+    from gstyle_core.style.clip import COARSE_NAME
+
+    def no_steps(engine, *_):
+        assert engine.global_step == 0
+        raise StopBeforeStepping
+
+    monkeypatch.setattr(cli, "_run_with_progress", no_steps)
+    parser = argparse.ArgumentParser()
+    cli.add_stylize_arguments(parser)
+    args = parser.parse_args([tiny_scene, "--out", str(tmp_path / "o.ply"), "--working-width", "32"])
+    with pytest.raises(StopBeforeStepping):
+        cli.stylize_command(args)
+    printed = capsys.readouterr().out
+    assert f"CLIP term: {COARSE_NAME} (CLIP ViT-B/32 weights not found" in printed
+
+
+def test_engine_names_the_clip_term_by_the_weights_found(small_engine, no_clip_weights, tmp_path, monkeypatch):
+    from gstyle_core.style import clip as clip_module
+
+    engine = small_engine()
+    assert engine.clip_name == clip_module.COARSE_NAME and "not found" in engine.decisions["clip"]
+    weights = tmp_path / "ViT-B-32.pt"
+    weights.write_bytes(b"x")  # only looked up, never loaded, for the name
+    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [weights])
+    assert clip_module.clip_term_name() == "CLIP" and clip_module.clip_status() == f"CLIP weights from {weights}"
+
+
+# ====================================================================== one progress bar with an ETA
+class GrowingEngine:
+    """Five steps planned; a split at step 3 adds two more (as the real engine's total grows)."""
+
+    clip_name = "coarse (CLIP substitute)"
+
+    def __init__(self) -> None:
+        self.global_step, self.planned = 0, 5
+
+    @property
+    def done(self) -> bool:
+        return self.global_step >= self.planned
+
+    def total_steps(self) -> int:
+        return self.planned
+
+    def step(self):
+        from gstyle_core.pipeline.stylizer import StepReport
+
+        self.global_step += 1
+        if self.global_step == 3:
+            self.planned = 7
+        phase = "ground_truth" if self.global_step < 3 else "stylize"
+        return StepReport(phase, self.global_step, self.planned, losses={"clip": 0.5, "nnfm": 0.25})
+
+
+class NoCheckpoints:
+    path = "none"
+
+    def after_step(self) -> None:
+        pass
+
+
+def test_stylize_progress_is_one_bar_with_eta_over_the_whole_run(capsys):
+    from gstyle_core.pipeline.cli import _run_with_progress
+
+    _run_with_progress(GrowingEngine(), NoCheckpoints(), {"stop": False})
+    frames = [f for f in capsys.readouterr().err.replace("\n", "\r").split("\r") if f.strip()]
+    assert frames[-1].split()[0] == "stylize:" and "100%" in frames[-1] and "7/7" in frames[-1]
+    assert "coarse (CLIP substitute)=0.5" in frames[-1]
+    assert all("%|" in f and "<" in f for f in frames)  # one bar: percentage and remaining time in every frame
+    assert " 0/5 " in frames[0]  # the total planned before the split (tqdm skips frames within 0.1 s)

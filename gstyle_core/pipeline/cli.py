@@ -93,6 +93,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     s = engine.settings
     print(f"stylize: {scene.count} Gaussians, {len(engine.cameras)} views ({cams.source}), scene kind {s.scene_kind}, "
           f"preset {s.preset} ({s.working_width} px wide)")
+    print(f"CLIP term: {engine.clip_name} ({engine.decisions['clip']})")
     fingerprint = engine_fingerprint(engine)
     resumed = _resume(engine, ckpt_path, saved, fingerprint) if saved else None
     if saved is None and ckpt_path.exists():
@@ -132,31 +133,34 @@ def stylize_command(args: argparse.Namespace) -> int:
 
 
 def _run_with_progress(engine, checkpointer, stop: dict) -> None:
-    """Step to the end with a progress bar per phase, checkpointing; on a stop request save and interrupt."""
+    """Step to the end under one progress bar over the whole run (percentage and ETA; its description names the
+    phase, its total follows ``engine.total_steps()``), checkpointing; on a stop request save and interrupt."""
     from tqdm import tqdm
 
-    bar = None
-    phase = None
-    while not engine.done:
-        rep = engine.step()
-        if rep.phase != phase:
-            if bar is not None:
-                bar.close()
-            phase = rep.phase
-            bar = tqdm(desc=f"{phase:>12}", unit="step", dynamic_ncols=True)
-        bar.update(1)
-        if rep.losses:
-            bar.set_postfix({k: f"{v:.3g}" for k, v in rep.losses.items() if v}, refresh=False)
-        if "reduced" in rep.message:  # a split cut back by --max-gaussians
-            bar.write(f"note: {rep.message}")
-        checkpointer.after_step()
-        if stop["stop"]:
-            bar.close()
-            checkpointer.save()
-            print(f"stopped after step {engine.global_step}; checkpoint {checkpointer.path} (continue with --resume)")
-            raise KeyboardInterrupt
-    if bar is not None:
-        bar.close()
+    clip_name = getattr(engine, "clip_name", "CLIP")
+    with tqdm(total=engine.total_steps(), initial=engine.global_step, unit="step", dynamic_ncols=True) as bar:
+        while not engine.done:
+            rep = engine.step()
+            _advance(bar, rep, clip_name)
+            if "reduced" in rep.message:  # a split cut back by --max-gaussians
+                bar.write(f"note: {rep.message}")
+            checkpointer.after_step()
+            if stop["stop"]:
+                checkpointer.save()
+                bar.write(f"stopped after step {engine.global_step}; checkpoint {checkpointer.path} "
+                          "(continue with --resume)")
+                raise KeyboardInterrupt
+
+
+def _advance(bar, rep, clip_name: str) -> None:
+    """One step on the bar: phase as description, total as planned now, losses (the CLIP term by its name)."""
+    if rep.total_steps and rep.total_steps != bar.total:
+        bar.total = rep.total_steps
+    bar.set_description(f"{rep.phase:>12}", refresh=False)
+    if rep.losses:
+        bar.set_postfix({(clip_name if k == "clip" else k): f"{v:.3g}" for k, v in rep.losses.items() if v},
+                        refresh=False)
+    bar.update(1)
 
 
 def _read_resume_checkpoint(path: Path):

@@ -8,6 +8,7 @@ import numpy as np
 import torch
 
 from ..cameras.images import resize_image
+from ..style.clip import CLIP_OFF
 from .scene_box import scene_box
 from .settings import StylizeSettings
 
@@ -46,7 +47,7 @@ class StyleObjective:
         self._style_small = to_bchw(resize_long_side(style, long_side))
         self.target = StyleTarget.from_image(self.vgg, self._style_small)
         self._settings = settings
-        self.clip_status = "CLIP term off (λ_CLIP = 0)"
+        self.clip_status = CLIP_OFF
         clip_term = self._build_clip_term() if settings.weights.clip > 0 else None
         self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=self._effective(settings.weights))
         self._content_cache: dict[int, dict[str, torch.Tensor]] = {}

@@ -40,6 +40,7 @@ from ..fit.trainer import FitConfig, Trainer
 from ..raster import ColourCache, ColourCacheStore
 from ..raster.sh import used_sh_degree
 from ..scene import GaussianScene, rgb_to_sh_dc, sh_dc_to_rgb
+from ..style.clip import CLIP_OFF, clip_status, clip_term_name
 from .preprocess import ElongationClampStrategy, evenness_verdict, flat_split_mask, size_evenness
 from .scene_box import SCENE_BOX_MARGIN_PX, box_fraction, scene_box
 from .settings import StylizeSettings, ui_params
@@ -128,6 +129,8 @@ class Stylizer:
         self._trainer_ids: torch.Tensor | None = None  # the Gaussians the running refit works on (None: all)
         self._gt_sh_degree = used_sh_degree(scene.sh_rest)
         self.decisions["sh"] = self._sh_note(scene.sh_degree)
+        self.clip_name = clip_term_name(settings.clip_weights)  # "CLIP", or the coarse substitute's name
+        self._note_planned_clip()
         self.history: list[dict[str, float]] = []
         self.timings: dict[str, float] = {}
         self._objective_factory = objective_factory
@@ -193,6 +196,8 @@ class Stylizer:
             if self._objective is not None:
                 self._objective.set_weights(self.settings.weights)
                 self._note_networks()
+            else:
+                self._note_planned_clip()
             self._note_loss_terms()
         if kw.get("split_rate") is not None:
             self.settings.split_rate = float(kw["split_rate"])
@@ -487,6 +492,11 @@ class Stylizer:
                 gen.set_state(saved)
             self._note_loss_terms()
         return self._objective
+
+    def _note_planned_clip(self) -> None:
+        """Before the objective is built: what its CLIP term will be (weights found, or the coarse substitute)."""
+        s = self.settings
+        self.decisions["clip"] = clip_status(s.clip_weights) if s.weights.clip > 0 else CLIP_OFF
 
     def _note_networks(self) -> None:
         """The objective's word on its networks: where the VGG weights and the CLIP term (or substitute) came from."""
