@@ -181,7 +181,8 @@ class Stylizer:
         return n + pre + 1 + self.stylize_steps + len(self.split_steps) * (s.refit_iterations + 1) + 1
 
     def set_params(self, **kw: float) -> None:
-        """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), split_rate or lr; next step on."""
+        """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), strength, split_rate or lr (next
+        step on); a term whose weight turns non-zero is built then."""
         known = {"split_rate", "lr", "strength"} | {f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
         unknown = set(kw) - known
         if unknown:
