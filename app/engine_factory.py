@@ -5,18 +5,20 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+# ``gstyle stylize`` options the studio may set (engine_config keys); None keeps the preset's value.
+ENGINE_OPTIONS = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
+                  "working_width", "clip_weights", "vgg_weights", "max_gaussians")
+
 
 def make_stylizer(scene: str | None = None, style: str | None = None, cameras: str | None = None,
                   preset: str = "preview", scene_kind: str = "auto", **overrides: Any):
     """``gstyle_core.pipeline.Stylizer`` for a scene/style/cameras, as ``gstyle stylize`` builds it."""
     from gstyle_core.pipeline.cli import build_stylizer
 
-    args = argparse.Namespace(
-        scene=scene, style=style, cameras=cameras, preset=preset, scene_kind=scene_kind,
-        lambda_clip=overrides.get("lambda_clip"), lambda_nnfm=overrides.get("lambda_nnfm"),
-        lambda_content=overrides.get("lambda_content"), lambda_tv=overrides.get("lambda_tv"),
-        split_rate=overrides.get("split_rate"), working_width=overrides.get("working_width"),
-        clip_weights=overrides.get("clip_weights"), vgg_weights=overrides.get("vgg_weights"), threads=1,
-    )
+    unknown = set(overrides) - set(ENGINE_OPTIONS)
+    if unknown:
+        raise ValueError(f"unknown engine options: {', '.join(sorted(unknown))}")
+    args = argparse.Namespace(scene=scene, style=style, cameras=cameras, preset=preset, scene_kind=scene_kind,
+                              threads=1, **{k: overrides.get(k) for k in ENGINE_OPTIONS})
     engine, *_ = build_stylizer(args)
     return engine

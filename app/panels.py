@@ -14,7 +14,7 @@ VIEW_MODES = ("stylized", "original", "compare", "ground truth")
 
 @dataclass(frozen=True)
 class Param:
-    """One engine parameter shown as a log-scale slider."""
+    """One engine parameter shown as a log-scale slider; a loss term's λ also gets an on/off checkbox."""
 
     key: str
     label: str
@@ -22,6 +22,11 @@ class Param:
     low: float
     high: float
     tooltip: str
+
+    @property
+    def is_term(self) -> bool:
+        """True for a loss term's weight (λ), which can be switched off (weight 0) and on again."""
+        return self.key.startswith("lambda_")
 
 
 PARAMS = (
@@ -32,13 +37,25 @@ PARAMS = (
     Param("lambda_content", "lambda content", 0.05, 1e-4, 10.0,
           "Weight of content preservation: keeps the scene recognisable (VGG features of the photo)."),
     Param("lambda_tv", "lambda TV", 1e-4, 1e-7, 1e-1, "Weight of total variation: smooths noisy pixels."),
+    Param("strength", "style strength", 1.0, 0.1, 100.0,
+          "Style strength: multiplies the style terms (CLIP and NNFM) against content preservation; 1 keeps the "
+          "lambda values as they are, more paints harder, less keeps more of the scene."),
     Param("split_rate", "split rate", 0.05, 1e-3, 0.5,
           "Fraction of Gaussians split where the style gradient is largest (finer detail, more Gaussians)."),
     Param("lr", "learning rate", 0.1, 1e-3, 1.0, "Starting learning rate of the colour optimisation."),
 )
+COARSE_CLIP_TOOLTIP = (
+    "Weight of the coarse (CLIP substitute) term: no CLIP ViT-B/32 weights were found, so the style's large-scale "
+    "colour and texture statistics (VGG features of 4x smaller images) are matched instead of CLIP's embedding.")
+VIEW_TOOLTIPS = {
+    "stylized": "The stylized scene as the engine has it now.",
+    "original": "The input scene, with its view-dependent colour (SH) when it has any.",
+    "compare": "Stylized left, original right; drag the white divider (C toggles).",
+    "ground truth": "The colours the stylization is compared against (available once the engine sent them).",
+}
 
 HELP_TEXT = """Mouse: left drag orbit, right drag pan, wheel zoom. W/A/S/D/Q/E fly.
-Space pause/resume   C compare   1-9 scene cameras   R reset view
+Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view
 Ctrl+S export .ply   F12 screenshot   H this help"""
 
 
@@ -77,6 +94,11 @@ class PanelState:
     show_help: bool = False
     resume_available: bool = False  # a saved session of this scene + style exists (cache folder)
     decisions: dict[str, Any] = field(default_factory=dict)  # the engine's, as forwarded by the worker
+    defaults: dict[str, float] = field(default_factory=dict)  # "reset" values: the preset the scene resolved to
+    switched_off: dict[str, float] = field(default_factory=dict)  # λ of terms turned off, restored when turned on
+    clip_name: str = "CLIP"  # what the CLIP term is: "CLIP" or "coarse (CLIP substitute)" without CLIP weights
+    camera_names: list[str] = field(default_factory=list)
+    camera_index: int = -1  # the scene camera last snapped to (-1: none)
     viewer_notes: list[str] = field(default_factory=list)  # what the viewer skips (SH, sorts, uploads)
 
 
@@ -120,6 +142,19 @@ def log_slider(label: str, value: float, low: float, high: float) -> tuple[bool,
     return imgui.slider_float(label, float(value), low, high, "%.3g", imgui.SliderFlags_.logarithmic)
 
 
+def tooltip(text: str) -> None:
+    """Tooltip of the last item, shown on hover even when the item is disabled."""
+    if imgui.is_item_hovered(imgui.HoveredFlags_.for_tooltip | imgui.HoveredFlags_.allow_when_disabled):
+        imgui.set_tooltip(text)
+
+
+def button(label: str, tip: str, small: bool = False) -> bool:
+    """A button with its tooltip; True when clicked."""
+    clicked = imgui.small_button(label) if small else imgui.button(label)
+    tooltip(tip)
+    return clicked
+
+
 def draw_panel(state: PanelState) -> list[Command]:
     """Draw the control panel window and return the commands the user issued this frame."""
     out = shortcut_commands(state)
@@ -140,10 +175,10 @@ def draw_panel(state: PanelState) -> list[Command]:
 
 def _files_section(state: PanelState, out: list[Command]) -> None:
     imgui.text_wrapped(f"Scene: {state.scene_path or '(none)'}")
-    if imgui.button("Open scene..."):
+    if button("Open scene...", "Open a Gaussian scene (.ply, .splat, .spz); dropping a file on the window works too."):
         out.append(Command("open_scene"))
     imgui.same_line()
-    if imgui.button("Open style..."):
+    if button("Open style...", "Open a style image (the painting); dropping it on the window works too."):
         out.append(Command("open_style"))
     imgui.text_wrapped(f"Style: {state.style_path or '(none)'}")
     if state.style_texture is not None:
@@ -159,44 +194,57 @@ def _progress_section(state: PanelState, out: list[Command]) -> None:
     fraction = state.step / state.total_steps if state.total_steps else 0.0
     imgui.progress_bar(min(max(fraction, 0.0), 1.0), imgui.ImVec2(-1, 0),
                        f"{state.step}/{state.total_steps}  ETA {format_eta(state.eta_seconds)}")
-    if imgui.button("Resume" if state.paused else "Pause"):
-        out.append(Command("resume" if state.paused else "pause"))
+    if state.paused:
+        if button("Resume###pause", "Continue stepping the engine (Space)."):
+            out.append(Command("resume"))
+    elif button("Pause###pause", "Stop stepping after the current step; the view stays live (Space)."):
+        out.append(Command("pause"))
     imgui.same_line()
-    if imgui.button("Step"):
+    if button("Step", "Run exactly one engine step (useful while paused)."):
         out.append(Command("step"))
     imgui.same_line()
-    if imgui.button("Restart"):
+    if button("Restart", "Start the stylization again from the input scene with the current settings."):
         out.append(Command("restart"))
-    if state.resume_available:
-        if imgui.button("Resume last session"):
-            out.append(Command("resume_session"))
-        imgui.set_item_tooltip("Continue the stylization saved when the studio last closed with this scene and style.")
+    if state.resume_available and button(
+            "Resume last session", "Continue the stylization saved when the studio last closed with this scene and "
+            "style."):
+        out.append(Command("resume_session"))
     if state.error:
         imgui.push_style_color(imgui.Col_.text, imgui.ImVec4(1.0, 0.35, 0.3, 1.0))
         imgui.text_wrapped(f"Error: {state.error}")
         imgui.pop_style_color()
     if state.status:
         imgui.text_wrapped(state.status)
-    _loss_plot(state.loss_history)
+    _loss_plot(state.loss_history, state.clip_name)
 
 
-def _loss_plot(history: list[dict[str, float]]) -> None:
-    if not history:
+def term_name(key: str, clip_name: str = "CLIP") -> str:
+    """A loss key as labels show it: ``clip`` by what the term is (``clip_name``), the others as they are."""
+    return clip_name if key == "clip" else key
+
+
+def loss_series(history: list[dict[str, float]], clip_name: str = "CLIP") -> list[tuple[str, np.ndarray]]:
+    """(legend label, values) per loss key in ``history``; missing or non-positive values are NaN (log axis)."""
+    series = []
+    for key in sorted({k for h in history for k in h}):
+        ys = np.array([h.get(key, np.nan) for h in history], np.float64)
+        series.append((term_name(key, clip_name), np.where(ys > 0, ys, np.nan)))
+    return series
+
+
+def _loss_plot(history: list[dict[str, float]], clip_name: str) -> None:
+    series = loss_series(history, clip_name)
+    if not series:
         return
     try:
         from imgui_bundle import implot
     except ImportError:
         return
-    keys = sorted({k for h in history for k in h})
-    if not keys:
-        return
     if implot.begin_plot("Losses", imgui.ImVec2(-1, 140)):
         implot.setup_axes("step", "loss", implot.AxisFlags_.auto_fit, implot.AxisFlags_.auto_fit)
         implot.setup_axis_scale(implot.ImAxis_.y1, implot.Scale_.log10)
-        for key in keys:
-            ys = np.array([h.get(key, np.nan) for h in history], np.float64)
-            ys = np.where(ys > 0, ys, np.nan)
-            implot.plot_line(key, np.arange(len(ys), dtype=np.float64), ys)
+        for label, ys in series:
+            implot.plot_line(label, np.arange(len(ys), dtype=np.float64), ys)
         implot.end_plot()
 
 
@@ -218,7 +266,9 @@ def _decisions_section(state: PanelState) -> None:
     """Collapsible list of what the engine and the viewer decided to compute or skip for this scene."""
     if not (state.decisions or state.viewer_notes):
         return
-    if imgui.collapsing_header("Decisions"):
+    opened = imgui.collapsing_header("Decisions")
+    tooltip("What the engine and the viewer compute or skip for this scene, and why.")
+    if opened:
         for line in decision_lines(state.decisions) + state.viewer_notes:
             imgui.bullet()
             imgui.text_wrapped(line)
@@ -227,46 +277,109 @@ def _decisions_section(state: PanelState) -> None:
 def _view_section(state: PanelState, out: list[Command]) -> None:
     imgui.separator()
     for mode in VIEW_MODES:
-        if mode == "ground truth" and not state.has_ground_truth:
-            imgui.begin_disabled()
-            imgui.radio_button(mode, False)
-            imgui.end_disabled()
-        elif imgui.radio_button(mode, state.view_mode == mode) and state.view_mode != mode:
+        disabled = mode == "ground truth" and not state.has_ground_truth
+        imgui.begin_disabled(disabled)
+        if imgui.radio_button(mode, state.view_mode == mode) and state.view_mode != mode and not disabled:
             out.append(Command("view_mode", {"mode": mode}))
+        tooltip(VIEW_TOOLTIPS[mode])
+        imgui.end_disabled()
         if mode != VIEW_MODES[-1]:
             imgui.same_line()
     changed, fov = imgui.slider_float("fov", state.fov_deg, 10.0, 120.0, "%.0f deg")
+    tooltip("Vertical field of view of the viewer's camera.")
     if changed:
         out.append(Command("fov", {"degrees": fov}))
-    if imgui.button("Reset view"):
+    if button("Reset view", "Back to the first scene camera's view (R)."):
         out.append(Command("reset_camera"))
-    if state.camera_count:
-        imgui.same_line()
-        imgui.text(f"scene cameras: 1-{min(state.camera_count, 9)}")
+    _camera_list(state, out)
+
+
+def camera_label(index: int, names: list[str]) -> str:
+    """``"3: name"`` (1-based, as the number keys count) for a scene camera."""
+    name = names[index] if 0 <= index < len(names) else ""
+    return f"{index + 1}: {name}" if name else f"{index + 1}"
+
+
+def _camera_list(state: PanelState, out: list[Command]) -> None:
+    """A combo of every scene camera (the number keys reach only the first nine)."""
+    names = state.camera_names or [""] * state.camera_count
+    if not names:
+        return
+    imgui.same_line()
+    imgui.set_next_item_width(150)
+    current = camera_label(state.camera_index, names) if 0 <= state.camera_index < len(names) else "scene cameras"
+    if not imgui.begin_combo("##cameras", current, imgui.ComboFlags_.height_large):
+        tooltip(f"Jump to one of the scene's {len(names)} cameras (keys 1-9: the first nine).")
+        return
+    for i in range(len(names)):
+        if imgui.selectable(camera_label(i, names), i == state.camera_index)[0]:
+            out.append(Command("snap_camera", {"index": i}))
+    imgui.end_combo()
+
+
+def default_value(state: PanelState, p: Param) -> float:
+    """What "reset" restores: the value of the preset the scene resolved to (else the parameter's own default)."""
+    return float(state.defaults.get(p.key, p.default))
+
+
+def param_label(state: PanelState, p: Param) -> str:
+    """The slider's label (the CLIP term by what it is)."""
+    return f"lambda {state.clip_name}" if p.key == "lambda_clip" else p.label
+
+
+def param_tooltip(state: PanelState, p: Param) -> str:
+    """The slider's tooltip (the coarse substitute's own when there are no CLIP weights)."""
+    return COARSE_CLIP_TOOLTIP if p.key == "lambda_clip" and state.clip_name != "CLIP" else p.tooltip
+
+
+def switch_command(state: PanelState, p: Param, on: bool) -> Command:
+    """Turn a term off (weight 0, remembering its λ) or on again (the remembered λ, else the preset's)."""
+    if not on:
+        state.switched_off[p.key] = float(state.params.get(p.key, default_value(state, p)))
+        return Command("set_params", {p.key: 0.0})
+    value = state.switched_off.pop(p.key, 0.0) or default_value(state, p) or p.default
+    return Command("set_params", {p.key: float(value)})
 
 
 def _params_section(state: PanelState, out: list[Command]) -> None:
     imgui.separator()
     for p in PARAMS:
         imgui.push_id(p.key)
-        value = state.params.get(p.key, p.default)
-        imgui.set_next_item_width(170)
-        changed, new = log_slider(p.label, value, p.low, p.high)
-        imgui.set_item_tooltip(p.tooltip)
-        if changed:
-            out.append(Command("set_params", {p.key: float(new)}))
-        imgui.same_line()
-        if imgui.small_button("reset"):
-            out.append(Command("set_params", {p.key: p.default}))
+        _param_row(state, p, out)
         imgui.pop_id()
+    if button("Reset all", "Every parameter back to the preset's value for this scene."):
+        out.append(Command("set_params", {p.key: default_value(state, p) for p in PARAMS}))
+
+
+def _param_row(state: PanelState, p: Param, out: list[Command]) -> None:
+    """[on/off] slider [reset] of one parameter."""
+    value = float(state.params.get(p.key, p.default))
+    off = p.is_term and value <= 0
+    if p.is_term:
+        changed, on = imgui.checkbox("##on", not off)
+        tooltip(f"Turn the {param_label(state, p)[len('lambda '):]} term on or off (off: weight 0, never computed).")
+        if changed:
+            out.append(switch_command(state, p, on))
+        imgui.same_line()
+    imgui.begin_disabled(off)
+    imgui.set_next_item_width(150)
+    shown = state.switched_off.get(p.key, default_value(state, p)) if off else value
+    changed, new = log_slider(param_label(state, p), shown, p.low, p.high)
+    tooltip(param_tooltip(state, p))
+    if changed and not off:
+        out.append(Command("set_params", {p.key: float(new)}))
+    imgui.end_disabled()
+    imgui.same_line()
+    if button("reset", f"Back to the preset's value ({default_value(state, p):.3g}).", small=True):
+        out.append(Command("set_params", {p.key: default_value(state, p)}))
 
 
 def _output_section(out: list[Command]) -> None:
     imgui.separator()
-    if imgui.button("Export .ply (Ctrl+S)"):
+    if button("Export .ply (Ctrl+S)", "Save the stylized scene as .ply with a .json summary in the output folder."):
         out.append(Command("export"))
     imgui.same_line()
-    if imgui.button("Screenshot (F12)"):
+    if button("Screenshot (F12)", "Save the current view as PNG in the output folder."):
         out.append(Command("screenshot"))
 
 

@@ -17,6 +17,7 @@ from gstyle_core.atomic import atomic_write_bytes
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.errors import GStyleError
 from gstyle_core.scene import GaussianScene
+from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
 from .panels import Command, PanelState, draw_panel
@@ -97,6 +98,7 @@ class StudioApp:
         self._colour_key: Any = None  # (colour_version, geometry_version) of the colours last uploaded
         self.engine_factory = engine_factory
         self.engine_config = dict(engine_config or {})
+        self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
         self.bridge: WorkerBridge | None = None
         self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
         self._resume_seen: Any = None  # the last resume report shown in the status line
@@ -121,12 +123,18 @@ class StudioApp:
         self.panel.scene_path = loaded.path
         self.panel.gaussians = loaded.scene.count
         self.panel.camera_count = len(self.cameras)
+        self.panel.camera_names = [c.name or f"camera {i + 1}" for i, c in enumerate(self.cameras)]
+        self.panel.camera_index = 0 if self.cameras else -1
         self._frame_scene()
         self.engine_config["scene"] = loaded.path
-        self.panel.params = self._default_params()
+        self.panel.defaults = self._preset_params(with_overrides=False)
+        self.panel.params = self._preset_params(with_overrides=True)
+        self.panel.switched_off.clear()
 
-    def _default_params(self) -> dict[str, float]:
-        """The sliders' values before the worker reports its engine's: the preset's for this scene's kind."""
+    def _preset_params(self, with_overrides: bool) -> dict[str, float]:
+        """The preset's slider values for this scene's kind (``resolve_settings`` + ``ui_params``): what "reset"
+        restores, and (``with_overrides``: with the engine config's values) the sliders before the worker reports
+        its engine's."""
         from gstyle_core.cameras import classify_scene_kind
         from gstyle_core.pipeline.settings import resolve_settings, ui_params
 
@@ -134,8 +142,8 @@ class StudioApp:
         if kind == "auto":
             kind = classify_scene_kind(self.cameras)
         preset = self.engine_config.get("preset") or "preview"
-        overrides = {k: self.engine_config.get(k) for k in ("lambda_clip", "lambda_nnfm", "lambda_content",
-                                                             "lambda_tv", "split_rate")}
+        keys = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate")
+        overrides = {k: self.engine_config.get(k) for k in keys} if with_overrides else {}
         try:
             return ui_params(resolve_settings(preset, kind, max(1, len(self.cameras)), **overrides))
         except ValueError:  # an unknown preset: the worker reports the error when it starts
@@ -397,6 +405,7 @@ class StudioApp:
         elif name == "snap_camera" and args["index"] < len(self.cameras):
             cam = self.cameras[args["index"]]
             self.control.snap_to(cam)
+            self.panel.camera_index = args["index"]
             self.panel.status = f"camera {args['index'] + 1}: {cam.name}"
         elif name == "toggle_help":
             self.panel.show_help = not self.panel.show_help

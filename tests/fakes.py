@@ -59,7 +59,8 @@ class FakeEngine:
                           True, grew, self.steps >= self.total)
 
     def set_params(self, **kw: float) -> None:
-        unknown = set(kw) - {"lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "split_rate", "lr"}
+        unknown = set(kw) - {"lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
+                             "lr"}
         if unknown:
             raise ValueError(f"unknown parameters: {sorted(unknown)}")
         self.params.update({k: float(v) for k, v in kw.items()})

@@ -424,27 +424,36 @@ def test_engine_decisions_are_forwarded_by_the_worker_and_listed_by_the_panel():
     assert any(line.startswith("size evenness: area_cv=") for line in lines)
 
 
-def test_decisions_section_draws_headless(tmp_path):
+def test_decisions_section_draws_every_line_when_open_and_none_when_closed(monkeypatch):
     pytest.importorskip("imgui_bundle")
     from imgui_bundle import imgui
+    from imgui_driver import install
 
-    from app.panels import PanelState, _decisions_section
+    from app.panels import PanelState, _decisions_section, decision_lines
     from app.window import DisplayUnavailableError, open_window
 
     try:
         win = open_window(320, 240, headless=True)
     except DisplayUnavailableError as exc:
         pytest.skip(f"no headless GL window (glfw NULL + EGL): {exc}")
+    recorder = install(monkeypatch)
+    state = PanelState(decisions={"preprocess": "skipped", "reductions": ["a", "b"]}, viewer_notes=["x"])
+    drawn = {}
     try:
-        state = PanelState(decisions={"preprocess": "skipped", "reductions": ["a", "b"]}, viewer_notes=["x"])
-        win.begin_frame()
-        imgui.begin("test")
-        imgui.set_next_item_open(True)
-        _decisions_section(state)
-        imgui.end()
-        win.end_frame(swap=False)
+        for is_open in (False, True):
+            win.begin_frame()
+            imgui.begin("test")
+            imgui.set_next_item_open(is_open)
+            _decisions_section(state)
+            imgui.end()
+            win.end_frame(swap=False)
+            drawn[is_open] = list(recorder.texts)
+            recorder.texts.clear()
     finally:
         win.close()
+    assert [w.path for w in recorder.widgets] == ["Decisions", "Decisions"]
+    assert drawn[False] == []
+    assert drawn[True] == decision_lines(state.decisions) + ["x"] == ["preprocess: skipped", "reductions: a; b", "x"]
 
 
 def test_checkpoint_resume_with_culled_gaussians_matches_uninterrupted_run():

@@ -54,8 +54,10 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
     kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams)
     overrides = dict(
         lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
-        lambda_tv=args.lambda_tv, strength=getattr(args, "strength", None), split_rate=args.split_rate, working_width=args.working_width,
-        clip_weights=args.clip_weights, max_gaussians=getattr(args, "max_gaussians", None),
+        lambda_tv=args.lambda_tv, strength=getattr(args, "strength", None), split_rate=args.split_rate,
+        working_width=args.working_width,
+        clip_weights=args.clip_weights, vgg_weights=getattr(args, "vgg_weights", None),
+        max_gaussians=getattr(args, "max_gaussians", None),
     )
     overrides.update(setting_overrides)
     settings = resolve_settings(args.preset, kind, len(cams.cameras), **overrides)
@@ -91,6 +93,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     s = engine.settings
     print(f"stylize: {scene.count} Gaussians, {len(engine.cameras)} views ({cams.source}), scene kind {s.scene_kind}, "
           f"preset {s.preset} ({s.working_width} px wide)")
+    print(f"CLIP term: {engine.clip_name} ({engine.decisions['clip']})")
     fingerprint = engine_fingerprint(engine)
     resumed = _resume(engine, ckpt_path, saved, fingerprint) if saved else None
     if saved is None and ckpt_path.exists():
@@ -100,7 +103,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
-    for key in ("sh", "preprocess", "culled", "loss_terms", "clip"):  # what this scene needed (also in OUT.json)
+    for key in ("sh", "preprocess", "culled", "loss_terms", "clip", "vgg"):  # what this scene needed (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
@@ -130,31 +133,34 @@ def stylize_command(args: argparse.Namespace) -> int:
 
 
 def _run_with_progress(engine, checkpointer, stop: dict) -> None:
-    """Step to the end with a progress bar per phase, checkpointing; on a stop request save and interrupt."""
+    """Step to the end under one progress bar over the whole run (percentage and ETA; its description names the
+    phase, its total follows ``engine.total_steps()``), checkpointing; on a stop request save and interrupt."""
     from tqdm import tqdm
 
-    bar = None
-    phase = None
-    while not engine.done:
-        rep = engine.step()
-        if rep.phase != phase:
-            if bar is not None:
-                bar.close()
-            phase = rep.phase
-            bar = tqdm(desc=f"{phase:>12}", unit="step", dynamic_ncols=True)
-        bar.update(1)
-        if rep.losses:
-            bar.set_postfix({k: f"{v:.3g}" for k, v in rep.losses.items() if v}, refresh=False)
-        if "reduced" in rep.message:  # a split cut back by --max-gaussians
-            bar.write(f"note: {rep.message}")
-        checkpointer.after_step()
-        if stop["stop"]:
-            bar.close()
-            checkpointer.save()
-            print(f"stopped after step {engine.global_step}; checkpoint {checkpointer.path} (continue with --resume)")
-            raise KeyboardInterrupt
-    if bar is not None:
-        bar.close()
+    clip_name = getattr(engine, "clip_name", "CLIP")
+    with tqdm(total=engine.total_steps(), initial=engine.global_step, unit="step", dynamic_ncols=True) as bar:
+        while not engine.done:
+            rep = engine.step()
+            _advance(bar, rep, clip_name)
+            if "reduced" in rep.message:  # a split cut back by --max-gaussians
+                bar.write(f"note: {rep.message}")
+            checkpointer.after_step()
+            if stop["stop"]:
+                checkpointer.save()
+                bar.write(f"stopped after step {engine.global_step}; checkpoint {checkpointer.path} "
+                          "(continue with --resume)")
+                raise KeyboardInterrupt
+
+
+def _advance(bar, rep, clip_name: str) -> None:
+    """One step on the bar: phase as description, total as planned now, losses (the CLIP term by its name)."""
+    if rep.total_steps and rep.total_steps != bar.total:
+        bar.total = rep.total_steps
+    bar.set_description(f"{rep.phase:>12}", refresh=False)
+    if rep.losses:
+        bar.set_postfix({(clip_name if k == "clip" else k): f"{v:.3g}" for k, v in rep.losses.items() if v},
+                        refresh=False)
+    bar.update(1)
 
 
 def _read_resume_checkpoint(path: Path):
@@ -193,7 +199,7 @@ def evaluate_run(engine, scene, style: np.ndarray, n_views: int = 3, width: int 
     if vgg is None:
         from ..style.vgg import load_vgg
 
-        vgg = load_vgg()
+        vgg = load_vgg(engine.settings.vgg_weights)
     ev = Evaluator(vgg, style, width)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
     after_scene = engine.stylized_scene()

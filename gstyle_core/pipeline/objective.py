@@ -8,6 +8,7 @@ import numpy as np
 import torch
 
 from ..cameras.images import resize_image
+from ..style.clip import CLIP_OFF
 from .scene_box import scene_box
 from .settings import StylizeSettings
 
@@ -33,29 +34,35 @@ class StyleObjective:
     """
 
     def __init__(self, style: np.ndarray, settings: StylizeSettings, vgg=None) -> None:
-        from ..style.clip import ClipStyleLoss, CoarseStyleLoss, load_clip
         from ..style.losses import StyleLoss, StyleTarget
         from ..style.vgg import load_vgg
 
         dtype = torch.bfloat16 if settings.vgg_dtype == "bfloat16" else torch.float32
-        self.vgg = vgg if vgg is not None else load_vgg(dtype=dtype, channels_last=dtype == torch.bfloat16)
-        long_side = settings.working_width
-        style_small = to_bchw(resize_long_side(style, max(64, int(long_side * settings.style_scale))))
-        self.target = StyleTarget.from_image(self.vgg, style_small)
-        clip_term = None
-        if settings.weights.clip > 0:
-            encoder, self.clip_status = load_clip(settings.clip_weights)
-            if encoder is not None:
-                clip_term = ClipStyleLoss(encoder, to_bchw(resize_long_side(style, 448)),
-                                          generator=torch.Generator().manual_seed(settings.seed))
-            else:
-                clip_term = CoarseStyleLoss(self.vgg, style_small)
-        else:
-            self.clip_status = "CLIP term off (λ_CLIP = 0)"
+        if vgg is None:
+            vgg = load_vgg(settings.vgg_weights, dtype=dtype, channels_last=dtype == torch.bfloat16)
+        self.vgg = vgg
+        self.vgg_status = f"VGG-16 weights from {getattr(vgg, 'weights_source', 'the caller')}"
+        self._style = style
+        long_side = max(64, int(settings.working_width * settings.style_scale))
+        self._style_small = to_bchw(resize_long_side(style, long_side))
+        self.target = StyleTarget.from_image(self.vgg, self._style_small)
         self._settings = settings
+        self.clip_status = CLIP_OFF
+        clip_term = self._build_clip_term() if settings.weights.clip > 0 else None
         self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=self._effective(settings.weights))
         self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
         self._boxes: dict[tuple[int, tuple[int, ...]], tuple[slice, slice] | None] = {}
+
+    def _build_clip_term(self) -> torch.nn.Module:
+        """CLIP ViT-B/32 on the style when its weights are found, else the coarse-VGG substitute (built when λ_CLIP
+        first becomes non-zero)."""
+        from ..style.clip import ClipStyleLoss, CoarseStyleLoss, load_clip
+
+        encoder, self.clip_status = load_clip(self._settings.clip_weights)
+        if encoder is None:
+            return CoarseStyleLoss(self.vgg, self._style_small)
+        return ClipStyleLoss(encoder, to_bchw(resize_long_side(self._style, 448)),
+                             generator=torch.Generator().manual_seed(self._settings.seed))
 
     @property
     def calls(self) -> dict[str, int]:
@@ -71,11 +78,11 @@ class StyleObjective:
         return w
 
     def set_weights(self, weights) -> None:
-        """Change λ weights (a ``StyleWeights``; the settings' strength applies); a CLIP weight needs the CLIP term
-        to have been built."""
+        """Change λ weights (a ``StyleWeights``; the settings' strength applies); the CLIP term (or its substitute)
+        is built the first time its weight is non-zero."""
         w = self._effective(weights)
         if w["clip"] > 0 and self.loss.clip_term is None:
-            w["clip"] = 0.0
+            self.loss.clip_term = self._build_clip_term()
         self.loss.weights = w
 
     def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int,

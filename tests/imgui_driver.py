@@ -1,0 +1,121 @@
+"""Drive the studio's ImGui panel headless: record every widget it draws (id path, rectangle, tooltip, texts) and
+click widgets by their path with injected mouse events."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from imgui_bundle import imgui
+
+WIDGETS = ("button", "small_button", "checkbox", "radio_button", "slider_float", "begin_combo", "selectable",
+           "collapsing_header")
+
+
+@dataclass
+class Widget:
+    """One drawn widget: ``path`` is the pushed ids and its label joined by "/" (e.g. "lambda_nnfm/reset")."""
+
+    kind: str
+    path: str
+    rect: tuple[float, float, float, float]
+    tooltip: str | None = None
+
+    def point(self, fx: float = 0.5) -> tuple[float, float]:
+        """A point inside: ``fx`` of the way across, half way down."""
+        x0, y0, x1, y1 = self.rect
+        return x0 + fx * (x1 - x0), 0.5 * (y0 + y1)
+
+
+class Recorder:
+    """Stands in for the ``imgui`` module of ``app.panels``: calls the real one and records what was drawn."""
+
+    def __init__(self) -> None:
+        self.widgets: list[Widget] = []
+        self.texts: list[str] = []
+        self._ids: list[str] = []
+
+    def __getattr__(self, name: str) -> Any:
+        attr = getattr(imgui, name)
+        return self._recording(name, attr) if name in WIDGETS else attr
+
+    def _recording(self, kind: str, fn: Callable) -> Callable:
+        def call(label, *args, **kw):
+            result = fn(label, *args, **kw)
+            lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+            right = hi.x
+            if kind == "slider_float":  # the item's rectangle includes the label right of the slider's frame
+                shown = label.split("##")[0]
+                if shown:
+                    right -= imgui.calc_text_size(shown).x + imgui.get_style().item_inner_spacing.x
+            self.widgets.append(Widget(kind, "/".join([*self._ids, label]), (lo.x, lo.y, right, hi.y)))
+            return result
+
+        return call
+
+    def push_id(self, name: str) -> None:
+        self._ids.append(str(name))
+        imgui.push_id(name)
+
+    def pop_id(self) -> None:
+        self._ids.pop()
+        imgui.pop_id()
+
+    def text_wrapped(self, text: str) -> None:
+        self.texts.append(text)
+        imgui.text_wrapped(text)
+
+    def mark_tooltip(self, text: str) -> None:
+        """``app.panels.tooltip`` was called for the last widget."""
+        if self.widgets:
+            self.widgets[-1].tooltip = text
+
+    def find(self, path: str) -> Widget:
+        matches = [w for w in self.widgets if w.path == path]
+        assert matches, f"no widget {path!r} drawn; drawn: {[w.path for w in self.widgets]}"
+        return matches[-1]
+
+
+def install(monkeypatch) -> Recorder:
+    """Route ``app.panels``' ImGui calls (and its tooltip helper) through a new ``Recorder``."""
+    import app.panels as panels
+
+    recorder = Recorder()
+    original_tooltip = panels.tooltip
+
+    def tooltip(text: str) -> None:
+        recorder.mark_tooltip(text)
+        original_tooltip(text)
+
+    monkeypatch.setattr(panels, "imgui", recorder)
+    monkeypatch.setattr(panels, "tooltip", tooltip)
+    return recorder
+
+
+class PanelDriver:
+    """Frames of ``draw`` (returns commands) in a headless window, with injected input."""
+
+    def __init__(self, window, recorder: Recorder, draw: Callable[[], list]) -> None:
+        self.window, self.recorder, self.draw = window, recorder, draw
+
+    def frame(self, *events: Callable[[Any], None]) -> list:
+        io = imgui.get_io()
+        for event in events:
+            event(io)
+        self.window.begin_frame()
+        self.recorder.widgets.clear()
+        self.recorder.texts.clear()
+        commands = self.draw()
+        self.window.end_frame(swap=False)
+        return list(commands)
+
+    def click(self, path: str, fx: float = 0.5) -> list:
+        """Click the widget at ``path`` (``fx`` across it); the commands of every frame until the release."""
+        self.frame()
+        x, y = self.recorder.find(path).point(fx)
+        commands = self.frame(lambda io: io.add_mouse_pos_event(x, y))
+        commands += self.frame(lambda io: io.add_mouse_button_event(0, True))
+        commands += self.frame(lambda io: io.add_mouse_button_event(0, False))
+        commands += self.frame(lambda io: io.add_mouse_pos_event(-1, -1))
+        return commands

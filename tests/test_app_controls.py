@@ -1,0 +1,145 @@
+"""Every studio control does what it says (issue #17): clicked headless through the real ImGui panel."""
+
+import pytest
+
+pytest.importorskip("imgui_bundle")
+pytest.importorskip("moderngl")
+
+from fakes import make_small_stylizer  # noqa: E402
+from imgui_driver import PanelDriver, install  # noqa: E402
+from synthetic import blob_scene, ring_cameras  # noqa: E402
+
+from app.panels import PARAMS, PanelState, draw_panel, loss_series  # noqa: E402
+from app.studio import LoadedScene, StudioApp  # noqa: E402
+from gstyle_core.pipeline.settings import resolve_settings, ui_params  # noqa: E402
+from gstyle_core.style.clip import COARSE_NAME  # noqa: E402
+
+W, H = 700, 1100  # tall enough for the whole panel
+
+
+def panel_state(**kw) -> PanelState:
+    params = ui_params(resolve_settings("preview", "forward", 4))
+    return PanelState(params=dict(params), defaults=dict(params), **kw)
+
+
+@pytest.fixture
+def panel(window, monkeypatch):
+    """(driver, state): the panel alone, its set_params commands applied to the state as the studio does."""
+    recorder = install(monkeypatch)
+    state = panel_state(camera_count=12, camera_names=[f"cam{i + 1}" for i in range(12)])
+
+    def draw():
+        commands = draw_panel(state)
+        for c in commands:
+            if c.name == "set_params":
+                state.params.update(c.args)
+        return commands
+
+    return PanelDriver(window, recorder, draw), state
+
+
+def studio_driver(window, monkeypatch, app) -> PanelDriver:
+    def draw():
+        window.ctx.screen.use()
+        return app.frame(window.ctx.screen)
+
+    return PanelDriver(window, install(monkeypatch), draw)
+
+
+def test_every_control_button_and_view_mode_has_a_tooltip(panel):
+    driver, state = panel
+    state.decisions, state.resume_available, state.paused = {"sh": "none"}, True, True
+    driver.frame()
+    drawn = driver.recorder.widgets
+    kinds = {w.kind for w in drawn}
+    assert {"button", "small_button", "checkbox", "radio_button", "slider_float", "begin_combo"} <= kinds
+    assert {w.path for w in drawn if w.kind == "radio_button"} == {"stylized", "original", "compare", "ground truth"}
+    assert [w.path for w in drawn if not w.tooltip] == []
+
+
+def test_camera_list_reaches_every_camera(panel):
+    driver, _state = panel
+    driver.click("##cameras")  # opens the list
+    commands = driver.click("12: cam12")
+    assert [(c.name, c.args) for c in commands] == [("snap_camera", {"index": 11})]
+
+
+def test_each_term_switches_off_and_back_on(panel):
+    driver, state = panel
+    commands = driver.click("lambda_clip/##on")
+    assert [c.args for c in commands] == [{"lambda_clip": 0.0}]
+    assert driver.click("lambda_clip/lambda CLIP") == []  # its slider is disabled while off
+    commands = driver.click("lambda_clip/##on")
+    assert [c.args for c in commands] == [{"lambda_clip": 10.0}]
+
+
+def test_a_term_that_starts_at_zero_can_be_turned_on(panel):
+    driver, state = panel
+    state.params["lambda_content"] = 0.0
+    commands = driver.click("lambda_content/##on")
+    assert [c.args for c in commands] == [{"lambda_content": state.defaults["lambda_content"]}]
+
+
+def test_coarse_substitute_is_named_so_on_slider_tooltip_and_plot(panel):
+    driver, state = panel
+    state.clip_name = COARSE_NAME
+    driver.frame()
+    slider = driver.recorder.find(f"lambda_clip/lambda {COARSE_NAME}")
+    assert "coarse (CLIP substitute)" in slider.tooltip and "no CLIP ViT-B/32 weights" in slider.tooltip
+    assert [label for label, _ in loss_series([{"clip": 1.0, "nnfm": 2.0}], COARSE_NAME)] == [COARSE_NAME, "nnfm"]
+
+
+def test_studio_names_the_clip_term_by_the_weights_found(window, monkeypatch, tmp_path):
+    from gstyle_core.style import clip as clip_module
+
+    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
+    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
+    app = StudioApp(window.ctx, loaded=LoadedScene("s", blob_scene(50), ring_cameras(4)), output_dir=tmp_path)
+    try:
+        assert app.panel.clip_name == COARSE_NAME
+    finally:
+        app.close()
+
+
+def test_reset_goes_to_the_presets_values_of_a_360_scene(window, monkeypatch, tmp_path):
+    cams = ring_cameras(8, width=64, height=48)
+    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(200), cams), output_dir=tmp_path)
+    try:
+        preset = ui_params(resolve_settings("preview", "360", len(cams)))
+        assert (preset["lambda_nnfm"], preset["split_rate"], preset["lr"]) == (10.0, 0.02, 0.01)
+        driver = studio_driver(window, monkeypatch, app)
+        app.panel.params.update(lambda_nnfm=100.0, split_rate=0.05, lr=0.1, strength=3.0)
+        driver.click("lambda_nnfm/reset")
+        assert app.panel.params["lambda_nnfm"] == 10.0 and app.panel.params["lr"] == 0.1
+        driver.click("Reset all")
+        assert {p.key: app.panel.params[p.key] for p in PARAMS} == {p.key: preset[p.key] for p in PARAMS}
+    finally:
+        app.close()
+
+
+BUILT: list = []
+
+
+def keep_small_stylizer(**config):
+    """``make_small_stylizer``, kept for the test to look at (thread mode: the same process)."""
+    BUILT.append(make_small_stylizer(**config))
+    return BUILT[-1]
+
+
+def test_strength_slider_reaches_the_engine(window, monkeypatch, tmp_path):
+    BUILT.clear()
+    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150, seed=5), ring_cameras(3)),
+                    engine_factory=keep_small_stylizer, output_dir=tmp_path, worker_mode="thread")
+    try:
+        app.start_engine()
+        assert app.bridge.wait_until(lambda s: s.ready or s.error, 60) and app.bridge.state.error is None
+        app.bridge.pause()
+        assert app.bridge.wait_until(lambda s: s.paused, 30)
+        driver = studio_driver(window, monkeypatch, app)
+        commands = driver.click("strength/style strength", fx=0.9)
+        assert commands and commands[0].name == "set_params" and commands[0].args["strength"] > 10
+        asked = commands[-1].args["strength"]
+        assert app.bridge.wait_until(lambda s: s.params.get("strength") == asked, 30)
+        assert BUILT[-1].settings.strength == pytest.approx(asked)
+    finally:
+        app.close()
