@@ -80,11 +80,27 @@ def run(args: argparse.Namespace) -> int:
     except DisplayUnavailableError as exc:
         if args.headless:
             raise
-        shot = Path(args.screenshot) if args.screenshot else FALLBACK_SCREENSHOT
-        print(f"gstyle-studio: cannot open a window ({exc}); rendering headless to {shot} instead")
-        args.headless, args.screenshot, args.engine = True, str(shot), False
-        args.frames = args.frames or HEADLESS_FRAMES
-        window = open_window(*args.size, headless=True)
+        return _without_display(args, exc)
+    try:
+        return loop(window, args)
+    finally:
+        window.close()
+
+
+def _without_display(args: argparse.Namespace, reason: Exception) -> int:
+    """No window can open: show the product's job anyway. Stylize the scene headless (preview unless another preset
+    was asked for), write before/after renders, then a headless studio screenshot of the stylized result."""
+    from .headless_demo import stylize_without_display
+    from .window import open_window
+
+    print(f"gstyle-studio: cannot open a window ({reason}); stylizing headless instead ({args.preset} preset)")
+    picture = stylize_without_display(args)
+    print(f"gstyle-studio: before (top) and after (bottom): {picture}")
+    shot = Path(args.screenshot) if args.screenshot else FALLBACK_SCREENSHOT
+    args.scene = str(Path(args.output_dir) / f"{Path(args.scene).stem if args.scene else 'demo'}_stylized.ply")
+    args.headless, args.screenshot, args.engine = True, str(shot), False
+    args.frames = args.frames or HEADLESS_FRAMES
+    window = open_window(*args.size, headless=True)
     try:
         return loop(window, args)
     finally:

@@ -98,6 +98,7 @@ class _EngineHost:
         self.last_report: dict[str, Any] | None = None
         self.params: dict[str, float] = {}
         self.sent_decisions: dict[str, Any] | None = None
+        self.in_thread = False  # a worker thread of the UI process (ThreadWorkerBridge), not a spawned process
 
     def send(self, kind: str, payload: Any = None) -> None:
         self.events.put((kind, payload))
@@ -117,7 +118,7 @@ class _EngineHost:
         self.sent_decisions = None
         try:
             self.engine = self.factory(**self.config)
-            _single_torch_thread()
+            _single_torch_thread(self.in_thread)
             if self.params:
                 self.engine.set_params(**self.params)
             current = getattr(self.engine, "current_params", None)
@@ -300,21 +301,28 @@ def _lower_priority(increment: int = WORKER_NICE) -> None:
         pass
 
 
-def _single_torch_thread() -> None:
+def _single_torch_thread(in_thread: bool = False) -> None:
     """One compute thread in the worker: torch's (measured best on 2 cores, gl-stack.md §3) and numba's (the
     rasterizer's parallel loops). With two numba threads the worker kept 20 % of its stand-alone step rate beside
     the UI although the UI used under one core of two: every parallel loop waited for its thread that the UI had
-    preempted (``bench/ui.py``)."""
+    preempted (``bench/ui.py``).
+
+    A spawned worker sets ``NUMBA_NUM_THREADS`` before numba is imported. A worker thread inside the UI (or test)
+    process never writes the process environment: numba re-reads it on every compile and refuses a value that
+    differs from its launched pool, so it uses numba's per-thread ``set_num_threads`` instead."""
     torch = sys.modules.get("torch")
     if torch is not None:
         torch.set_num_threads(1)
-    os.environ["NUMBA_NUM_THREADS"] = "1"  # numba reads it at import (the engine imports it lazily)
     numba = sys.modules.get("numba")
-    if numba is not None:
-        try:
-            numba.set_num_threads(1)
-        except (ValueError, RuntimeError):  # a threading layer that cannot change its size: keep it
-            pass
+    if numba is None and not in_thread:
+        os.environ["NUMBA_NUM_THREADS"] = "1"  # numba reads it at import (the engine imports it lazily)
+        return
+    if numba is None:
+        import numba
+    try:
+        numba.set_num_threads(1)  # applies to the calling thread only
+    except (ValueError, RuntimeError):  # a threading layer that cannot change its size: keep it
+        pass
 
 
 def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: Any, events: Any, credits: Any,
@@ -322,13 +330,14 @@ def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: A
                 in_thread: bool = False) -> None:
     """Entry point of the spawned process (or, with ``in_thread``, of the UI process's worker thread: no nice,
     which would apply to the whole process)."""
-    _single_torch_thread()
+    _single_torch_thread(in_thread)
     if not in_thread:
         try:
             _lower_priority(int(os.environ.get("GSTYLE_WORKER_NICE", WORKER_NICE)))
         except ValueError:
             _lower_priority()
     host = _EngineHost(factory, config, events, credits, checkpoint_path)
+    host.in_thread = in_thread
     host.paused = start_paused
     host.build(resume_from=resume_from)
     parent = None if in_thread else mp.parent_process()

@@ -51,13 +51,32 @@ def test_headless_compare_with_panel(tmp_path, synthetic_loader):
     assert (img[:8, 199:201] > 240).all()  # divider line above the panel
 
 
-def test_no_display_falls_back_to_headless(tmp_path, synthetic_loader, monkeypatch, capsys):
+def test_no_display_stylizes_headless_and_writes_before_after(tmp_path, synthetic_loader, monkeypatch, capsys):
+    """Without a display the studio still shows its job: a preview stylization, before/after renders (two views,
+    640 px each) and a headless screenshot of the stylized result. The stylization itself is ``gstyle stylize``
+    (tested in its own files); here a fake writes the stylized scene."""
+    import gstyle_core.pipeline.cli as cli
+    from gstyle_core.io import save_scene
+
+    calls = []
+
+    def fake_stylize(args):
+        calls.append(args)
+        save_scene(blob_scene(300, seed=5), args.out)
+        return 0
+
+    monkeypatch.setattr(cli, "stylize_command", fake_stylize)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     out = tmp_path / "fallback.png"
     assert main(["--size", "160x120", "--screenshot", str(out), "--output-dir", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
-    assert "cannot open a window" in printed and str(out) in printed
+    assert "cannot open a window" in printed and "stylizing headless" in printed and str(out) in printed
+    assert len(calls) == 1 and calls[0].preset == "preview" and calls[0].out == str(tmp_path / "demo_stylized.ply")
+    pair = read_png(tmp_path / "demo_before_after.png")
+    assert pair.shape[1] == 2 * 640 and pair.shape[0] % 2 == 0
+    before, after = pair[: pair.shape[0] // 2], pair[pair.shape[0] // 2:]
+    assert before.std() > 5 and np.abs(before.astype(int) - after.astype(int)).mean() > 5
     assert read_png(out).shape == (120, 160, 3)
 
 

@@ -1,5 +1,6 @@
 """Worker bridge with the fake engine in a spawned process."""
 
+import os
 import time
 
 import pytest
@@ -220,3 +221,16 @@ def test_thread_mode_runs_the_same_protocol_and_stops_cleanly():
     finally:
         assert b.quit(timeout=10)
     assert not b.alive
+
+
+def test_thread_mode_leaves_the_process_environment_alone(monkeypatch):
+    """A worker thread must not write NUMBA_NUM_THREADS into its host process: numba re-reads the environment on
+    every compile and raises once it differs from the pool it launched (CI failed so on a cold kernel cache)."""
+    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    b = ThreadWorkerBridge(make_fake_engine, {"n": 16})
+    b.start()
+    try:
+        assert b.wait_until(lambda s: s.snapshots_received >= 1, 30), b.state.error
+    finally:
+        assert b.quit(timeout=10)
+    assert "NUMBA_NUM_THREADS" not in os.environ
