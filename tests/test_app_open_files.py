@@ -95,7 +95,7 @@ def test_sliders_show_the_preset_of_the_scene_kind_before_any_engine_runs(window
     try:
         assert app.panel.params["lambda_nnfm"] == 100.0 and app.panel.params["lr"] == 0.1
         app.set_scene(LoadedScene("o.ply", blob_scene(30), ring_cameras(8)))  # cameras all around: 360°
-        assert app.panel.params["lambda_nnfm"] == 10.0 and app.panel.params["lr"] == 0.01
+        assert app.panel.params["lambda_nnfm"] == 200.0 and app.panel.params["lr"] == 0.05  # calibrated 360°
         assert app.panel.params["split_rate"] == 0.02
     finally:
         app.close()

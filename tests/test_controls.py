@@ -139,7 +139,8 @@ def test_cli_names_the_coarse_substitute_before_stepping(tiny_scene, tmp_path, m
     monkeypatch.setattr(cli, "_run_with_progress", no_steps)
     parser = argparse.ArgumentParser()
     cli.add_stylize_arguments(parser)
-    args = parser.parse_args([tiny_scene, "--out", str(tmp_path / "o.ply"), "--working-width", "32"])
+    args = parser.parse_args([tiny_scene, "--out", str(tmp_path / "o.ply"), "--working-width", "32",
+                              "--lambda-clip", "10"])  # on: generated orbits are 360°, where it is off by default
     with pytest.raises(StopBeforeStepping):
         cli.stylize_command(args)
     printed = capsys.readouterr().out
@@ -199,3 +200,89 @@ def test_stylize_progress_is_one_bar_with_eta_over_the_whole_run(capsys):
     assert "coarse (CLIP substitute)=0.5" in frames[-1]
     assert all("%|" in f and "<" in f for f in frames)  # one bar: percentage and remaining time in every frame
     assert " 0/5 " in frames[0]  # the total planned before the split (tqdm skips frames within 0.1 s)
+
+
+# ====================================================================== style strength and the structure figure
+def _edges_image(seed: int = 0, size: int = 64) -> np.ndarray:
+    """Blocks of flat colour (edges between them), on a smooth ramp."""
+    rng = np.random.default_rng(seed)
+    img = np.repeat(np.linspace(0.2, 0.4, size, dtype=np.float32)[None, :, None], size, 0).repeat(3, 2)
+    for _ in range(12):
+        y, x, h, w = rng.integers(0, size - 12, 4)
+        img[y:y + 4 + h % 12, x:x + 4 + w % 12] = rng.random(3)
+    return img
+
+
+def test_structure_is_one_for_the_same_edges_and_falls_with_foreign_ones():
+    from gstyle_core.pipeline.evaluate import structure_kept
+
+    before = _edges_image()
+    alpha = np.zeros(before.shape[:2], np.float32)
+    alpha[4:60, 4:60] = 1.0
+    assert structure_kept([before], [before], [alpha]) == pytest.approx(1.0)
+    assert structure_kept([before], [0.5 * before + 0.3], [alpha]) == pytest.approx(1.0, abs=1e-3)  # colours only
+    noise = np.random.default_rng(1).normal(0, 1.0, before.shape).astype(np.float32)
+    light, heavy = (structure_kept([before], [before + a * noise], [alpha]) for a in (0.05, 1.0))
+    assert 1.0 > light > 0.8 > 0.3 > heavy  # strokes everywhere: edges unrelated to the scene's
+    assert abs(structure_kept([before], [_edges_image(seed=7)], [alpha])) < 0.3  # another scene's edges
+    assert np.isnan(structure_kept([before], [np.full_like(before, 0.5)], [alpha]))  # no edges left: undefined
+    outside = before.copy()
+    outside[:2] = np.random.default_rng(2).random((2, 64, 3))  # changes outside the scene do not count
+    assert structure_kept([before], [outside], [alpha]) == pytest.approx(1.0)
+
+
+def test_strength_multiplies_the_style_terms_against_content():
+    from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.pipeline.settings import resolve_settings
+
+    style = np.random.default_rng(0).random((32, 32, 3)).astype(np.float32)
+    torch.manual_seed(0)
+    vgg = VGGFeatures()
+    weights = {}
+    for strength in (1.0, 3.0):
+        settings = resolve_settings("preview", "forward", 4, strength=strength, lambda_clip=0.0, working_width=32)
+        weights[strength] = StyleObjective(style, settings, vgg=vgg).loss.weights
+    assert weights[3.0].nnfm == pytest.approx(3 * weights[1.0].nnfm)
+    assert (weights[3.0].content, weights[3.0].tv) == (weights[1.0].content, weights[1.0].tv)
+    with pytest.raises(ValueError, match="strength"):
+        resolve_settings("preview", "forward", 4, strength=-1.0)
+
+
+def test_cli_records_strength_and_prints_structure(tiny_scene, fake_vgg_file, tmp_path, capsys, no_clip_weights):
+    import json
+
+    from gstyle_core.pipeline import cli
+
+    parser = argparse.ArgumentParser()
+    cli.add_stylize_arguments(parser)
+    out = tmp_path / "o.ply"
+    args = parser.parse_args([tiny_scene, "--out", str(out), "--working-width", "32", "--strength", "2.5",
+                              "--vgg-weights", fake_vgg_file[0], "--lambda-clip", "0"])
+    assert cli.stylize_command(args) == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["settings"]["strength"] == 2.5 and summary["settings"]["defaults"] == "calibrated"
+    assert -1.0 <= summary["quality"]["structure"] <= 1.0
+    printed = capsys.readouterr().out
+    assert f"structure kept (edge correlation before/after over the scene): {summary['quality']['structure']:.2f}" \
+        in printed
+
+
+def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):
+    from synthetic import ring_cameras
+
+    from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    torch.manual_seed(0)
+    vgg = VGGFeatures().eval()
+    style = np.random.default_rng(0).uniform(size=(16, 16, 3)).astype(np.float32)
+    settings = resolve_settings("preview", "360", 3, max_views=3, epochs=4, min_steps=0, preprocess_rounds=0,
+                                split_rate=0.0, working_width=32)
+    engine = Stylizer(blob_scene(150, seed=3), ring_cameras(3), style, settings,
+                      objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
+    while engine.phase != "stylize":
+        engine.step()
+    assert settings.weights.clip == 0.0 and "calibrated 360° defaults" in engine.decisions["clip"]
+    report = engine.step()
+    assert report.losses["clip"] == 0.0 and report.losses["nnfm"] > 0.0

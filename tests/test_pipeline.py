@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -44,7 +46,7 @@ def _engine(**overrides):
 
 def test_settings_follow_the_paper_per_scene_kind():
     ff = resolve_settings("final", "forward", 20)
-    s360 = resolve_settings("final", "360", 200)
+    s360 = resolve_settings("final", "360", 200, defaults="paper")
     assert (ff.weights.nnfm, s360.weights.nnfm) == (100.0, 10.0)
     assert (ff.weights.clip, ff.weights.content, ff.weights.tv) == (10.0, 0.05, 1e-4)
     assert (ff.lr_start, ff.lr_end, s360.lr_start, s360.lr_end) == (1e-1, 1e-2, 1e-2, 5e-3)
@@ -52,8 +54,29 @@ def test_settings_follow_the_paper_per_scene_kind():
     assert (ff.refit_iterations, s360.refit_iterations) == (2000, 1000 * 0 + max(5 * 200, 2000))
     assert ff.split_rate == 0.05 and s360.split_rate == 0.02 and s360.split_at == (0.2, 7 / 15)
     assert resolve_settings("preview", "360", 5, lambda_nnfm=3.0).weights.nnfm == 3.0
+    assert replace(resolve_settings("final", "forward", 20, defaults="paper"), defaults="calibrated") == ff  # same
     with pytest.raises(ValueError):
         resolve_settings("nope", "forward", 5)
+    with pytest.raises(ValueError):
+        resolve_settings("preview", "360", 5, defaults="tuned")
+
+
+def test_calibrated_360_defaults_and_the_clip_substitute():
+    """360° scenes default to the values measured on this machine (settings.CALIBRATED_360); the coarse CLIP
+    substitute is off there unless CLIP weights exist or λ_CLIP is given; forward-facing scenes keep the paper's."""
+    from gstyle_core.pipeline.settings import CALIBRATED_360
+
+    paper = resolve_settings("preview", "360", 16, defaults="paper", clip_available=False)
+    cal = resolve_settings("preview", "360", 16, clip_available=False)
+    assert cal.defaults == "calibrated" and cal.weights.nnfm == CALIBRATED_360["nnfm"] != paper.weights.nnfm
+    assert (cal.optimizer, cal.view_order, cal.views_per_step) == ("visible_adam", "random", 4)
+    assert (paper.optimizer, paper.view_order, paper.views_per_step) == ("adam", "orbit", 1)
+    assert cal.weights.clip == 0.0 and paper.weights.clip == 10.0
+    assert resolve_settings("preview", "360", 16, clip_available=True).weights.clip == 10.0
+    assert resolve_settings("preview", "360", 16, clip_available=False, lambda_clip=2.0).weights.clip == 2.0
+    assert cal.working_width == 256 and resolve_settings("preview", "forward", 16).working_width == 192
+    assert resolve_settings("preview", "forward", 16, clip_available=False).weights.clip == 10.0
+    assert cal.to_dict()["defaults"] == "calibrated"  # recorded in OUT.json with the other settings
 
 
 def test_flat_split_mask_and_elongation_clamp():

@@ -20,6 +20,8 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cameras", help="cameras.json, COLMAP or LLFF folder, .npz (default: generated around the scene)")
     p.add_argument("--preset", choices=["preview", "balanced", "final"], default="preview")
     p.add_argument("--scene-kind", choices=["auto", "forward", "360"], default="auto")
+    p.add_argument("--defaults", choices=["calibrated", "paper"], default=None,
+                   help="360° scenes: values calibrated on this machine (default; README) or the paper's")
     for term, help_text in (("clip", "CLIP (or substitute) large-pattern term"), ("nnfm", "NNFM brush-stroke term"),
                             ("content", "content preservation"), ("tv", "total-variation smoothness")):
         p.add_argument(f"--lambda-{term}", type=float, default=None, help=f"weight of the {help_text}")
@@ -60,7 +62,8 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
         max_gaussians=getattr(args, "max_gaussians", None),
     )
     overrides.update(setting_overrides)
-    settings = resolve_settings(args.preset, kind, len(cams.cameras), **overrides)
+    defaults = overrides.pop("defaults", None) or getattr(args, "defaults", None)
+    settings = resolve_settings(args.preset, kind, len(cams.cameras), defaults=defaults, **overrides)
     photos = None
     if cams.has_images:
         photos = cams.load_images(max_width=max(settings.working_width * 2, 256))

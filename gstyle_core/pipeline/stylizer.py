@@ -498,6 +498,10 @@ class Stylizer:
         """Before the objective is built: what its CLIP term will be (weights found, or the coarse substitute)."""
         s = self.settings
         self.decisions["clip"] = clip_status(s.clip_weights) if s.weights.clip > 0 else CLIP_OFF
+        if s.weights.clip == 0 and s.scene_kind == "360" and s.defaults == "calibrated" \
+                and clip_term_name(s.clip_weights) != "CLIP":
+            self.decisions["clip"] = ("off: no CLIP weights, and the calibrated 360° defaults leave the coarse "
+                                      "substitute off (it cost style and structure; README); --lambda-clip turns it on")
 
     def _note_networks(self) -> None:
         """The objective's word on its networks: where the VGG weights and the CLIP term (or substitute) came from."""
