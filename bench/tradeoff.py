@@ -173,8 +173,12 @@ def plot(rows: list[dict], path: Path) -> bool:
         print("matplotlib not installed (pip install -e .[bench]): no plot")
         return False
     groups = sorted({r["group"] for r in rows})
-    fig, axes = plt.subplots(1, len(groups), figsize=(5.2 * len(groups), 4.2), squeeze=False)
-    for ax, g in zip(axes[0], groups, strict=True):
+    cols = min(2, len(groups))
+    nrows = -(-len(groups) // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(6.0 * cols, 4.2 * nrows), squeeze=False)
+    for ax in axes.flat[len(groups):]:
+        ax.set_visible(False)
+    for ax, g in zip(axes.flat, groups, strict=False):
         pts = [r for r in rows if r["group"] == g]
         ax.scatter([r["seconds"] for r in pts], [100 * r["nnfm_drop"] for r in pts], c="tab:blue", s=22)
         front = sorted((r for r in pts if r["pareto"]), key=lambda r: r["seconds"])
@@ -214,6 +218,24 @@ def write_outputs(rows: list[dict], out: Path) -> None:
     plot(rows, out.with_suffix(".png"))
 
 
+def markdown_rows(rows: list[dict]) -> list[str]:
+    """The README's table rows (one per point) from the CSV's rows."""
+    def num(r: dict, key: str, fmt: str) -> str:
+        v = r.get(key)
+        return "—" if v in (None, "") else format(float(v), fmt)
+
+    out = []
+    for r in rows:
+        psnr = r.get("preprocess_psnr")
+        no_change = psnr in (None, "") or float(psnr) >= 100  # no pre-processing: PSNR clamped at 120 dB
+        psnr_text = "no change" if no_change else f"{float(psnr):.1f} dB"
+        out.append(f"| {r['group']} | {r['label']} | {float(r['seconds']):.0f} | {100 * float(r['nnfm_drop']):.1f} % | "
+                   f"{num(r, 'structure', '.2f')} | {num(r, 'content', '.1f')} | {num(r, 'colour', '.3f')} | "
+                   f"{num(r, 'consistency', '.4f')} ({num(r, 'consistency_input', '.4f')}) | {psnr_text} | "
+                   f"{'yes' if r.get('pareto') in (True, 'True') else ''} |")
+    return out
+
+
 def read_rows(path: Path, groups: set[str], labels: set[str] | None = None) -> list[dict]:
     """Rows of an earlier CSV that this run does not re-measure: those outside ``groups``, or (with ``labels``)
     whose label is not among them (numbers back to floats; the Pareto flags are recomputed)."""
@@ -250,7 +272,12 @@ def main() -> None:
                    help="keep the rows already in the CSV that this run does not re-measure")
     p.add_argument("--points", default=None,
                    help="comma-separated point labels to run (of the sweep, with --with-slow its slow points too)")
+    p.add_argument("--table", action="store_true", help="print the CSV as the README's Markdown table and exit")
     args = p.parse_args()
+    if args.table:
+        with Path(args.out).with_suffix(".csv").open(newline="") as fh:
+            print("\n".join(markdown_rows(list(csv.DictReader(fh)))))
+        return
     torch.set_num_threads(args.threads)
     scenes = dict(SCENES)
     if Path(args.fern).is_file():

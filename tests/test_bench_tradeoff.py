@@ -63,3 +63,8 @@ def test_quick_sweep_writes_both_points_and_the_result_line(tradeoff, tmp_path, 
         assert math.isfinite(float(r["nnfm_drop"])) and math.isfinite(float(r["consistency"]))
     assert any(r["pareto"] == "True" for r in rows)
     assert printed.strip().splitlines()[-1].startswith("RESULT points=2 pareto=")
+    monkeypatch.setattr(sys, "argv", ["tradeoff.py", "--table", "--out", str(out)])
+    tradeoff.main()
+    table = capsys.readouterr().out.strip().splitlines()
+    assert [line.split(" | ")[1] for line in table] == ["w32", "w48"]
+    assert all(line.startswith("| demo / starry |") and line.count("|") == 11 for line in table)
