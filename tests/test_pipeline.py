@@ -150,6 +150,27 @@ def test_every_preset_splits_and_the_split_rate_changes_the_result(preset, kind)
     assert counts[0.2] > counts[0.05] > 200
 
 
+def test_planned_total_stays_put_through_splits_and_checkpoints():
+    """The progress total counts performed splits and their refits: it never shrinks, and the run ends on it."""
+    settings = resolve_settings("preview", "forward", 4, split_rate=0.1, preprocess_rounds=0, refit_iterations=2,
+                                working_width=32, min_steps=0, epochs=3.0, split_at=(0.3, 0.6))
+    eng = Stylizer(blob_scene(120, seed=5), ring_cameras(4), np.ones((8, 8, 3), np.float32), settings,
+                   objective_factory=MeanColourObjective)
+    planned = eng.total_steps()
+    assert len(eng.split_steps) == 2
+    seen_totals = set()
+    while not eng.done:
+        rep = eng.step()
+        seen_totals.add(rep.total_steps)
+        if eng.splits_done == 1 and eng.phase == "stylize":
+            resumed = Stylizer(blob_scene(120, seed=5), ring_cameras(4), np.ones((8, 8, 3), np.float32),
+                               settings, objective_factory=MeanColourObjective)
+            resumed.load_state_dict(eng.state_dict())
+            assert resumed.total_steps() == planned
+    assert eng.splits_done == 2
+    assert seen_totals == {planned} and eng.global_step == planned
+
+
 def test_split_steps_count_optimiser_steps_with_several_views_per_step():
     settings = resolve_settings("preview", "forward", 4, working_width=32, min_steps=0, epochs=8.0,
                                 views_per_step=4, split_at=(0.5,), grad_accumulate_from=0.25)

@@ -142,6 +142,7 @@ class Stylizer:
         self._refit_left = 0
         self._preprocess_round = 0
         self._stylize_step = 0
+        self.splits_done = 0  # colour-gradient splits performed (they leave split_steps once done)
         self._caches = ColourCacheStore()
         self._pending: dict[str, float] = {}
         self.colour_transform: tuple[np.ndarray, np.ndarray] | None = None
@@ -177,7 +178,7 @@ class Stylizer:
         s = self.settings
         n = len(self.cameras)
         pre = self._preprocess_rounds_planned() * (s.refit_iterations + 1)
-        splits = len(self.split_steps) if s.split_rate > 0 else 0
+        splits = self.splits_done + (len(self.split_steps) if s.split_rate > 0 else 0)
         return n + pre + 1 + self.stylize_steps + splits * (s.refit_iterations + 1) + 1
 
     def set_params(self, **kw: float) -> None:
@@ -603,6 +604,7 @@ class Stylizer:
     def _do_colour_split(self) -> StepReport:
         s = self.settings
         self.split_steps.remove(self._stylize_step)
+        self.splits_done += 1
         n = self.gaussian_count
         ids = self._seen()  # the split rate is a fraction of the seen Gaussians; unseen ones are never split
         k = int(math.floor(s.split_rate * (n if ids is None else len(ids))))
@@ -662,6 +664,7 @@ class Stylizer:
             "global_step": self.global_step,
             "stylize_step": self._stylize_step,
             "split_steps": list(self.split_steps),
+            "splits_done": self.splits_done,
             "preprocess_round": self._preprocess_round,
             "refit_left": self._refit_left,
             "in_refit": self._trainer is not None,
@@ -690,6 +693,7 @@ class Stylizer:
         self.global_step = state["global_step"]
         self._stylize_step = state["stylize_step"]
         self.split_steps = list(state["split_steps"])
+        self.splits_done = int(state.get("splits_done", 0))  # checkpoints written before it was recorded: 0
         self._preprocess_round = state["preprocess_round"]
         self.decisions = dict(state["decisions"])
         self.history = list(state["history"])
