@@ -23,6 +23,9 @@ sys.path.insert(0, str(ROOT))
 
 from bench.strokes_sweep import SCENES, STYLES, find_file  # noqa: E402
 
+# Scenes fitted here first (``gstyle fit``), stylized with their photos as ground truth: key -> (scene, cameras).
+FITTED = {"fern": (ROOT / "out" / "fern.ply", Path("scenes") / "llff_fern")}
+
 
 def make_pair(scene_key: str, style_key: str, data: Path, docs: Path, width: int, extra: list[str]) -> str:
     """Stylize one pair with the CLI, write its picture, return its table row."""
@@ -31,17 +34,23 @@ def make_pair(scene_key: str, style_key: str, data: Path, docs: Path, width: int
     from gstyle_core.io import load_scene
     from gstyle_core.render_cli import before_after_picture, load_scene_and_cameras
 
-    scene = find_file(data, SCENES, scene_key)
+    if scene_key in FITTED:
+        fitted, photos = FITTED[scene_key]
+        if not fitted.is_file():
+            raise SystemExit(f"{fitted} not found: fit it first (gstyle fit {data / photos} --out {fitted})")
+        scene, cameras = str(fitted), str(data / photos)
+    else:
+        scene, cameras = find_file(data, SCENES, scene_key), None
     style = find_file(data, STYLES, style_key)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out.ply"
         cmd = [sys.executable, "-m", "gstyle_core.cli", "stylize", *([scene] if scene else []), "--style", style,
-               "--preset", "preview", "--out", str(out), *extra]
+               "--preset", "preview", "--out", str(out), *(["--cameras", cameras] if cameras else []), *extra]
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0
         summary = json.loads(out.with_suffix(".json").read_text())
-        before, _report, cams = load_scene_and_cameras(scene, None)
+        before, _report, cams = load_scene_and_cameras(scene, cameras)
         after, _ = load_scene(out)
         picture = before_after_picture(before, after, cams.cameras, n_views=3, width=width)
     name = docs / f"gallery_{scene_key}_{style_key}.jpg"
