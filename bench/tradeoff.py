@@ -22,7 +22,9 @@ Quality is measured on 3 fixed evaluation views at one width (256 px) for every 
   evaluation camera moved sideways by 3 % of the scene's median depth),
 - ``preprocess_psnr``: PSNR of the pre-processed scene against the ground truth on the training views.
 Writes ``docs/tradeoff.csv`` and ``docs/tradeoff.png`` (NNFM drop against time per scene/style, Pareto front =
-no other point of the group is both faster and more stylized) and prints ``RESULT points=N pareto=M`` last.
+among the points that keep the structure (≥ ``MIN_STRUCTURE``), no other point of the group is both faster and more
+stylized) and prints ``RESULT points=N pareto=M`` last. ``--replot`` redraws both from the CSV, ``--table`` prints
+the README's table from it.
 ``--merge --points "width 320,bf16 VGG" --with-slow`` re-measures only those points and keeps the other rows.
 Run it on a quiet machine: the times are wall-clock seconds on this one.
 """
@@ -84,6 +86,7 @@ QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views
                ("width 128", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5,
                                           "working_width": 128})]
 EVAL_WIDTH = 256
+MIN_STRUCTURE = 0.5  # edge correlation below which the scene is considered lost (issue #14's threshold)
 NEARBY_SHIFT = 0.03  # consistency: the second view is moved sideways by 3 % of the scene's median depth
 
 
@@ -153,13 +156,21 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
     }
 
 
+def keeps_structure(point: dict) -> bool:
+    """Whether the run kept the scene's structure (edge correlation ≥ MIN_STRUCTURE; rows without it count)."""
+    value = point.get("structure")
+    return value in (None, "") or float(value) >= MIN_STRUCTURE
+
+
 def pareto(points: list[dict]) -> list[bool]:
-    """True for points no other point beats on both time (lower) and NNFM drop (higher)."""
+    """True for points that keep the structure and that no such point beats on both time (lower) and NNFM drop
+    (higher): a stronger style bought by losing the scene is not a trade-off."""
+    kept = [p for p in points if keeps_structure(p)]
     flags = []
     for p in points:
         dominated = any(q is not p and q["seconds"] <= p["seconds"] and q["nnfm_drop"] >= p["nnfm_drop"]
-                        and (q["seconds"] < p["seconds"] or q["nnfm_drop"] > p["nnfm_drop"]) for q in points)
-        flags.append(not dominated)
+                        and (q["seconds"] < p["seconds"] or q["nnfm_drop"] > p["nnfm_drop"]) for q in kept)
+        flags.append(keeps_structure(p) and not dominated)
     return flags
 
 
@@ -180,7 +191,12 @@ def plot(rows: list[dict], path: Path) -> bool:
         ax.set_visible(False)
     for ax, g in zip(axes.flat, groups, strict=False):
         pts = [r for r in rows if r["group"] == g]
-        ax.scatter([r["seconds"] for r in pts], [100 * r["nnfm_drop"] for r in pts], c="tab:blue", s=22)
+        kept = [r for r in pts if keeps_structure(r)]
+        lost = [r for r in pts if not keeps_structure(r)]
+        ax.scatter([r["seconds"] for r in kept], [100 * r["nnfm_drop"] for r in kept], c="tab:blue", s=22)
+        if lost:
+            ax.scatter([r["seconds"] for r in lost], [100 * r["nnfm_drop"] for r in lost], c="tab:gray", s=30,
+                       marker="x", label=f"structure < {MIN_STRUCTURE:g}")
         front = sorted((r for r in pts if r["pareto"]), key=lambda r: r["seconds"])
         ax.plot([r["seconds"] for r in front], [100 * r["nnfm_drop"] for r in front], "-o", c="tab:red", ms=5,
                 label="Pareto front")
@@ -273,7 +289,13 @@ def main() -> None:
     p.add_argument("--points", default=None,
                    help="comma-separated point labels to run (of the sweep, with --with-slow its slow points too)")
     p.add_argument("--table", action="store_true", help="print the CSV as the README's Markdown table and exit")
+    p.add_argument("--replot", action="store_true", help="recompute the Pareto flags and the plot from the CSV")
     args = p.parse_args()
+    if args.replot:
+        rows = read_rows(Path(args.out).with_suffix(".csv"), set())
+        write_outputs(rows, Path(args.out))
+        print(f"RESULT points={len(rows)} pareto={sum(r['pareto'] for r in rows)}")
+        return
     if args.table:
         with Path(args.out).with_suffix(".csv").open(newline="") as fh:
             print("\n".join(markdown_rows(list(csv.DictReader(fh)))))

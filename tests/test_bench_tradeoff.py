@@ -68,3 +68,11 @@ def test_quick_sweep_writes_both_points_and_the_result_line(tradeoff, tmp_path, 
     table = capsys.readouterr().out.strip().splitlines()
     assert [line.split(" | ")[1] for line in table] == ["w32", "w48"]
     assert all(line.startswith("| demo / starry |") and line.count("|") == 11 for line in table)
+
+
+def test_a_point_that_loses_the_structure_is_never_on_the_front(tradeoff):
+    points = [{"seconds": 10.0, "nnfm_drop": 0.30, "structure": 0.8},
+              {"seconds": 10.0, "nnfm_drop": 0.45, "structure": 0.3},  # more style, scene lost
+              {"seconds": 20.0, "nnfm_drop": 0.35, "structure": 0.6},
+              {"seconds": 30.0, "nnfm_drop": 0.32}]  # measured before the structure figure: dominated on time
+    assert tradeoff.pareto(points) == [True, False, True, False]
