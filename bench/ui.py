@@ -3,8 +3,9 @@
 Runs the real app headless (glfw NULL platform + EGL, llvmpipe) at 800×600 with the panel, the real engine in its
 spawned worker process, the app's frame cap, and a scripted session: the camera orbits for 3 s, then stays still
 for 3 s, repeated (the worker streams colours all the time). Measured only once the engine is in its stylize
-phase. Then the same worker runs alone (no UI, the bridge polled every 30 ms) from the start of stylize for the
-same time: ``worker_share`` = steps/s with the UI ÷ steps/s alone.
+phase. Then the same worker runs alone (no UI, the bridge polled every 10 ms) from the start of stylize for the
+same number of steps: ``worker_share`` = steps/s with the UI ÷ steps/s alone (the same steps, so the same mix of
+stylize steps and the fast refit steps after a split).
 
     .venv/bin/python bench/ui.py [--scene PATH] [--seconds 24] [--size 800x600] [--fps 60] [--no-pacing]
 
@@ -57,8 +58,9 @@ def worker_cpu_seconds(bridge: WorkerBridge) -> float:
     return stat_cpu_seconds(f"/proc/self/task/{handle.native_id}/stat")
 
 
-def worker_alone(config: dict, seconds: float, warmup_timeout: float, mode: str = "process") -> float:
-    """Worker steps per second from the start of its stylize phase, with nobody drawing."""
+def worker_alone(config: dict, steps: int, warmup_timeout: float, mode: str = "process") -> float:
+    """Worker steps per second over the first ``steps`` steps of its stylize phase, with nobody drawing: the same
+    steps the UI run made, so a phase mix that differs (refits are fast, stylize steps slow) cannot bias the ratio."""
     bridge = (ThreadWorkerBridge if mode == "thread" else WorkerBridge)(make_stylizer, config)
     bridge.start()
     try:
@@ -70,9 +72,9 @@ def worker_alone(config: dict, seconds: float, warmup_timeout: float, mode: str 
             time.sleep(0.03)
         start_steps, t0 = bridge.state.reports_received, time.perf_counter()
         cpu0 = worker_cpu_seconds(bridge)
-        while time.perf_counter() - t0 < seconds:
+        while bridge.state.reports_received - start_steps < steps and time.perf_counter() - t0 < warmup_timeout:
             bridge.poll()
-            time.sleep(0.03)
+            time.sleep(0.01)
         wall = time.perf_counter() - t0
         print(f"worker alone: {(worker_cpu_seconds(bridge) - cpu0) / wall:.2f} cores")
         return (bridge.state.reports_received - start_steps) / wall
@@ -139,7 +141,8 @@ def ui_session(args, config: dict) -> dict:
         if args.worker == "thread":
             ui_cores -= worker_cores  # the worker thread is part of the UI process
         stats = app.view.stats
-        return {"frames": frames, "steps_per_s": steps, "median_scale": float(np.median(scales)),
+        return {"frames": frames, "steps_per_s": steps, "steps": app.bridge.state.reports_received - start_steps,
+                "median_scale": float(np.median(scales)),
                 "moving_detail": float(np.median(details)) if details else 1.0, "ui_cores": ui_cores,
                 "worker_cores": worker_cores,
                 "builds": stats.builds_completed, "gaussians": app.stylized.count}
@@ -174,7 +177,7 @@ def main() -> None:
         os.environ["GSTYLE_WORKER_NICE"] = str(args.worker_nice)
     config = {"scene": args.scene, "style": args.style, "cameras": None, "preset": "preview"}
     ui = ui_session(args, config)
-    alone = worker_alone(config, args.seconds, args.warmup_timeout, args.worker)
+    alone = worker_alone(config, max(1, ui["steps"]), args.warmup_timeout, args.worker)
     print(f"scene {args.scene or 'bundled demo'}: {ui['gaussians']} Gaussians, {args.size[0]}x{args.size[1]}, "
           f"cap {args.fps:g} fps, pacing {'on' if args.pacing else 'off'}; {args.seconds:g} s measured; "
           f"LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS', 'unset')}, "
