@@ -69,9 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scene")
     s.set_defaults(func=_cmd_info)
 
-    s = sub.add_parser("convert", help="convert between .ply / .splat / .spz / compressed .ply (writes .ply or .splat)")
+    s = sub.add_parser("convert", help="convert between .ply / .splat / .spz / compressed .ply (writes all four; "
+                                       "name.compressed.ply is PlayCanvas's compressed PLY)")
     s.add_argument("input")
-    s.add_argument("output")
+    s.add_argument("output", help="output file: .ply, .splat, .spz (Niantic, v3) or .compressed.ply (PlayCanvas)")
     s.add_argument("--sh0", action="store_true", help="drop view-dependent SH (keep the diffuse colour)")
     s.add_argument("--force", action="store_true", help="overwrite an existing output")
     s.set_defaults(func=_cmd_convert)
