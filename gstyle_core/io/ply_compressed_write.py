@@ -40,6 +40,8 @@ def morton_order(means: np.ndarray) -> np.ndarray:
 def _chunk_bounds(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per-chunk min and max of ``values`` [N, C] (the last chunk may be partial)."""
     n = len(values)
+    if n == 0:
+        return values[:0], values[:0]
     starts = np.arange(0, n, CHUNK)
     return np.minimum.reduceat(values, starts, axis=0), np.maximum.reduceat(values, starts, axis=0)
 
