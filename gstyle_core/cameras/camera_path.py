@@ -4,7 +4,8 @@ Format: top-level ``render_width``, ``render_height``, ``fps``, ``seconds`` and 
 with ``camera_to_world`` (16 floats, a row-major 4x4), ``fov`` (vertical, degrees) and ``aspect``. Its cameras
 follow the OpenGL / nerfstudio convention (x right, y up, looking down -z); ours are OpenCV (x right, y down,
 looking down +z), so the camera-to-world matrix is multiplied by diag(1, -1, -1, 1) on the right either way.
-Intrinsics: fy = (render_height / 2) / tan(fov / 2), square pixels (fx = fy), principal point at the centre.
+Intrinsics: fy = (render_height / 2) / tan(fov / 2), square pixels (fx = fy), principal point at the centre
+(a frame's ``aspect`` is not used: every frame is render_width x render_height, as nerfstudio renders it).
 The path's world frame is taken as the scene's own.
 """
 
