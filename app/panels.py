@@ -10,6 +10,8 @@ import numpy as np
 from imgui_bundle import imgui
 
 VIEW_MODES = ("stylized", "original", "compare", "ground truth")
+TURNTABLE_FORMATS = ("mp4", "gif", "png frames")
+MAX_TURNTABLE_FRAMES = 3600
 
 
 @dataclass(frozen=True)
@@ -100,6 +102,11 @@ class PanelState:
     camera_names: list[str] = field(default_factory=list)
     camera_index: int = -1  # the scene camera last snapped to (-1: none)
     viewer_notes: list[str] = field(default_factory=list)  # what the viewer skips (SH, sorts, uploads)
+    turntable_frames: int = 60
+    turntable_format: str = "mp4"  # one of TURNTABLE_FORMATS
+    video_running: bool = False  # a turntable video is being rendered in the background
+    video_fraction: float = 0.0
+    video_label: str = ""
 
 
 def shortcut_commands(state: PanelState) -> list[Command]:
@@ -166,7 +173,7 @@ def draw_panel(state: PanelState) -> list[Command]:
     _decisions_section(state)
     _view_section(state, out)
     _params_section(state, out)
-    _output_section(out)
+    _output_section(state, out)
     imgui.end()
     if state.show_help:
         _help_overlay()
@@ -374,13 +381,49 @@ def _param_row(state: PanelState, p: Param, out: list[Command]) -> None:
         out.append(Command("set_params", {p.key: default_value(state, p)}))
 
 
-def _output_section(out: list[Command]) -> None:
+def _output_section(state: PanelState, out: list[Command]) -> None:
     imgui.separator()
     if button("Export .ply (Ctrl+S)", "Save the stylized scene as .ply with a .json summary in the output folder."):
         out.append(Command("export"))
     imgui.same_line()
     if button("Screenshot (F12)", "Save the current view as PNG in the output folder."):
         out.append(Command("screenshot"))
+    if button("Export .spz", "Save the stylized scene for web viewers as Niantic .spz (about 10x smaller than .ply) "
+                             "with a .json summary in the output folder."):
+        out.append(Command("export", {"format": "spz"}))
+    imgui.same_line()
+    if button("Export .compressed.ply", "Save the stylized scene for web viewers as PlayCanvas / SuperSplat "
+                                        "compressed PLY with a .json summary in the output folder."):
+        out.append(Command("export", {"format": "compressed-ply"}))
+    _video_row(state, out)
+
+
+def _video_row(state: PanelState, out: list[Command]) -> None:
+    """"Turntable video..." with its frame count and format, or, while one renders, its progress and Cancel."""
+    if state.video_running:
+        imgui.progress_bar(min(max(state.video_fraction, 0.0), 1.0), imgui.ImVec2(-80, 0), state.video_label)
+        imgui.same_line()
+        if button("Cancel###video", "Stop the turntable video; nothing is written."):
+            out.append(Command("cancel_video"))
+        return
+    if button("Turntable video...", "Render frames orbiting the scene (the stylized one while an engine runs, else "
+                                    "the input) into the output folder, in the background; the studio stays live."):
+        out.append(Command("turntable", {"frames": state.turntable_frames, "format": state.turntable_format}))
+    imgui.same_line()
+    imgui.set_next_item_width(70)
+    changed, frames = imgui.input_int("##turntable_frames", state.turntable_frames, 0, 0)
+    tooltip("How many frames the turntable has (one full turn).")
+    if changed:
+        out.append(Command("turntable_settings", {"frames": int(min(max(frames, 1), MAX_TURNTABLE_FRAMES))}))
+    imgui.same_line()
+    imgui.set_next_item_width(100)
+    if imgui.begin_combo("##turntable_format", state.turntable_format):
+        for fmt in TURNTABLE_FORMATS:
+            if imgui.selectable(fmt, fmt == state.turntable_format)[0]:
+                out.append(Command("turntable_settings", {"format": fmt}))
+            tooltip(f"Write the turntable as {fmt}.")
+        imgui.end_combo()
+    tooltip("MP4 (H.264), an animated GIF, or a folder of numbered PNG frames.")
 
 
 def _help_overlay() -> None:

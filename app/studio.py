@@ -23,13 +23,16 @@ from .camera_control import CameraControl
 from .panels import Command, PanelState, draw_panel
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
 from .scene_view import SceneView, ViewPass
-from .worker import ThreadWorkerBridge, WorkerBridge
+from .video_job import VideoJob, turntable_path
+from .worker import GEOMETRY_FIELDS, ThreadWorkerBridge, WorkerBridge
 
 SCENE_SUFFIXES = (".ply", ".splat", ".spz")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
 DIVIDER_GRAB_PIXELS = 6
 DIVIDER_COLOUR = (1.0, 1.0, 1.0)
 BACKGROUND = (0.0, 0.0, 0.0)
+EXPORT_SUFFIXES = {"ply": ".ply", "spz": ".spz", "compressed-ply": ".compressed.ply"}
+TURNTABLE_WIDTH = 640
 
 
 @dataclass
@@ -107,6 +110,8 @@ class StudioApp:
         self.cameras: list[Camera] = []
         self.last_frame_rgb: np.ndarray | None = None
         self.screenshot_requests: list[Path] = []
+        self.video_job: VideoJob | None = None
+        self._exports_seen: tuple[int, int] = (0, 0)
         if loaded is not None:
             self.set_scene(loaded)
         if style_path:
@@ -222,6 +227,9 @@ class StudioApp:
         """Stop the engine (it saves the session in the cache folder; killed after ``timeout`` s) and free GL
         objects. Returns False when the engine had to be killed (nothing saved)."""
         clean = True
+        if self.video_job is not None:  # a half-rendered video is dropped (nothing is written)
+            self.video_job.cancel()
+            self.video_job.join(timeout)
         if self.bridge is not None:
             clean = self.bridge.quit(timeout)
         self.view.release()
@@ -316,6 +324,7 @@ class StudioApp:
         p.gaussians = self.stylized.count
         p.viewer_notes = self.viewer_notes()
         p.resume_available = self.resume_available()
+        self._poll_video()
         if self.bridge is None:
             p.running, p.paused = False, False
             return
@@ -334,7 +343,9 @@ class StudioApp:
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             p.status = f"resumed the last session at step {st.resumed.get('step')}"
-        if st.exported:
+        exports = (id(st.exported), len(st.exported))  # a restarted worker starts a new list
+        if st.exported and exports != self._exports_seen:  # once per export: later messages stay visible
+            self._exports_seen = exports
             p.status = f"exported {st.exported[-1]}"
 
     def viewer_notes(self) -> list[str]:
@@ -414,18 +425,77 @@ class StudioApp:
         elif name == "screenshot":
             self.screenshot_requests.append(self.output_dir / f"screenshot_{time.strftime('%Y%m%d_%H%M%S')}.png")
         elif name == "export":
-            self.export()
+            self.export(fmt=args.get("format", "ply"))
+        elif name == "turntable":
+            self.start_turntable(args.get("frames", self.panel.turntable_frames),
+                                 args.get("format", self.panel.turntable_format))
+        elif name == "turntable_settings":
+            self.panel.turntable_frames = int(args.get("frames", self.panel.turntable_frames))
+            self.panel.turntable_format = str(args.get("format", self.panel.turntable_format))
+        elif name == "cancel_video" and self.video_job is not None:
+            self.video_job.cancel()
         elif name in ("open_scene", "open_style"):
             self._open_dialog(name)
 
-    def export(self, path: str | Path | None = None) -> None:
-        """Export the stylized scene (.ply + .json) through the worker."""
+    def export(self, path: str | Path | None = None, fmt: str = "ply") -> None:
+        """Export the stylized scene (``fmt`` "ply", "spz" or "compressed-ply", + .json) through the worker."""
         if self.bridge is None or not self.bridge.alive:
             self.panel.status = "export: no engine is running"
             return
-        path = Path(path) if path else self.output_dir / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}.ply"
+        suffix = EXPORT_SUFFIXES[fmt]
+        path = Path(path) if path else self.output_dir / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}{suffix}"
         self.bridge.export(path)
         self.panel.status = f"exporting {path} ..."
+
+    def current_scene(self) -> GaussianScene | None:
+        """The stylized scene as the engine last sent it (diffuse colours), else the loaded scene (with its SH)."""
+        snap = self.bridge.state.snapshot if self.bridge is not None else {}
+        if all(k in snap for k in GEOMETRY_FIELDS) and len(snap.get("colors", ())) == len(snap["means"]):
+            from gstyle_core.scene import rgb_to_sh_dc
+
+            arrays = [np.asarray(snap[k], np.float32) for k in GEOMETRY_FIELDS]
+            return GaussianScene(*arrays, rgb_to_sh_dc(np.asarray(snap["colors"], np.float32)))
+        return self.loaded.scene if self.loaded is not None else None
+
+    def start_turntable(self, frames: int, fmt: str = "mp4", path: str | Path | None = None) -> Path | None:
+        """Render a turntable of the current scene into the output folder in the background (``VideoJob``);
+        the panel shows its progress. Returns where it will be written (None when it cannot start)."""
+        from gstyle_core.render_video import cameras_up, turntable_cameras
+
+        scene = self.current_scene()
+        if scene is None or scene.count == 0:
+            self.panel.status = "turntable: no scene"
+            return None
+        if self.video_job is not None and self.video_job.running:
+            self.panel.status = "turntable: a video is already rendering"
+            return None
+        size = (TURNTABLE_WIDTH, TURNTABLE_WIDTH * 3 // 4)
+        if self.cameras:  # the scene cameras' aspect and the way they stand
+            first = self.cameras[0].resized_to_width(TURNTABLE_WIDTH)
+            size = (first.width, first.height)
+        up = cameras_up(self.cameras) if self.cameras else "-y"
+        try:
+            cams = turntable_cameras(scene, int(frames), *size, up=up)
+        except GStyleError as exc:
+            self.panel.status = f"turntable: {exc}"
+            return None
+        out = Path(path) if path else turntable_path(self.output_dir, fmt, time.strftime("%Y%m%d_%H%M%S"))
+        self.video_job = VideoJob(scene, cams, out, in_thread=self.worker_mode == "thread")
+        self.panel.status = f"rendering {out.name} ({len(cams)} frames) ..."
+        return out
+
+    def _poll_video(self) -> None:
+        p, job = self.panel, self.video_job
+        if job is None:
+            p.video_running = False
+            return
+        progress = job.poll()
+        p.video_running = job.running
+        p.video_fraction = progress.fraction
+        p.video_label = f"video {progress.done}/{progress.total}"
+        if not job.running:
+            p.status = progress.message
+            self.video_job = None
 
     def on_drop(self, paths) -> None:
         """glfw drop callback: open the first dropped file (a scene or a style image); more files are ignored."""

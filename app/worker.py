@@ -266,15 +266,20 @@ class _EngineHost:
         return self.engine is not None and not (self.paused or self.done or self.failed)
 
 
+EXPORT_FORMATS = ("ply", "spz", "compressed-ply")  # what the studio exports (the web formats for web viewers)
+
+
 def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, params: dict[str, float]) -> str:
-    """Save the stylized scene as .ply (``gstyle_core.io.save_scene``) and a JSON summary beside it."""
+    """Save the stylized scene as .ply, .spz or .compressed.ply (``gstyle_core.io.save_scene``) and a JSON summary
+    beside it (``name.json``)."""
     from gstyle_core.atomic import atomic_write_text
     from gstyle_core.errors import GStyleError
     from gstyle_core.io import save_scene
+    from gstyle_core.io.saver import format_of
     from gstyle_core.scene import GaussianScene, rgb_to_sh_dc
 
-    if path.suffix.lower() != ".ply":
-        raise GStyleError(f"export path must end in .ply, got {path.name}")
+    if format_of(path) not in EXPORT_FORMATS:
+        raise GStyleError(f"export path must end in .ply, .spz or .compressed.ply, got {path.name}")
     if hasattr(engine, "stylized_scene"):
         scene = engine.stylized_scene()
     else:
@@ -285,7 +290,8 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
                "decisions": getattr(engine, "decisions", None),
                "settings": engine.settings.to_dict() if hasattr(getattr(engine, "settings", None), "to_dict")
                else None}
-    atomic_write_text(path.with_suffix(".json"), json.dumps(summary, indent=2, default=str))
+    stem = path.name[: -len(".compressed.ply")] if format_of(path) == "compressed-ply" else path.stem
+    atomic_write_text(path.with_name(stem + ".json"), json.dumps(summary, indent=2, default=str))
     return str(path)
 
 
@@ -479,7 +485,7 @@ class WorkerBridge:
         self._send("set_params", dict(params))
 
     def export(self, path: str | os.PathLike) -> None:
-        """Ask the worker to save the stylized .ply (+ .json summary) at ``path``."""
+        """Ask the worker to save the stylized scene (.ply, .spz or .compressed.ply; + .json summary) at ``path``."""
         self._send("export", str(path))
 
     def _send(self, command: str, arg: Any = None) -> None:

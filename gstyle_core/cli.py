@@ -69,20 +69,29 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scene")
     s.set_defaults(func=_cmd_info)
 
-    s = sub.add_parser("convert", help="convert between .ply / .splat / .spz / compressed .ply (writes .ply or .splat)")
+    s = sub.add_parser("convert", help="convert between .ply / .splat / .spz / compressed .ply (writes all four; "
+                                       "name.compressed.ply is PlayCanvas's compressed PLY)")
     s.add_argument("input")
-    s.add_argument("output")
+    s.add_argument("output", help="output file: .ply, .splat, .spz (Niantic, v3) or .compressed.ply (PlayCanvas)")
     s.add_argument("--sh0", action="store_true", help="drop view-dependent SH (keep the diffuse colour)")
     s.add_argument("--force", action="store_true", help="overwrite an existing output")
     s.set_defaults(func=_cmd_convert)
 
-    s = sub.add_parser("render", help="render a scene from a camera to a PNG")
+    s = sub.add_parser("render", help="render a scene from a camera to a PNG, or a turntable / camera-path video")
     s.add_argument("scene", nargs="?", default=None, help="scene file (default: the bundled demo)")
-    s.add_argument("--cameras", help="cameras.json, COLMAP folder, LLFF folder or .npz (default: generated orbit)")
-    s.add_argument("--camera", type=int, default=0, help="index of the camera to render (default 0)")
+    s.add_argument("--cameras", help="cameras.json, COLMAP folder, LLFF folder or .npz (default: generated orbit); "
+                                     "with a video --out and no --turntable / --camera-path the video follows them")
+    s.add_argument("--camera", type=int, default=None, help="index of the camera to render (default 0)")
     s.add_argument("--width", type=int, default=None, help="output width in pixels (height keeps the aspect)")
     s.add_argument("--backend", choices=["fast", "reference"], default="fast")
-    s.add_argument("--out", default="out/render.png", help="PNG to write (default out/render.png)")
+    s.add_argument("--turntable", type=int, default=None, metavar="N",
+                   help="a video of N frames orbiting the scene (640x480, or the size of --cameras' first camera)")
+    s.add_argument("--camera-path", default=None, metavar="JSON",
+                   help="a video along a nerfstudio camera_path.json (its size, field of view and fps)")
+    s.add_argument("--fps", type=float, default=None, help="video frame rate (default 30, or the camera path's)")
+    s.add_argument("--out", default=None,
+                   help="PNG to write (default out/render.png); for a video FILE.mp4, FILE.gif or a folder DIR/ of "
+                        "numbered PNGs (default out/turntable.mp4)")
     s.add_argument("--force", action="store_true", help="overwrite an existing output")
     s.set_defaults(func=_cmd_render)
 

@@ -1,4 +1,4 @@
-"""``gstyle render``: render one camera of a scene to a PNG."""
+"""``gstyle render``: render one camera of a scene to a PNG (videos and frame folders: ``render_video``)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ _CHECKOUT_ASSETS = Path(__file__).resolve().parents[1] / "assets"  # the reposit
 ASSETS = _CHECKOUT_ASSETS if _CHECKOUT_ASSETS.is_dir() else Path(__file__).resolve().parent / "bundled"
 DEMO_SCENE = ASSETS / "demo" / "fountain.splat"
 DEFAULT_STYLE = ASSETS / "styles" / "starry_night.jpg"
+DEFAULT_PNG_OUT = "out/render.png"
 
 
 def load_scene_and_cameras(scene_path: str | None, cameras_path: str | None, width: int | None = None):
@@ -86,16 +87,23 @@ def before_after_picture(before_scene, after_scene, cameras: list, n_views: int 
 
 
 def render_command(args: argparse.Namespace) -> int:
-    """Run ``gstyle render``."""
+    """Run ``gstyle render``: one PNG, or a video / folder of frames (``render_video.video_command``)."""
     from .atomic import refuse_overwrite
+    from .render_video import is_video_request, video_command
 
+    if is_video_request(args):
+        return video_command(args)
+    args.out = args.out or DEFAULT_PNG_OUT
+    index = 0 if args.camera is None else args.camera
+    if args.fps is not None:
+        raise GStyleError("--fps is for videos (--turntable, --camera-path, or --out FILE.mp4/.gif/DIR/)")
     refuse_overwrite(args.out, args.force, inputs=[args.scene] if args.scene else [])
     scene, report, cams = load_scene_and_cameras(args.scene, args.cameras, args.width)
-    if not 0 <= args.camera < len(cams.cameras):
-        raise GStyleError(f"camera {args.camera} does not exist (there are {len(cams.cameras)})")
-    cam = cams.cameras[args.camera]
+    if not 0 <= index < len(cams.cameras):
+        raise GStyleError(f"camera {index} does not exist (there are {len(cams.cameras)})")
+    cam = cams.cameras[index]
     image = render_scene_image(scene, cam, args.backend)
     save_png(args.out, image)
     print(f"rendered {report.path if hasattr(report, 'path') else args.scene} ({scene.count} Gaussians) "
-          f"from camera {args.camera} of {len(cams.cameras)} ({cams.source}), {cam.width}x{cam.height} -> {args.out}")
+          f"from camera {index} of {len(cams.cameras)} ({cams.source}), {cam.width}x{cam.height} -> {args.out}")
     return 0

