@@ -475,7 +475,8 @@ class WorkerBridge:
         self._send("checkpoint_path", self.checkpoint_path)
 
     def set_params(self, **params: float) -> None:
-        """Change engine parameters (λ weights, strength, split_rate, lr) from the next step on."""
+        """Change engine parameters (λ weights, strength, split_rate, lr, style_scale, keep_colours) from the next
+        step on."""
         self._send("set_params", dict(params))
 
     def export(self, path: str | os.PathLike) -> None:
