@@ -49,6 +49,9 @@ class StyleObjective:
     (``clip_status`` says which). ``refresh_style()`` re-extracts the style features after either setting changed.
     """
 
+    luminance_networks = True  # keep colours: networks see luminance (False: colour, chroma restored only; the
+    # variant bench/keep_colours.py compares)
+
     def __init__(self, style: np.ndarray, settings: StylizeSettings, vgg=None) -> None:
         from ..style.losses import StyleLoss
         from ..style.vgg import load_vgg
@@ -73,7 +76,10 @@ class StyleObjective:
         """The painting as the networks see it: its luminance as grey with keep colours, else as it is."""
         from ..style.keep_colours import grey
 
-        return grey(np.asarray(self._style, np.float32)) if self._settings.keep_colours else self._style
+        return grey(np.asarray(self._style, np.float32)) if self._luminance_only() else self._style
+
+    def _luminance_only(self) -> bool:
+        return bool(self._settings.keep_colours) and self.luminance_networks
 
     def _build_style_target(self) -> None:
         """Resize the painting for the current stroke size and extract its VGG features (the NNFM candidates)."""
@@ -87,7 +93,7 @@ class StyleObjective:
         limits = f" (clamped to {MIN_STYLE_SIDE}-{MAX_STYLE_SIDE} px)" if clamped else ""
         self.style_note = (f"painting matched at {w}×{h} px{limits}: stroke size {s.style_scale:g} × the working "
                            f"width; {self.target.matrix.shape[1]:,} feature vectors"
-                           + ("; luminance only (keep colours)" if s.keep_colours else ""))
+                           + ("; luminance only (keep colours)" if self._luminance_only() else ""))
         self._built_for = (bool(s.keep_colours), float(s.style_scale))
 
     def refresh_style(self) -> bool:
@@ -149,7 +155,7 @@ class StyleObjective:
         ``coverage`` [H,W] the scene's alpha there (None for photos: the whole frame is the scene). With
         ``crop_to_scene`` VGG sees only the box the scene covers (``pipeline/scene_box.py``); with ``keep_colours``
         the networks see the luminance of both."""
-        if self._settings.keep_colours:
+        if self._luminance_only():
             from ..style.keep_colours import grey
 
             image, content = grey(image), grey(content)
