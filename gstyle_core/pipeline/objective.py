@@ -42,9 +42,10 @@ def style_side(working_width: int, scale: float) -> tuple[int, bool]:
 class StyleObjective:
     """λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV on a render [H, W, 3] of one view.
 
-    The style image is resized so that its longer side is ``style_scale`` × the working width (at least 64 px):
-    the scale at which brush strokes are matched (``style_side``; larger → larger strokes). With ``keep_colours``
-    the networks see luminance only (render, content view and painting as grey images; ``style/keep_colours.py``).
+    The style image is resized so that its longer side is ``style_scale`` × max(64, working width), clamped to
+    16-1024 px: the scale at which brush strokes are matched (``style_side``; larger → larger strokes). With
+    ``keep_colours`` the networks see luminance only (render, content view and painting as grey images;
+    ``style/keep_colours.py``).
     CLIP ViT-B/32 is used when its weights are found; otherwise the documented coarse-VGG substitute
     (``clip_status`` says which). ``refresh_style()`` re-extracts the style features after either setting changed.
     """
@@ -106,7 +107,11 @@ class StyleObjective:
         self._build_style_target()
         self.loss.style_target = self.target
         if self.loss.clip_term is not None:
+            old_gen = getattr(self.loss.clip_term, "generator", None)
             self.loss.clip_term = self._build_clip_term()
+            new_gen = getattr(self.loss.clip_term, "generator", None)
+            if isinstance(old_gen, torch.Generator) and isinstance(new_gen, torch.Generator):
+                new_gen.set_state(old_gen.get_state())  # CLIP's random crops go on where they were
         if colours_changed:  # content features are of grey or colour views
             self._content_cache.clear()
         return True
