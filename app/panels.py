@@ -42,6 +42,10 @@ PARAMS = (
     Param("strength", "style strength", 1.0, 0.1, 100.0,
           "Style strength: multiplies the style terms (CLIP and NNFM) against content preservation; 1 keeps the "
           "lambda values as they are, more paints harder, less keeps more of the scene."),
+    Param("style_scale", "stroke size", 1.0, 0.25, 4.0,
+          "Stroke size: the scale at which the painting's brush strokes are matched (its image resized to this times "
+          "the working width before its VGG features are taken); 2 paints strokes twice as large, 0.5 half as large. "
+          "Changing it re-extracts the painting's features from the next step on (--style-scale)."),
     Param("split_rate", "split rate", 0.05, 1e-3, 0.5,
           "Fraction of Gaussians split where the style gradient is largest (finer detail, more Gaussians)."),
     Param("lr", "learning rate", 0.1, 1e-3, 1.0, "Starting learning rate of the colour optimisation."),
@@ -49,6 +53,11 @@ PARAMS = (
 COARSE_CLIP_TOOLTIP = (
     "Weight of the coarse (CLIP substitute) term: no CLIP ViT-B/32 weights were found, so the style's large-scale "
     "colour and texture statistics (VGG features of 4x smaller images) are matched instead of CLIP's embedding.")
+KEEP_COLOURS_TOOLTIP = (
+    "Keep the scene's colours: it keeps its hues and takes only the painting's light and dark pattern (colour "
+    "match and networks on luminance; each Gaussian's own chroma restored after every step). Turned on mid-run the "
+    "hues come back at once; turned off, the painting's colours are matched again from the next step and at the "
+    "end (--keep-colours).")
 VIEW_TOOLTIPS = {
     "stylized": "The stylized scene as the engine has it now.",
     "original": "The input scene, with its view-dependent colour (SH) when it has any.",
@@ -354,8 +363,15 @@ def _params_section(state: PanelState, out: list[Command]) -> None:
         imgui.push_id(p.key)
         _param_row(state, p, out)
         imgui.pop_id()
-    if button("Reset all", "Every parameter back to the preset's value for this scene."):
-        out.append(Command("set_params", {p.key: default_value(state, p) for p in PARAMS}))
+    keep = bool(state.params.get("keep_colours", 0.0))
+    changed, keep = imgui.checkbox("keep colours", keep)
+    tooltip(KEEP_COLOURS_TOOLTIP)
+    if changed:
+        out.append(Command("set_params", {"keep_colours": float(keep)}))
+    if button("Reset all", "Every parameter back to the preset's value for this scene (keep colours too)."):
+        values = {p.key: default_value(state, p) for p in PARAMS}
+        values["keep_colours"] = float(state.defaults.get("keep_colours", 0.0))
+        out.append(Command("set_params", values))
 
 
 def _param_row(state: PanelState, p: Param, out: list[Command]) -> None:

@@ -147,7 +147,8 @@ class StudioApp:
         if kind == "auto":
             kind = classify_scene_kind(self.cameras)
         preset = self.engine_config.get("preset") or "preview"
-        keys = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate")
+        keys = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate", "style_scale",
+                "keep_colours")
         overrides = {k: self.engine_config.get(k) for k in keys} if with_overrides else {}
         overrides["clip_weights"] = self.engine_config.get("clip_weights")  # CLIP or not sets 360° λ_CLIP
         try:

@@ -214,12 +214,16 @@ class _EngineHost:
         if self.engine is None:
             self.send("params", dict(self.params))
             return
+        colours = getattr(self.engine, "colour_version", None)
         try:
             self.engine.set_params(**params)
         except Exception as exc:  # noqa: BLE001
             self.fail(exc, "set_params")
             return
         self.send("params", dict(self.params))
+        if getattr(self.engine, "colour_version", None) != colours:  # e.g. keep colours restored the hues at once:
+            self.snapshot_pending = True  # shown without waiting for a step (paused, or done)
+            self.flush_snapshot()
 
     def export(self, path: str) -> None:
         if self.engine is None:
@@ -481,7 +485,8 @@ class WorkerBridge:
         self._send("checkpoint_path", self.checkpoint_path)
 
     def set_params(self, **params: float) -> None:
-        """Change engine parameters (λ weights, strength, split_rate, lr) from the next step on."""
+        """Change engine parameters (λ weights, strength, split_rate, lr, style_scale, keep_colours) from the next
+        step on."""
         self._send("set_params", dict(params))
 
     def export(self, path: str | os.PathLike) -> None:

@@ -60,7 +60,7 @@ class FakeEngine:
 
     def set_params(self, **kw: float) -> None:
         unknown = set(kw) - {"lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
-                             "lr"}
+                             "lr", "style_scale", "keep_colours"}
         if unknown:
             raise ValueError(f"unknown parameters: {sorted(unknown)}")
         self.params.update({k: float(v) for k, v in kw.items()})

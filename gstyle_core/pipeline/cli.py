@@ -27,6 +27,11 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
         p.add_argument(f"--lambda-{term}", type=float, default=None, help=f"weight of the {help_text}")
     p.add_argument("--strength", type=float, default=None,
                    help="style strength: scales the style terms (CLIP, NNFM) against content; default 1")
+    p.add_argument("--style-scale", type=_style_scale_arg, default=None, metavar="S",
+                   help="stroke size: the painting is matched at S × the working width (2: strokes twice as large, "
+                        "0.5: half); default 1")
+    p.add_argument("--keep-colours", action="store_true", default=None,
+                   help="keep the scene's hues and take only the painting's luminance pattern")
     p.add_argument("--split-rate", type=float, default=None, help="fraction of Gaussians split by colour gradient")
     p.add_argument("--working-width", type=int, default=None, help="render width for the networks")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
@@ -40,6 +45,16 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
                    help="continue the interrupted run with the same inputs and --out from its checkpoint")
     p.add_argument("--checkpoint-every", type=float, default=120.0, metavar="SECONDS",
                    help="checkpoint interval (also at every phase end; 0: phase ends only); default 120")
+
+
+def _style_scale_arg(text: str) -> float:
+    """``--style-scale``: a finite number above 0 (argparse reports anything else in one line)."""
+    from .settings import check_style_scale
+
+    try:
+        return check_style_scale(float(text))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def build_stylizer(args: argparse.Namespace, **setting_overrides):
@@ -57,6 +72,7 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
     overrides = dict(
         lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
         lambda_tv=args.lambda_tv, strength=getattr(args, "strength", None), split_rate=args.split_rate,
+        style_scale=getattr(args, "style_scale", None), keep_colours=getattr(args, "keep_colours", None),
         working_width=args.working_width,
         clip_weights=args.clip_weights, vgg_weights=getattr(args, "vgg_weights", None),
         max_gaussians=getattr(args, "max_gaussians", None),

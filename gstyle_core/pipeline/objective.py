@@ -25,16 +25,36 @@ def resize_long_side(img: np.ndarray, long_side: int) -> np.ndarray:
     return resize_image(img, (max(1, int(round(w * s))), max(1, int(round(h * s)))))
 
 
+MIN_STYLE_SIDE = 16  # below this the painting has next to no relu3 feature vectors (2 poolings: 4 × 4)
+MAX_STYLE_SIDE = 1024  # above this the style features outgrow a CPU's memory and time (768 × 65k vectors at 1024²)
+
+
+def style_side(working_width: int, scale: float) -> tuple[int, bool]:
+    """Long side in pixels at which the painting is matched for a stroke size ``scale`` (``check_style_scale``):
+    ``scale`` × max(64, working width), clamped to [MIN_STYLE_SIDE, MAX_STYLE_SIDE]; True when it was clamped."""
+    from .settings import check_style_scale
+
+    wanted = round(max(64, int(working_width)) * check_style_scale(scale))
+    side = min(max(wanted, MIN_STYLE_SIDE), MAX_STYLE_SIDE)
+    return int(side), side != wanted
+
+
 class StyleObjective:
     """λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV on a render [H, W, 3] of one view.
 
-    The style image is resized so that its longer side matches the working resolution's longer side (the scale at
-    which brush strokes are matched). CLIP ViT-B/32 is used when its weights are found; otherwise the documented
-    coarse-VGG substitute (``clip_status`` says which).
+    The style image is resized so that its longer side is ``style_scale`` × max(64, working width), clamped to
+    16-1024 px: the scale at which brush strokes are matched (``style_side``; larger → larger strokes). With
+    ``keep_colours`` the networks see luminance only (render, content view and painting as grey images;
+    ``style/keep_colours.py``).
+    CLIP ViT-B/32 is used when its weights are found; otherwise the documented coarse-VGG substitute
+    (``clip_status`` says which). ``refresh_style()`` re-extracts the style features after either setting changed.
     """
 
+    luminance_networks = True  # keep colours: networks see luminance (False: colour, chroma restored only; the
+    # variant bench/keep_colours.py compares)
+
     def __init__(self, style: np.ndarray, settings: StylizeSettings, vgg=None) -> None:
-        from ..style.losses import StyleLoss, StyleTarget
+        from ..style.losses import StyleLoss
         from ..style.vgg import load_vgg
 
         dtype = torch.bfloat16 if settings.vgg_dtype == "bfloat16" else torch.float32
@@ -43,25 +63,74 @@ class StyleObjective:
         self.vgg = vgg
         self.vgg_status = f"VGG-16 weights from {getattr(vgg, 'weights_source', 'the caller')}"
         self._style = style
-        long_side = max(64, int(settings.working_width * settings.style_scale))
-        self._style_small = to_bchw(resize_long_side(style, long_side))
-        self.target = StyleTarget.from_image(self.vgg, self._style_small)
         self._settings = settings
+        self._clip_encoder = None
+        self._built_for: tuple[bool, float] | None = None
+        self._build_style_target()
         self.clip_status = CLIP_OFF
         clip_term = self._build_clip_term() if settings.weights.clip > 0 else None
         self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=self._effective(settings.weights))
         self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
         self._boxes: dict[tuple[int, tuple[int, ...]], tuple[slice, slice] | None] = {}
 
+    def _style_input(self) -> np.ndarray:
+        """The painting as the networks see it: its luminance as grey with keep colours, else as it is."""
+        from ..style.keep_colours import grey
+
+        return grey(np.asarray(self._style, np.float32)) if self._luminance_only() else self._style
+
+    def _luminance_only(self) -> bool:
+        return bool(self._settings.keep_colours) and self.luminance_networks
+
+    def _build_style_target(self) -> None:
+        """Resize the painting for the current stroke size and extract its VGG features (the NNFM candidates)."""
+        from ..style.losses import StyleTarget
+
+        s = self._settings
+        side, clamped = style_side(s.working_width, s.style_scale)
+        self._style_small = to_bchw(resize_long_side(self._style_input(), side))
+        self.target = StyleTarget.from_image(self.vgg, self._style_small)
+        h, w = self._style_small.shape[-2:]
+        limits = f" (clamped to {MIN_STYLE_SIDE}-{MAX_STYLE_SIDE} px)" if clamped else ""
+        self.style_note = (f"painting matched at {w}×{h} px{limits}: stroke size {s.style_scale:g} × the working "
+                           f"width; {self.target.matrix.shape[1]:,} feature vectors"
+                           + ("; luminance only (keep colours)" if self._luminance_only() else ""))
+        self._built_for = (bool(s.keep_colours), float(s.style_scale))
+
+    def refresh_style(self) -> bool:
+        """Re-extract the style features (NNFM target, the coarse CLIP substitute; CLIP's style embedding) when the
+        settings' ``style_scale`` or ``keep_colours`` changed since they were built; True when they were."""
+        s = self._settings
+        if self._built_for == (bool(s.keep_colours), float(s.style_scale)):
+            return False
+        colours_changed = self._built_for is None or self._built_for[0] != bool(s.keep_colours)
+        self._build_style_target()
+        self.loss.style_target = self.target
+        if self.loss.clip_term is not None:
+            old_gen = getattr(self.loss.clip_term, "generator", None)
+            self.loss.clip_term = self._build_clip_term()
+            new_gen = getattr(self.loss.clip_term, "generator", None)
+            if isinstance(old_gen, torch.Generator) and isinstance(new_gen, torch.Generator):
+                new_gen.set_state(old_gen.get_state())  # CLIP's random crops go on where they were
+        if colours_changed:  # content features are of grey or colour views
+            self._content_cache.clear()
+        return True
+
+    def clear_content_cache(self) -> None:
+        """Forget the content views' features (the engine changed its content targets)."""
+        self._content_cache.clear()
+
     def _build_clip_term(self) -> torch.nn.Module:
         """CLIP ViT-B/32 on the style when its weights are found, else the coarse-VGG substitute (built when λ_CLIP
         first becomes non-zero)."""
         from ..style.clip import ClipStyleLoss, CoarseStyleLoss, load_clip
 
-        encoder, self.clip_status = load_clip(self._settings.clip_weights)
-        if encoder is None:
+        if self._clip_encoder is None:
+            encoder, self.clip_status = load_clip(self._settings.clip_weights)
+            self._clip_encoder = encoder if encoder is not None else False
+        if self._clip_encoder is False:
             return CoarseStyleLoss(self.vgg, self._style_small)
-        return ClipStyleLoss(encoder, to_bchw(resize_long_side(self._style, 448)),
+        return ClipStyleLoss(self._clip_encoder, to_bchw(resize_long_side(self._style_input(), 448)),
                              generator=torch.Generator().manual_seed(self._settings.seed))
 
     @property
@@ -89,7 +158,12 @@ class StyleObjective:
                  coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, dict]:
         """Loss of a render [H,W,3] of training view ``view``; ``content`` is its colour-matched ground truth and
         ``coverage`` [H,W] the scene's alpha there (None for photos: the whole frame is the scene). With
-        ``crop_to_scene`` VGG sees only the box the scene covers (``pipeline/scene_box.py``)."""
+        ``crop_to_scene`` VGG sees only the box the scene covers (``pipeline/scene_box.py``); with ``keep_colours``
+        the networks see the luminance of both."""
+        if self._luminance_only():
+            from ..style.keep_colours import grey
+
+            image, content = grey(image), grey(content)
         box = self.network_box(view, coverage)
         clip_view = None
         if box is not None:  # VGG on the box; the CLIP term (or its coarse substitute) keeps the whole frame

@@ -7,6 +7,7 @@ the working resolution. What each costs and buys is measured by ``bench/tradeoff
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, replace
 
 from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
@@ -33,7 +34,8 @@ class StylizeSettings:
     views_per_step: int = 1  # training views whose mean loss makes one optimiser step
     view_order: str = "orbit"  # "orbit": views in camera order; "random": a new permutation every epoch
     working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
-    style_scale: float = 1.0  # style image long side = this × the working render's long side
+    style_scale: float = 1.0  # stroke size: the painting is matched at this × the working width (objective.py)
+    keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
     epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
     min_steps: int = 0
     lr_start: float = 1e-1
@@ -158,13 +160,29 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
             raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {getattr(s, name)!r}")
     if not (s.strength >= 0 and s.strength == s.strength):
         raise ValueError(f"strength must be 0 or more, got {s.strength}")
+    check_style_scale(s.style_scale)
+    s.keep_colours = bool(s.keep_colours)
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
     return s
 
 
+def check_style_scale(scale: float) -> float:
+    """``scale`` as a float if it is a usable stroke size (finite, > 0), else ``ValueError`` saying why."""
+    try:
+        value = float(scale)
+    except (TypeError, ValueError):
+        raise ValueError(f"style scale must be a number, got {scale!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"style scale must be a finite number above 0 (1 = the painting at the working "
+                         f"resolution, 2 = strokes twice as large), got {scale}")
+    return value
+
+
 def ui_params(settings: StylizeSettings) -> dict[str, float]:
-    """The values ``Stylizer.set_params`` accepts (λ weights, strength, split rate, starting lr) for ``settings``."""
+    """The values ``Stylizer.set_params`` accepts (λ weights, strength, split rate, starting lr, style scale, keep
+    colours as 0/1) for ``settings``."""
     w = settings.weights
     return {"lambda_clip": w.clip, "lambda_nnfm": w.nnfm, "lambda_content": w.content, "lambda_tv": w.tv,
-            "strength": settings.strength, "split_rate": settings.split_rate, "lr": settings.lr_start}
+            "strength": settings.strength, "split_rate": settings.split_rate, "lr": settings.lr_start,
+            "style_scale": settings.style_scale, "keep_colours": float(settings.keep_colours)}

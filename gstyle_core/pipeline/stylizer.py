@@ -18,6 +18,14 @@ Phases, in order:
    sees only the scene's box (``crop_to_scene``, ``scene_box.py``).
 5. ``finish``: one step: colour-match the stylized renders to the style once more (affine transform of c_s).
 Then ``done``. There are no threads here: callers (CLI, app worker, tests) decide when to call ``step()``.
+
+Keep colours (``settings.keep_colours``, ``style/keep_colours.py``): the colour matches (3 and 5) map only the
+luminance mean/std onto the painting's, the networks see luminance only, and after every optimiser step each
+Gaussian's c_s takes the chroma of its c_gt back (its luminance stays): the scene keeps its hues and takes the
+painting's luminance pattern. Turned on mid-run, c_s takes c_gt's chroma at once and the content targets are
+matched again; turned off, c_s keeps its colours and from then on the painting's colours are matched again (the
+finish colour-matches them fully). Stroke size (``settings.style_scale``): the painting is matched at that × the
+working width; changed mid-run, its features are extracted again before the next step (``objective.py``).
 """
 
 from __future__ import annotations
@@ -136,6 +144,7 @@ class Stylizer:
         self._objective_factory = objective_factory
         self._objective = None
         self._note_loss_terms()
+        self._note_style()
         self._opt: torch.optim.Adam | None = None
         self._grad_acc = torch.zeros(scene.count)
         self._trainer: Trainer | None = None
@@ -182,9 +191,10 @@ class Stylizer:
         return n + pre + 1 + self.stylize_steps + splits * (s.refit_iterations + 1) + 1
 
     def set_params(self, **kw: float) -> None:
-        """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), strength, split_rate or lr (next
-        step on); a term whose weight turns non-zero is built then."""
-        known = {"split_rate", "lr", "strength"} | {f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
+        """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), strength, split_rate, lr,
+        style_scale or keep_colours (next step on); a term whose weight turns non-zero is built then."""
+        known = {"split_rate", "lr", "strength", "style_scale", "keep_colours"} | {
+            f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
         unknown = set(kw) - known
         if unknown:
             raise ValueError(f"unknown parameters: {', '.join(sorted(unknown))}")
@@ -203,10 +213,40 @@ class Stylizer:
             self._note_loss_terms()
         if kw.get("split_rate") is not None:
             self.settings.split_rate = float(kw["split_rate"])
+        self._set_style_controls(kw.get("style_scale"), kw.get("keep_colours"))
         if kw.get("lr") is not None:
             ratio = self.settings.lr_end / self.settings.lr_start
             self.settings.lr_start = float(kw["lr"])
             self.settings.lr_end = float(kw["lr"]) * ratio
+
+    def _set_style_controls(self, scale: float | None, keep: float | bool | None) -> None:
+        """Stroke size and keep colours, mid-run too (see the module docstring for what each does then)."""
+        from .settings import check_style_scale
+
+        s = self.settings
+        if scale is not None:
+            s.style_scale = check_style_scale(scale)
+        keep_changed = keep is not None and bool(keep) != s.keep_colours
+        if keep_changed:
+            s.keep_colours = bool(keep)
+            if self.content_images:  # past the colour match: new content targets, c_s takes c_gt's chroma
+                self._match_content_targets()
+                if s.keep_colours:
+                    self._restore_chroma()
+                    self.colour_version += 1
+        if hasattr(self._objective, "refresh_style"):  # test objectives may have no style features
+            self._objective.refresh_style()
+        if keep_changed and hasattr(self._objective, "clear_content_cache"):
+            self._objective.clear_content_cache()
+        self._note_style()
+
+    def _note_style(self) -> None:
+        """Decisions: how the painting is matched (stroke size) and whether the scene's colours are kept."""
+        note = getattr(self._objective, "style_note", None)
+        self.decisions["style_scale"] = note or f"stroke size {self.settings.style_scale:g} × the working width"
+        self.decisions["colours"] = (
+            "kept (keep colours): luminance-only colour match and networks, chroma of c_gt restored after every step"
+            if self.settings.keep_colours else "the painting's (full colour match before and after stylization)")
 
     def current_params(self) -> dict[str, float]:
         """The values ``set_params`` accepts, as they are now (for UIs to show)."""
@@ -443,28 +483,70 @@ class Stylizer:
         return StepReport("preprocess", 0, 0, losses=losses, geometry_changed=changed_geometry, message=msg)
 
     def _step_colour_match(self) -> StepReport:
-        from ..style.colour_match import apply_colour_transform, colour_transfer_matrix
+        from ..style.colour_match import apply_colour_transform
 
-        gt_pixels = torch.cat([g[m > 0.5] for g, m in zip(self.gt_images, self.coverage, strict=True)]).numpy()
-        if len(gt_pixels) < 2:  # the scene covers no pixel: use whole frames
-            gt_pixels = torch.cat([g.reshape(-1, 3) for g in self.gt_images]).numpy()
-        style_pixels = self.style.reshape(-1, 3)
-        A, b = colour_transfer_matrix(gt_pixels, style_pixels)
-        self.colour_transform = (A, b)
+        A, b = self._match_content_targets()
         c_gt = self._gt_rgb().numpy()
-        self.c_s = torch.as_tensor(apply_colour_transform(c_gt, A, b), dtype=torch.float32)
-        # The content targets are what the colour-matched Gaussians render: a render is Σ w_i c_i with Σ w_i = alpha
-        # over a black background, so c -> A c + b turns a pixel p into A p + alpha b. The background stays black
-        # (transforming it too would ask c_s for a change no Gaussian can make, and pull at every silhouette).
-        self.content_images = [
-            torch.as_tensor(np.clip(apply_colour_transform(g.reshape(-1, 3).numpy(), A, np.zeros(3), clip=False)
-                                    + a.reshape(-1, 1).numpy() * b, 0.0, 1.0), dtype=torch.float32).reshape(g.shape)
-            for g, a in zip(self.gt_images, self.coverage, strict=True)
-        ]
+        keep = self.settings.keep_colours  # luminance map unclipped, then the chroma of c_gt as far as it fits
+        self.c_s = torch.as_tensor(apply_colour_transform(c_gt, A, b, clip=not keep), dtype=torch.float32)
+        if keep:
+            self._restore_chroma()
         self._grad_acc = torch.zeros(self.gaussian_count)
         self.decisions["network_area"] = self._network_area_note()
         self._enter("stylize")
         return StepReport("colour_match", 0, 0, colours_changed=True, message="colours matched to the style")
+
+    def _surface(self, image: torch.Tensor, alpha: torch.Tensor) -> torch.Tensor:
+        """The pixels [M, 3] the scene covers (alpha > 0.5) whose statistics the colour match maps. With keep
+        colours they are divided by alpha (the surface's colour, not its blend with the black background): the
+        luminance map Y -> aY + β of the Gaussians turns a pixel into aY + alpha·β, so matched on these the
+        render's covered pixels get the painting's luminance mean and std, not a darker scene's."""
+        covered = alpha > 0.5
+        if not self.settings.keep_colours:
+            return image[covered]
+        return image[covered] / alpha[covered].unsqueeze(-1)
+
+    def _transfer_matrix(self, content_pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The affine colour map onto the painting: full colour, or luminance only with keep colours."""
+        from ..style.colour_match import colour_transfer_matrix
+        from ..style.keep_colours import luminance_transfer_matrix
+
+        match = luminance_transfer_matrix if self.settings.keep_colours else colour_transfer_matrix
+        return match(content_pixels, self.style.reshape(-1, 3))
+
+    def _match_content_targets(self) -> tuple[np.ndarray, np.ndarray]:
+        """Colour-match the ground truth to the style: sets ``colour_transform`` and the content targets."""
+        from ..style.colour_match import apply_colour_transform
+
+        gt_pixels = torch.cat([self._surface(g, m) for g, m in zip(self.gt_images, self.coverage, strict=True)]).numpy()
+        if len(gt_pixels) < 2:  # the scene covers no pixel: use whole frames
+            gt_pixels = torch.cat([g.reshape(-1, 3) for g in self.gt_images]).numpy()
+        A, b = self._transfer_matrix(gt_pixels)
+        self.colour_transform = (A, b)
+        # The content targets are what the colour-matched Gaussians render: a render is Σ w_i c_i with Σ w_i = alpha
+        # over a black background, so c -> A c + b turns a pixel p into A p + alpha b. The background stays black
+        # (transforming it too would ask c_s for a change no Gaussian can make, and pull at every silhouette).
+        self.content_images = []
+        for g, a in zip(self.gt_images, self.coverage, strict=True):
+            p = apply_colour_transform(g.reshape(-1, 3).numpy(), A, np.zeros(3), clip=False)
+            p = torch.as_tensor(p + a.reshape(-1, 1).numpy() * b, dtype=torch.float32)
+            if self.settings.keep_colours:  # the view's own hues at the new luminance (as c_s gets them)
+                from ..style.keep_colours import with_chroma_of
+
+                p = with_chroma_of(p, g.reshape(-1, 3))
+            self.content_images.append(p.clamp(0.0, 1.0).reshape(g.shape))
+        return A, b
+
+    @torch.no_grad()
+    def _restore_chroma(self) -> None:
+        """Keep colours: every Gaussian's c_s (and the optimised copy) takes the chroma of its c_gt back."""
+        from ..style.keep_colours import with_chroma_of
+
+        c_gt = self._gt_rgb().to(self.c_s.dtype)
+        self.c_s = with_chroma_of(self.c_s.detach(), c_gt)
+        if self._c_opt is not None:
+            ids = self._seen()
+            self._c_opt.copy_(self.c_s if ids is None else self.c_s[ids])
 
     def objective_coverage(self, view: int) -> torch.Tensor | None:
         """The scene's coverage of a training view as the objective gets it: None for photos (they are all scene)."""
@@ -489,6 +571,7 @@ class Stylizer:
             else:
                 self._objective = self._objective_factory(self.style, self.settings)
             self._note_networks()
+            self._note_style()
             gen, saved = objective_generator(self._objective), getattr(self, "_objective_rng", None)
             if gen is not None and saved is not None:  # resumed: the CLIP crops continue where they were
                 gen.set_state(saved)
@@ -570,6 +653,8 @@ class Stylizer:
                 self.c_s.copy_(self._c_opt)
             else:
                 self.c_s[ids] = self._c_opt
+        if s.keep_colours:
+            self._restore_chroma()
         self._stylize_step += 1
         self.phase_step += 1
         if self._stylize_step >= self.stylize_steps:
@@ -634,20 +719,23 @@ class Stylizer:
 
     @torch.no_grad()
     def _step_finish(self) -> StepReport:
-        from ..style.colour_match import apply_colour_transform, colour_transfer_matrix
+        from ..style.colour_match import apply_colour_transform
 
         pixels = []
         for v in range(len(self.cameras)):
             image = self._render_cs(v)
-            covered = self._caches.get(v, self.geometry_version).t_final < 0.5
-            pixels.append(image[covered])
+            pixels.append(self._surface(image, 1.0 - self._caches.get(v, self.geometry_version).t_final))
         covered_pixels = torch.cat(pixels).numpy()
         if len(covered_pixels) < 2:
             covered_pixels = torch.cat([self._render_cs(v).reshape(-1, 3) for v in range(len(self.cameras))]).numpy()
-        A, b = colour_transfer_matrix(covered_pixels, self.style.reshape(-1, 3))
-        self.c_s = torch.as_tensor(apply_colour_transform(self.c_s.numpy(), A, b), dtype=torch.float32)
+        A, b = self._transfer_matrix(covered_pixels)
+        keep = self.settings.keep_colours
+        self.c_s = torch.as_tensor(apply_colour_transform(self.c_s.numpy(), A, b, clip=not keep), dtype=torch.float32)
+        if keep:
+            self._restore_chroma()
         self._enter("done")
-        return StepReport("finish", 0, 0, colours_changed=True, message="final colour match to the style")
+        what = "luminance (colours kept)" if self.settings.keep_colours else "style"
+        return StepReport("finish", 0, 0, colours_changed=True, message=f"final colour match to the {what}")
 
     # ----------------------------------------------------------------- checkpoints
     def state_dict(self) -> dict[str, Any]:
@@ -710,6 +798,8 @@ class Stylizer:
         if state.get("adam") is not None:
             self._start_colour_optimiser(self._seen())
             self._opt.load_state_dict(state["adam"])
+        saved = state.get("settings") or {}
+        self._set_style_controls(saved.get("style_scale"), saved.get("keep_colours"))  # a resumed run keeps them
         self._trainer = None
         self._refit_left = state["refit_left"]
         if state["in_refit"] and self._refit_left > 0:
