@@ -119,3 +119,21 @@ class PanelDriver:
         commands += self.frame(lambda io: io.add_mouse_button_event(0, False))
         commands += self.frame(lambda io: io.add_mouse_pos_event(-1, -1))
         return commands
+
+
+def studio_driver(window, monkeypatch, app) -> PanelDriver:
+    """A driver that draws the whole studio frame (``app.frame``) into the test window."""
+    def draw():
+        window.ctx.screen.use()
+        return app.frame(window.ctx.screen)
+
+    return PanelDriver(window, install(monkeypatch), draw)
+
+
+def paused_studio_driver(window, monkeypatch, app) -> PanelDriver:
+    """Start the studio's engine, wait until it is ready, pause it, and return a driver for the studio frame."""
+    app.start_engine()
+    assert app.bridge.wait_until(lambda s: s.ready or s.error, 60) and app.bridge.state.error is None
+    app.bridge.pause()
+    assert app.bridge.wait_until(lambda s: s.paused, 30)
+    return studio_driver(window, monkeypatch, app)

@@ -8,7 +8,7 @@ pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
 from fakes import make_small_stylizer  # noqa: E402
-from imgui_driver import PanelDriver, install  # noqa: E402
+from imgui_driver import paused_studio_driver  # noqa: E402
 from PIL import Image  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
@@ -26,14 +26,6 @@ def keep_small_stylizer(**config):
     return BUILT[-1]
 
 
-def studio_driver(window, monkeypatch, app) -> PanelDriver:
-    def draw():
-        window.ctx.screen.use()
-        return app.frame(window.ctx.screen)
-
-    return PanelDriver(window, install(monkeypatch), draw)
-
-
 def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, monkeypatch, tmp_path):
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     style = tmp_path / "style.png"
@@ -48,11 +40,7 @@ def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, m
     app = studio()
     try:
         assert app.panel.params["keep_colours"] == 0.0 and app.panel.params["style_scale"] == 1.0
-        app.start_engine()
-        assert app.bridge.wait_until(lambda s: s.ready or s.error, 60) and app.bridge.state.error is None
-        app.bridge.pause()
-        assert app.bridge.wait_until(lambda s: s.paused, 30)
-        driver = studio_driver(window, monkeypatch, app)
+        driver = paused_studio_driver(window, monkeypatch, app)
         commands = driver.click("style_scale/stroke size", fx=0.9)
         assert driver.recorder.find("style_scale/stroke size").tooltip  # every control explains itself
         assert commands and commands[0].name == "set_params" and commands[0].args["style_scale"] > 2

@@ -6,7 +6,7 @@ pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
 from fakes import make_small_stylizer  # noqa: E402
-from imgui_driver import PanelDriver, install  # noqa: E402
+from imgui_driver import PanelDriver, install, paused_studio_driver, studio_driver  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
 from app.panels import PARAMS, PanelState, draw_panel, loss_series  # noqa: E402
@@ -36,14 +36,6 @@ def panel(window, monkeypatch):
         return commands
 
     return PanelDriver(window, recorder, draw), state
-
-
-def studio_driver(window, monkeypatch, app) -> PanelDriver:
-    def draw():
-        window.ctx.screen.use()
-        return app.frame(window.ctx.screen)
-
-    return PanelDriver(window, install(monkeypatch), draw)
 
 
 def test_every_control_button_and_view_mode_has_a_tooltip(panel):
@@ -131,11 +123,7 @@ def test_strength_slider_reaches_the_engine(window, monkeypatch, tmp_path):
     app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150, seed=5), ring_cameras(3)),
                     engine_factory=keep_small_stylizer, output_dir=tmp_path, worker_mode="thread")
     try:
-        app.start_engine()
-        assert app.bridge.wait_until(lambda s: s.ready or s.error, 60) and app.bridge.state.error is None
-        app.bridge.pause()
-        assert app.bridge.wait_until(lambda s: s.paused, 30)
-        driver = studio_driver(window, monkeypatch, app)
+        driver = paused_studio_driver(window, monkeypatch, app)
         commands = driver.click("strength/style strength", fx=0.9)
         assert commands and commands[0].name == "set_params" and commands[0].args["strength"] > 10
         asked = commands[-1].args["strength"]

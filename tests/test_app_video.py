@@ -12,7 +12,7 @@ pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
 from fakes import make_fake_engine  # noqa: E402
-from imgui_driver import PanelDriver, install  # noqa: E402
+from imgui_driver import studio_driver  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
 from app.panels import Command  # noqa: E402
@@ -22,14 +22,6 @@ from gstyle_core.io import load_scene  # noqa: E402
 from gstyle_core.render_video import turntable_cameras  # noqa: E402
 
 W, H = 700, 1100  # tall enough for the whole panel
-
-
-def studio_driver(window, monkeypatch, app) -> PanelDriver:
-    def draw():
-        window.ctx.screen.use()
-        return app.frame(window.ctx.screen)
-
-    return PanelDriver(window, install(monkeypatch), draw)
 
 
 def wait_job(job: VideoJob, timeout: float = 300.0):
