@@ -260,3 +260,11 @@ def test_raster_backend_setting_reaches_ground_truth_and_refits_with_the_same_re
     assert torch.allclose(runs["fast"][1], runs["reference"][1], atol=1e-3)
     with pytest.raises(ValueError, match="raster backend"):
         resolve_settings("preview", "forward", 4, raster_backend="opengl")
+
+
+def test_forward_preview_children_keep_the_parents_footprint():
+    """The preview's short refit cannot regrow children at the reference's 1/16 scale (README, fern measured)."""
+    assert resolve_settings("preview", "forward", 20).split_scale_divisor == 1.6
+    assert resolve_settings("preview", "forward", 20, defaults="paper").split_scale_divisor == 1.6
+    assert resolve_settings("balanced", "forward", 20).split_scale_divisor == 16.0
+    assert resolve_settings("preview", "360", 20).split_scale_divisor == 8.0
