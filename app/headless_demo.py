@@ -7,9 +7,10 @@ import argparse
 from pathlib import Path
 
 
-def stylize_without_display(args: argparse.Namespace, width: int = 640) -> Path:
+def stylize_without_display(args: argparse.Namespace, width: int = 640) -> tuple[Path, Path]:
     """Run ``gstyle stylize`` on the studio's scene and style into ``args.output_dir`` and write
-    ``<stem>_before_after.png``: two evaluation views, input above stylized, ``width`` px each. Returns its path."""
+    ``<stem>_before_after.png``: two evaluation views, input above stylized, ``width`` px each. Returns the
+    stylized scene's path and the picture's."""
     from gstyle_core.io import load_scene
     from gstyle_core.pipeline.cli import add_stylize_arguments, stylize_command
     from gstyle_core.render_cli import before_after_picture, load_scene_and_cameras, save_png
@@ -32,4 +33,4 @@ def stylize_without_display(args: argparse.Namespace, width: int = 640) -> Path:
     stylized, _ = load_scene(out)
     picture = out_dir / f"{stem}_before_after.png"
     save_png(picture, before_after_picture(scene, stylized, cams.cameras, n_views=2, width=width))
-    return picture
+    return out, picture

@@ -96,10 +96,10 @@ def _without_display(args: argparse.Namespace, reason: Exception) -> int:
     from .window import open_window
 
     print(f"gstyle-studio: cannot open a window ({reason}); stylizing headless instead ({args.preset} preset)")
-    picture = stylize_without_display(args)
+    stylized, picture = stylize_without_display(args)
     print(f"gstyle-studio: before (top) and after (bottom): {picture}")
     shot = Path(args.screenshot) if args.screenshot else FALLBACK_SCREENSHOT
-    args.scene = str(Path(args.output_dir) / f"{Path(args.scene).stem if args.scene else 'demo'}_stylized.ply")
+    args.scene = str(stylized)
     args.headless, args.screenshot, args.engine = True, str(shot), False
     args.frames = args.frames or HEADLESS_FRAMES
     window = open_window(*args.size, headless=True)

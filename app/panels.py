@@ -44,7 +44,8 @@ PARAMS = (
           "lambda values as they are, more paints harder, less keeps more of the scene."),
     Param("style_scale", "stroke size", 1.0, 0.25, 4.0,
           "Stroke size: the scale at which the painting's brush strokes are matched (its image resized to this times "
-          "the working width before its VGG features are taken); 2 paints strokes twice as large, 0.5 half as large. "
+          "the working width before its VGG features are taken): 2 matches the painting at twice that size, 0.5 at "
+          "half; at the preview's 256 px the visible change is subtle (README). "
           "Changing it re-extracts the painting's features from the next step on (--style-scale)."),
     Param("split_rate", "split rate", 0.05, 1e-3, 0.5,
           "Fraction of Gaussians split where the style gradient is largest (finer detail, more Gaussians)."),

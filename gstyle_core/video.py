@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import current_umask
 from .errors import GStyleError
 
 VIDEO_SUFFIXES = {".mp4": "mp4", ".gif": "gif"}
@@ -108,14 +109,8 @@ def _finish_file(tmp: Path, target: Path, count: int) -> None:
     if count == 0:
         tmp.unlink(missing_ok=True)
         return
-    os.chmod(tmp, 0o666 & ~_umask())
+    os.chmod(tmp, 0o666 & ~current_umask())
     os.replace(tmp, target)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def _write_mp4(frames: Iterable[np.ndarray], target: Path, fps: float) -> int:
@@ -166,7 +161,7 @@ def _write_dir(frames: Iterable[np.ndarray], target: Path, fps: float) -> int:
             Image.fromarray(frame).save(tmp / FRAME_PATTERN.format(count), format="PNG")
             count += 1
         if count:
-            os.chmod(tmp, 0o777 & ~_umask())
+            os.chmod(tmp, 0o777 & ~current_umask())
             _replace_dir(tmp, target)
     finally:
         if tmp.exists():

@@ -28,8 +28,8 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--strength", type=float, default=None,
                    help="style strength: scales the style terms (CLIP, NNFM) against content; default 1")
     p.add_argument("--style-scale", type=_style_scale_arg, default=None, metavar="S",
-                   help="stroke size: the painting is matched at S × the working width (2: strokes twice as large, "
-                        "0.5: half); default 1")
+                   help="stroke size: the painting is matched at S × the working width (2: at twice that size, "
+                        "0.5: half; subtle at the preview's 256 px, README); default 1")
     p.add_argument("--keep-colours", action="store_true", default=None,
                    help="keep the scene's hues and take only the painting's luminance pattern")
     p.add_argument("--split-rate", type=float, default=None, help="fraction of Gaussians split by colour gradient")

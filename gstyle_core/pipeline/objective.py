@@ -43,7 +43,7 @@ class StyleObjective:
     """λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV on a render [H, W, 3] of one view.
 
     The style image is resized so that its longer side is ``style_scale`` × max(64, working width), clamped to
-    16-1024 px: the scale at which brush strokes are matched (``style_side``; larger → larger strokes). With
+    16-1024 px: the scale at which brush strokes are matched (``style_side``). With
     ``keep_colours`` the networks see luminance only (render, content view and painting as grey images;
     ``style/keep_colours.py``).
     CLIP ViT-B/32 is used when its weights are found; otherwise the documented coarse-VGG substitute
