@@ -123,3 +123,15 @@ def make_small_stylizer(n: int = 150, **_ignored):
     settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=3, min_steps=0, refit_iterations=2,
                                 split_at=(1 / 3,), working_width=32, preprocess_rounds=1)
     return Stylizer(blob_scene(n, seed=5), ring_cameras(3), style, settings, objective_factory=MeanColourPull)
+
+
+def random_torchvision_vgg_state() -> dict:
+    """A torchvision-layout VGG-16 state (``features.N.weight/bias``) with random values."""
+    import torch
+
+    from gstyle_core.style.vgg import CONV_LAYERS, VGGFeatures
+
+    shapes = {k: v.shape for k, v in VGGFeatures().state_dict().items()}
+    gen = torch.Generator().manual_seed(17)
+    return {f"features.{i}.{kind}": torch.randn(shapes[f"features.{i}.{kind}"], generator=gen) * 0.05
+            for i, _ in CONV_LAYERS for kind in ("weight", "bias")}

@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from fakes import random_torchvision_vgg_state
 from synthetic import blob_scene, ring_cameras
 
 from gstyle_core.io import save_scene
@@ -235,7 +236,7 @@ def test_cli_takes_both_controls_and_records_them(tmp_path, monkeypatch):
 
     Image.fromarray((blue_painting() * 255).astype(np.uint8)).save(style_path)
     vgg_path = tmp_path / "vgg.pth"
-    torch.save(_torchvision_layout(), vgg_path)
+    torch.save(random_torchvision_vgg_state(), vgg_path)
     parser = argparse.ArgumentParser()
     cli.add_stylize_arguments(parser)
     out = tmp_path / "o.ply"
@@ -248,12 +249,3 @@ def test_cli_takes_both_controls_and_records_them(tmp_path, monkeypatch):
     assert "kept" in summary["decisions"]["colours"] and "stroke size 1.5" in summary["decisions"]["style_scale"]
     plain = cli.build_stylizer(parser.parse_args([str(scene_path), "--out", str(out)]))[0].settings
     assert plain.keep_colours is False and plain.style_scale == 1.0
-
-def _torchvision_layout() -> dict[str, torch.Tensor]:
-    """A torchvision-layout VGG-16 state (``features.N.weight/bias``) with random values."""
-    from gstyle_core.style.vgg import CONV_LAYERS
-
-    shapes = {k: v.shape for k, v in VGGFeatures().state_dict().items()}
-    gen = torch.Generator().manual_seed(17)
-    return {f"features.{i}.{kind}": torch.randn(shapes[f"features.{i}.{kind}"], generator=gen) * 0.05
-            for i, _ in CONV_LAYERS for kind in ("weight", "bias")}

@@ -84,9 +84,9 @@ def engine_fingerprint(engine: Any) -> dict[str, str]:
     if scene is not None:
         out["scene"] = _hash_arrays([scene.means, scene.log_scales, scene.quats, scene.opacity_logits, scene.sh_dc,
                                      scene.sh_rest])
-    style = getattr(engine, "style", None)
-    if style is not None:
-        out["style image"] = _hash_arrays([style])
+    styles = getattr(engine, "styles", None) or ([engine.style] if getattr(engine, "style", None) is not None else [])
+    if styles:
+        out["style image"] = _hash_arrays(styles)
     cams = getattr(engine, "full_cameras", None)
     if cams is not None:
         out["cameras"] = _hash_arrays([np.array([c.width, c.height, c.fx, c.fy, c.cx, c.cy], np.float64)

@@ -16,7 +16,10 @@ from ..errors import GStyleError
 def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     """Arguments of ``gstyle stylize``."""
     p.add_argument("scene", nargs="?", default=None, help="scene file (.ply/.splat/.spz); default: the bundled demo")
-    p.add_argument("--style", default=None, help="style image (default: the bundled painting)")
+    p.add_argument("--style", action="append", default=None, metavar="IMAGE",
+                   help="style image (default: the bundled painting); give it twice or more to mix paintings")
+    p.add_argument("--style-weights", type=_style_weights_arg, default=None, metavar="W1,W2",
+                   help="weights of the --style images, e.g. 0.7,0.3 (normalised to sum 1; default: equal)")
     p.add_argument("--cameras", help="cameras.json, COLMAP or LLFF folder, .npz (default: generated around the scene)")
     p.add_argument("--preset", choices=["preview", "balanced", "final"], default="preview")
     p.add_argument("--scene-kind", choices=["auto", "forward", "360"], default="auto")
@@ -57,17 +60,46 @@ def _style_scale_arg(text: str) -> float:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _style_weights_arg(text: str) -> tuple[float, ...]:
+    """``--style-weights``: numbers separated by commas, each finite and >= 0, not all 0."""
+    from ..style.mix import normalise_style_weights, parse_style_weights
+
+    try:
+        values = parse_style_weights(text)
+        normalise_style_weights(values, len(values))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return tuple(values)
+
+
+def style_paths(style: str | list[str] | tuple[str, ...] | None) -> list[str]:
+    """The style image paths of ``--style`` (one path, several, or None: the bundled painting)."""
+    from ..render_cli import DEFAULT_STYLE
+
+    if not style:
+        return [str(DEFAULT_STYLE)]
+    return [str(style)] if isinstance(style, (str, Path)) else [str(s) for s in style]
+
+
 def build_stylizer(args: argparse.Namespace, **setting_overrides):
     """Load scene, cameras, photos and style, resolve settings and build the engine (shared with the app worker
-    and bench/tradeoff.py, which passes further ``StylizeSettings`` fields as ``setting_overrides``)."""
+    and bench/tradeoff.py, which passes further ``StylizeSettings`` fields as ``setting_overrides``). Returns
+    (engine, scene, load report, cameras, style): the painting, or the list of paintings of a mix."""
     from ..cameras import classify_scene_kind
     from ..images import load_style_image
-    from ..render_cli import DEFAULT_STYLE, load_scene_and_cameras
+    from ..render_cli import load_scene_and_cameras
+    from ..style.mix import normalise_style_weights
     from .settings import resolve_settings
     from .stylizer import Stylizer
 
+    paths = style_paths(args.style)
+    weights = getattr(args, "style_weights", None)
+    try:  # before anything loads: a wrong count of weights is the caller's mistake
+        normalise_style_weights(weights, len(paths))
+    except ValueError as exc:
+        raise GStyleError(f"--style/--style-weights: {exc}") from None
     scene, report, cams = load_scene_and_cameras(args.scene, args.cameras)
-    style = load_style_image(args.style or DEFAULT_STYLE)
+    styles = [load_style_image(path) for path in paths]
     kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams)
     overrides = dict(
         lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
@@ -75,7 +107,7 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
         style_scale=getattr(args, "style_scale", None), keep_colours=getattr(args, "keep_colours", None),
         working_width=args.working_width,
         clip_weights=args.clip_weights, vgg_weights=getattr(args, "vgg_weights", None),
-        max_gaussians=getattr(args, "max_gaussians", None),
+        max_gaussians=getattr(args, "max_gaussians", None), style_weights=weights,
     )
     overrides.update(setting_overrides)
     defaults = overrides.pop("defaults", None) or getattr(args, "defaults", None)
@@ -83,8 +115,8 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
     photos = None
     if cams.has_images:
         photos = cams.load_images(max_width=max(settings.working_width * 2, 256))
-    engine = Stylizer(scene, cams.cameras, style, settings, photos=photos)
-    return engine, scene, report, cams, style
+    engine = Stylizer(scene, cams.cameras, styles[0] if len(styles) == 1 else styles, settings, photos=photos)
+    return engine, scene, report, cams, engine.style_input()
 
 
 def stylize_command(args: argparse.Namespace) -> int:
@@ -122,7 +154,8 @@ def stylize_command(args: argparse.Namespace) -> int:
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
-    for key in ("sh", "preprocess", "culled", "loss_terms", "clip", "vgg"):  # what this scene needed (also in OUT.json)
+    for key in ("sh", "preprocess", "culled", "loss_terms", "clip", "vgg", "styles"):  # what this scene needed
+        # (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
@@ -132,7 +165,10 @@ def stylize_command(args: argparse.Namespace) -> int:
     save_png(f"{stem}_before.png", before)
     save_png(f"{stem}_after.png", after)
     summary = {
-        "scene": str(args.scene or "bundled demo"), "style": str(args.style or "bundled default"),
+        "scene": str(args.scene or "bundled demo"),
+        "style": style_paths(args.style)[0] if args.style else "bundled default",
+        "styles": [{"path": path, "weight": round(w, 6)}
+                   for path, w in zip(style_paths(args.style), s.style_weights, strict=True)],
         "settings": s.to_dict(), "scene_kind": s.scene_kind, "camera_source": cams.source,
         "clip": engine.decisions.get("clip"), "decisions": engine.decisions,
         "seconds_per_phase": {k: round(v, 2) for k, v in engine.timings.items()},
@@ -207,8 +243,9 @@ def _resume(engine, path: Path, saved, fingerprint: dict[str, str]) -> dict:
     return {"checkpoint": str(path), "skipped_steps": skipped, "phase": engine.phase}
 
 
-def evaluate_run(engine, scene, style: np.ndarray, n_views: int = 3, width: int = 256) -> dict:
-    """Quality figures on fixed evaluation views, before (input scene) and after (stylized scene)."""
+def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: int = 3, width: int = 256) -> dict:
+    """Quality figures on fixed evaluation views, before (input scene) and after (stylized scene); a list of
+    paintings is measured with the engine's mix weights (``Evaluator``)."""
     from ..render_cli import render_scene_image
     from .evaluate import Evaluator, structure_kept
     from .stylizer import choose_views
@@ -219,7 +256,7 @@ def evaluate_run(engine, scene, style: np.ndarray, n_views: int = 3, width: int 
         from ..style.vgg import load_vgg
 
         vgg = load_vgg(engine.settings.vgg_weights)
-    ev = Evaluator(vgg, style, width)
+    ev = Evaluator(vgg, style, width, weights=None if isinstance(style, np.ndarray) else engine.settings.style_weights)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
     after_scene = engine.stylized_scene()
     after, _ = zip(*(render_scene_image(after_scene, c, with_alpha=True) for c in cams), strict=True)

@@ -2,20 +2,27 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import torch
 
 from ..cameras.images import resize_image
+from ..style.colour_match import Palette
 from .objective import to_bchw
 
 
-def colour_stats_distance(pixels: np.ndarray, style_pixels: np.ndarray) -> float:
-    """‖μ_a − μ_b‖ + ‖Σ_a − Σ_b‖_F of two RGB pixel sets ([M, 3] in [0, 1])."""
+def colour_stats_distance(pixels: np.ndarray, style_pixels: np.ndarray | Palette) -> float:
+    """‖μ_a − μ_b‖ + ‖Σ_a − Σ_b‖_F of two RGB pixel sets ([M, 3] in [0, 1]); the style may be given as its
+    ``Palette`` (e.g. the weighted palette of a mix)."""
     a = np.asarray(pixels, np.float64).reshape(-1, 3)
-    b = np.asarray(style_pixels, np.float64).reshape(-1, 3)
     cov_a = np.cov(a, rowvar=False) if len(a) > 1 else np.zeros((3, 3))
-    cov_b = np.cov(b, rowvar=False) if len(b) > 1 else np.zeros((3, 3))
-    return float(np.linalg.norm(a.mean(0) - b.mean(0)) + np.linalg.norm(cov_a - cov_b))
+    if isinstance(style_pixels, Palette):
+        mean_b, cov_b = style_pixels.mean, style_pixels.cov
+    else:
+        b = np.asarray(style_pixels, np.float64).reshape(-1, 3)
+        mean_b, cov_b = b.mean(0), (np.cov(b, rowvar=False) if len(b) > 1 else np.zeros((3, 3)))
+    return float(np.linalg.norm(a.mean(0) - mean_b) + np.linalg.norm(cov_a - cov_b))
 
 
 def luminance_edges(img: np.ndarray) -> np.ndarray:
@@ -55,16 +62,27 @@ def structure_kept(before: list[np.ndarray], after: list[np.ndarray], alpha: lis
 
 
 class Evaluator:
-    """Measures renders against the style image and ground-truth images with one VGG, at one resolution."""
+    """Measures renders against the style image and ground-truth images with one VGG, at one resolution.
 
-    def __init__(self, vgg, style: np.ndarray, width: int = 256) -> None:
+    Several paintings (``style`` a list, ``weights`` one per painting, summing to 1): ``nnfm`` is the weighted sum of
+    the distances to each painting (``nnfm_styles`` lists them) and ``colour`` compares with the weighted palette."""
+
+    def __init__(self, vgg, style: np.ndarray | Sequence[np.ndarray], width: int = 256,
+                 weights: Sequence[float] | None = None) -> None:
         from ..style.losses import StyleTarget
+        from ..style.mix import normalise_style_weights
 
         self.vgg = vgg
         self.width = width
-        self.style = np.asarray(style, np.float32)
-        height = max(1, round(self.style.shape[0] * width / self.style.shape[1]))
-        self.target = StyleTarget.from_image(vgg, to_bchw(resize_image(self.style, (width, height))))
+        self.styles = [np.asarray(s, np.float32) for s in ([style] if isinstance(style, np.ndarray) else style)]
+        self.style = self.styles[0]
+        self.weights = normalise_style_weights(weights, len(self.styles))
+        self.targets = []
+        for image in self.styles:
+            height = max(1, round(image.shape[0] * width / image.shape[1]))
+            self.targets.append(StyleTarget.from_image(vgg, to_bchw(resize_image(image, (width, height)))))
+        self.target = self.targets[0]
+        self.palette = Palette.mixture([Palette.of(s) for s in self.styles], self.weights)
 
     @torch.no_grad()
     def measure(self, renders: list[np.ndarray], ground_truth: list[np.ndarray],
@@ -77,21 +95,30 @@ class Evaluator:
         """
         from ..style.losses import concat_features, content_loss, feature_weights, nnfm_loss, weighted_mean
 
-        nnfm, nnfm_full, content, pixels = [], [], [], []
+        per_style = np.zeros((len(self.targets), len(renders)))  # coverage-weighted NNFM per painting and view
+        per_style_full = np.zeros_like(per_style)
+        content, pixels = [], []
         for i, (img, gt) in enumerate(zip(renders, ground_truth, strict=True)):
             f = self.vgg(to_bchw(img))
             g = self.vgg(to_bchw(gt))
-            d = nnfm_loss(concat_features(f), self.target, reduction="none")[0]
-            nnfm_full.append(float(d.mean()))
+            stacked = concat_features(f)
+            for k, target in enumerate(self.targets):
+                d = nnfm_loss(stacked, target, reduction="none")[0]
+                per_style_full[k, i] = float(d.mean())
+                w = None if coverage is None else feature_weights(
+                    torch.as_tensor(np.asarray(coverage[i], np.float32)), d.shape)
+                per_style[k, i] = float(weighted_mean(d[None, None], w))
             if coverage is not None:
-                w = feature_weights(torch.as_tensor(np.asarray(coverage[i], np.float32)), d.shape)
-                nnfm.append(float(weighted_mean(d[None, None], w)))
                 pixels.append(img.reshape(-1, 3)[np.asarray(coverage[i]).reshape(-1) > 0.5])
             else:
-                nnfm.append(float(d.mean()))
                 pixels.append(img.reshape(-1, 3))
             content.append(float(content_loss(f, g)))
         covered = np.concatenate(pixels) if sum(len(p) for p in pixels) > 1 else np.zeros((2, 3))
-        colour = colour_stats_distance(covered, self.style)
-        return {"nnfm": float(np.mean(nnfm)), "nnfm_full": float(np.mean(nnfm_full)),
-                "content": float(np.mean(content)), "colour": colour}
+        colour = colour_stats_distance(covered, self.style if len(self.styles) == 1 else self.palette)
+        shares = np.asarray(self.weights)[:, None]
+        out = {"nnfm": float((shares * per_style).sum(0).mean()),
+               "nnfm_full": float((shares * per_style_full).sum(0).mean()),
+               "content": float(np.mean(content)), "colour": colour}
+        if len(self.styles) > 1:
+            out["nnfm_styles"] = [float(v) for v in per_style.mean(1)]
+        return out

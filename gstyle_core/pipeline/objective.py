@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict
 
 import numpy as np
@@ -43,7 +44,9 @@ class StyleObjective:
     """λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV on a render [H, W, 3] of one view.
 
     The style image is resized so that its longer side is ``style_scale`` × max(64, working width), clamped to
-    16-1024 px: the scale at which brush strokes are matched (``style_side``). With
+    16-1024 px: the scale at which brush strokes are matched (``style_side``). ``style`` may be a list of paintings
+    mixed with the settings' ``style_weights`` (``style/mix.py``: every style term is the weighted sum of its terms
+    against each painting; ``set_style_weights`` changes the mix without re-extracting anything). With
     ``keep_colours`` the networks see luminance only (render, content view and painting as grey images;
     ``style/keep_colours.py``).
     CLIP ViT-B/32 is used when its weights are found; otherwise the documented coarse-VGG substitute
@@ -53,7 +56,7 @@ class StyleObjective:
     luminance_networks = True  # keep colours: networks see luminance (False: colour, chroma restored only; the
     # variant bench/keep_colours.py compares)
 
-    def __init__(self, style: np.ndarray, settings: StylizeSettings, vgg=None) -> None:
+    def __init__(self, style: np.ndarray | Sequence[np.ndarray], settings: StylizeSettings, vgg=None) -> None:
         from ..style.losses import StyleLoss
         from ..style.vgg import load_vgg
 
@@ -62,7 +65,7 @@ class StyleObjective:
             vgg = load_vgg(settings.vgg_weights, dtype=dtype, channels_last=dtype == torch.bfloat16)
         self.vgg = vgg
         self.vgg_status = f"VGG-16 weights from {getattr(vgg, 'weights_source', 'the caller')}"
-        self._style = style
+        self._styles = [style] if isinstance(style, np.ndarray) else list(style)
         self._settings = settings
         self._clip_encoder = None
         self._built_for: tuple[bool, float] | None = None
@@ -73,28 +76,41 @@ class StyleObjective:
         self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
         self._boxes: dict[tuple[int, tuple[int, ...]], tuple[slice, slice] | None] = {}
 
-    def _style_input(self) -> np.ndarray:
-        """The painting as the networks see it: its luminance as grey with keep colours, else as it is."""
+    def _style_input(self, style: np.ndarray) -> np.ndarray:
+        """A painting as the networks see it: its luminance as grey with keep colours, else as it is."""
         from ..style.keep_colours import grey
 
-        return grey(np.asarray(self._style, np.float32)) if self._luminance_only() else self._style
+        return grey(np.asarray(style, np.float32)) if self._luminance_only() else style
+
+    def _style_weights(self) -> tuple[float, ...] | None:
+        """The paintings' weights (None for one painting)."""
+        from ..style.mix import normalise_style_weights
+
+        if len(self._styles) == 1:
+            return None
+        return normalise_style_weights(self._settings.style_weights, len(self._styles))
 
     def _luminance_only(self) -> bool:
         return bool(self._settings.keep_colours) and self.luminance_networks
 
     def _build_style_target(self) -> None:
         """Resize the painting for the current stroke size and extract its VGG features (the NNFM candidates)."""
-        from ..style.losses import StyleTarget
+        from ..style.losses import StyleTarget, WeightedTargets
 
         s = self._settings
         side, clamped = style_side(s.working_width, s.style_scale)
-        self._style_small = to_bchw(resize_long_side(self._style_input(), side))
-        self.target = StyleTarget.from_image(self.vgg, self._style_small)
-        h, w = self._style_small.shape[-2:]
+        self._styles_small = [to_bchw(resize_long_side(self._style_input(style), side)) for style in self._styles]
+        self._style_small = self._styles_small[0]
+        targets = [StyleTarget.from_image(self.vgg, small) for small in self._styles_small]
+        weights = self._style_weights()
+        self.target = targets[0] if weights is None else WeightedTargets(targets, weights)
+        sizes = " and ".join(f"{small.shape[-1]}×{small.shape[-2]}" for small in self._styles_small)
         limits = f" (clamped to {MIN_STYLE_SIDE}-{MAX_STYLE_SIDE} px)" if clamped else ""
-        self.style_note = (f"painting matched at {w}×{h} px{limits}: stroke size {s.style_scale:g} × the working "
-                           f"width; {self.target.matrix.shape[1]:,} feature vectors"
-                           + ("; luminance only (keep colours)" if self._luminance_only() else ""))
+        vectors = sum(t.matrix.shape[1] for t in targets)
+        self._matched_note = (f"matched at {sizes} px{limits}: stroke size {s.style_scale:g} × the working width; "
+                              f"{vectors:,} feature vectors"
+                              + ("; luminance only (keep colours)" if self._luminance_only() else ""))
+        self._write_style_note()
         self._built_for = (bool(s.keep_colours), float(s.style_scale))
 
     def refresh_style(self) -> bool:
@@ -102,6 +118,7 @@ class StyleObjective:
         settings' ``style_scale`` or ``keep_colours`` changed since they were built; True when they were."""
         s = self._settings
         if self._built_for == (bool(s.keep_colours), float(s.style_scale)):
+            self.set_style_weights()
             return False
         colours_changed = self._built_for is None or self._built_for[0] != bool(s.keep_colours)
         self._build_style_target()
@@ -116,6 +133,25 @@ class StyleObjective:
             self._content_cache.clear()
         return True
 
+    def set_style_weights(self) -> None:
+        """Apply the settings' ``style_weights`` to the NNFM targets and the CLIP term (nothing is re-extracted)."""
+        from ..style.losses import WeightedTargets
+
+        weights = self._style_weights()
+        if weights is None:
+            return
+        if isinstance(self.target, WeightedTargets):
+            self.target.weights = weights
+        if self.loss.clip_term is not None and hasattr(self.loss.clip_term, "set_style_weights"):
+            self.loss.clip_term.set_style_weights(weights)
+        self._write_style_note()
+
+    def _write_style_note(self) -> None:
+        weights = self._style_weights()
+        mixed = "painting" if weights is None else (
+            f"{len(weights)} paintings mixed {' / '.join(f'{w:.2f}' for w in weights)}, each")
+        self.style_note = f"{mixed} {self._matched_note}"
+
     def clear_content_cache(self) -> None:
         """Forget the content views' features (the engine changed its content targets)."""
         self._content_cache.clear()
@@ -128,10 +164,12 @@ class StyleObjective:
         if self._clip_encoder is None:
             encoder, self.clip_status = load_clip(self._settings.clip_weights)
             self._clip_encoder = encoder if encoder is not None else False
+        weights = self._style_weights()
         if self._clip_encoder is False:
-            return CoarseStyleLoss(self.vgg, self._style_small)
-        return ClipStyleLoss(self._clip_encoder, to_bchw(resize_long_side(self._style_input(), 448)),
-                             generator=torch.Generator().manual_seed(self._settings.seed))
+            return CoarseStyleLoss(self.vgg, self._styles_small, style_weights=weights)
+        return ClipStyleLoss(self._clip_encoder, [to_bchw(resize_long_side(self._style_input(style), 448))
+                                                  for style in self._styles],
+                             generator=torch.Generator().manual_seed(self._settings.seed), style_weights=weights)
 
     @property
     def calls(self) -> dict[str, int]:

@@ -36,6 +36,8 @@ class StylizeSettings:
     working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
     style_scale: float = 1.0  # stroke size: the painting is matched at this × the working width (objective.py)
     keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
+    style_weights: tuple[float, ...] = ()  # several paintings: their weights (style/mix.py; the engine normalises
+    # them to sum 1; empty: equal shares)
     epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
     min_steps: int = 0
     lr_start: float = 1e-1
@@ -171,6 +173,11 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         raise ValueError(f"strength must be 0 or more, got {s.strength}")
     check_style_scale(s.style_scale)
     s.keep_colours = bool(s.keep_colours)
+    s.style_weights = tuple(float(w) for w in s.style_weights)
+    if s.style_weights:  # the count is checked by the engine, which knows how many paintings there are
+        from ..style.mix import normalise_style_weights
+
+        normalise_style_weights(s.style_weights, len(s.style_weights))
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
     return s
@@ -190,8 +197,9 @@ def check_style_scale(scale: float) -> float:
 
 def ui_params(settings: StylizeSettings) -> dict[str, float]:
     """The values ``Stylizer.set_params`` accepts (λ weights, strength, split rate, starting lr, style scale, keep
-    colours as 0/1) for ``settings``."""
+    colours as 0/1, style mix: the last painting's weight, 0 with one painting) for ``settings``."""
     w = settings.weights
+    mix = settings.style_weights[-1] / sum(settings.style_weights) if len(settings.style_weights) > 1 else 0.0
     return {"lambda_clip": w.clip, "lambda_nnfm": w.nnfm, "lambda_content": w.content, "lambda_tv": w.tv,
             "strength": settings.strength, "split_rate": settings.split_rate, "lr": settings.lr_start,
-            "style_scale": settings.style_scale, "keep_colours": float(settings.keep_colours)}
+            "style_scale": settings.style_scale, "keep_colours": float(settings.keep_colours), "style_mix": mix}

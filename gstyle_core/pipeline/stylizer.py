@@ -26,6 +26,9 @@ painting's luminance pattern. Turned on mid-run, c_s takes c_gt's chroma at once
 matched again; turned off, c_s keeps its colours and from then on the painting's colours are matched again (the
 finish colour-matches them fully). Stroke size (``settings.style_scale``): the painting is matched at that × the
 working width; changed mid-run, its features are extracted again before the next step (``objective.py``).
+Several paintings (``style`` a list, ``settings.style_weights``, ``style/mix.py``): every style term is the weighted
+sum of its terms against each painting and the colour matches map onto the weighted palette; a mix changed mid-run
+(``set_params(style_mix=...)``) re-matches the content targets and re-weights the terms from the next step.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -49,6 +53,8 @@ from ..raster import ColourCache, ColourCacheStore
 from ..raster.sh import used_sh_degree
 from ..scene import GaussianScene, rgb_to_sh_dc, sh_dc_to_rgb
 from ..style.clip import CLIP_OFF, clip_status, clip_term_name
+from ..style.colour_match import Palette
+from ..style.mix import normalise_style_weights, weights_with_mix
 from .preprocess import ElongationClampStrategy, evenness_verdict, flat_split_mask, size_evenness
 from .scene_box import SCENE_BOX_MARGIN_PX, box_fraction, scene_box
 from .settings import StylizeSettings, ui_params
@@ -95,7 +101,7 @@ class Stylizer:
         self,
         scene: GaussianScene,
         cameras: list[Camera],
-        style: np.ndarray,
+        style: np.ndarray | Sequence[np.ndarray],
         settings: StylizeSettings,
         *,
         objective_factory=None,
@@ -113,7 +119,11 @@ class Stylizer:
         self.full_cameras = [cameras[i] for i in view_ids]
         self.photos = [photos[i] for i in view_ids] if photos is not None else None
         self.cameras = [c.resized_to_width(settings.working_width) for c in self.full_cameras]
-        self.style = np.asarray(style, np.float32)
+        # one painting, or several mixed with settings.style_weights (style/mix.py)
+        self.styles = [np.asarray(s, np.float32) for s in ([style] if isinstance(style, np.ndarray) else style)]
+        settings.style_weights = normalise_style_weights(settings.style_weights, len(self.styles))
+        self.style = self.styles[0]
+        self._palettes = [Palette.of(s) for s in self.styles]
         # Stylization keeps only the diffuse colour: geometry + c_gt (sh_dc) in params, c_s apart.
         self.params = params_from_scene(scene.with_sh_degree(0))
         self.c_s = torch.zeros((scene.count, 3))
@@ -192,8 +202,9 @@ class Stylizer:
 
     def set_params(self, **kw: float) -> None:
         """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), strength, split_rate, lr,
-        style_scale or keep_colours (next step on); a term whose weight turns non-zero is built then."""
-        known = {"split_rate", "lr", "strength", "style_scale", "keep_colours"} | {
+        style_scale, keep_colours or style_mix (the last painting's weight when several are mixed; the others share
+        the rest) from the next step on; a term whose weight turns non-zero is built then."""
+        known = {"split_rate", "lr", "strength", "style_scale", "keep_colours", "style_mix"} | {
             f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
         unknown = set(kw) - known
         if unknown:
@@ -213,30 +224,38 @@ class Stylizer:
             self._note_loss_terms()
         if kw.get("split_rate") is not None:
             self.settings.split_rate = float(kw["split_rate"])
-        self._set_style_controls(kw.get("style_scale"), kw.get("keep_colours"))
+        self._set_style_controls(kw.get("style_scale"), kw.get("keep_colours"), kw.get("style_mix"))
         if kw.get("lr") is not None:
             ratio = self.settings.lr_end / self.settings.lr_start
             self.settings.lr_start = float(kw["lr"])
             self.settings.lr_end = float(kw["lr"]) * ratio
 
-    def _set_style_controls(self, scale: float | None, keep: float | bool | None) -> None:
-        """Stroke size and keep colours, mid-run too (see the module docstring for what each does then)."""
+    def _set_style_controls(self, scale: float | None, keep: float | bool | None, mix: float | None = None) -> None:
+        """Stroke size, keep colours and the style mix, mid-run too (the module docstring says what each does
+        then)."""
         from .settings import check_style_scale
 
         s = self.settings
         if scale is not None:
             s.style_scale = check_style_scale(scale)
+        mix_changed = False
+        if mix is not None and len(self.styles) > 1:
+            weights = weights_with_mix(s.style_weights, float(mix))
+            mix_changed = not np.allclose(weights, s.style_weights, rtol=0, atol=1e-9)
+            s.style_weights = weights
+        elif mix is not None and float(mix) != 0.0:
+            raise ValueError("the style mix needs a second style image")
         keep_changed = keep is not None and bool(keep) != s.keep_colours
         if keep_changed:
             s.keep_colours = bool(keep)
-            if self.content_images:  # past the colour match: new content targets, c_s takes c_gt's chroma
-                self._match_content_targets()
-                if s.keep_colours:
-                    self._restore_chroma()
-                    self.colour_version += 1
+        if (keep_changed or mix_changed) and self.content_images:  # past the colour match: new content targets
+            self._match_content_targets()
+            if keep_changed and s.keep_colours:  # c_s takes c_gt's chroma
+                self._restore_chroma()
+                self.colour_version += 1
         if hasattr(self._objective, "refresh_style"):  # test objectives may have no style features
             self._objective.refresh_style()
-        if keep_changed and hasattr(self._objective, "clear_content_cache"):
+        if (keep_changed or mix_changed) and hasattr(self._objective, "clear_content_cache"):
             self._objective.clear_content_cache()
         self._note_style()
 
@@ -247,6 +266,15 @@ class Stylizer:
         self.decisions["colours"] = (
             "kept (keep colours): luminance-only colour match and networks, chroma of c_gt restored after every step"
             if self.settings.keep_colours else "the painting's (full colour match before and after stylization)")
+        if len(self.styles) > 1:
+            shares = " / ".join(f"{w:.2f}" for w in self.settings.style_weights)
+            self.decisions["styles"] = (f"{len(self.styles)} paintings mixed {shares}: each style term is the weighted "
+                                        f"sum of its terms against each painting, the colour matches map onto the "
+                                        f"weighted palette")
+
+    def style_input(self) -> np.ndarray | list[np.ndarray]:
+        """What objectives are built from: the painting, or the list of paintings of a mix."""
+        return self.style if len(self.styles) == 1 else list(self.styles)
 
     def current_params(self) -> dict[str, float]:
         """The values ``set_params`` accepts, as they are now (for UIs to show)."""
@@ -512,7 +540,7 @@ class Stylizer:
         from ..style.keep_colours import luminance_transfer_matrix
 
         match = luminance_transfer_matrix if self.settings.keep_colours else colour_transfer_matrix
-        return match(content_pixels, self.style.reshape(-1, 3))
+        return match(content_pixels, Palette.mixture(self._palettes, self.settings.style_weights))
 
     def _match_content_targets(self) -> tuple[np.ndarray, np.ndarray]:
         """Colour-match the ground truth to the style: sets ``colour_transform`` and the content targets."""
@@ -567,9 +595,9 @@ class Stylizer:
             if self._objective_factory is None:
                 from .objective import StyleObjective
 
-                self._objective = StyleObjective(self.style, self.settings)
+                self._objective = StyleObjective(self.style_input(), self.settings)
             else:
-                self._objective = self._objective_factory(self.style, self.settings)
+                self._objective = self._objective_factory(self.style_input(), self.settings)
             self._note_networks()
             self._note_style()
             gen, saved = objective_generator(self._objective), getattr(self, "_objective_rng", None)
@@ -799,6 +827,8 @@ class Stylizer:
             self._start_colour_optimiser(self._seen())
             self._opt.load_state_dict(state["adam"])
         saved = state.get("settings") or {}
+        if len(saved.get("style_weights") or ()) == len(self.styles) > 1:  # the mix as it was (content targets too)
+            self.settings.style_weights = normalise_style_weights(saved["style_weights"], len(self.styles))
         self._set_style_controls(saved.get("style_scale"), saved.get("keep_colours"))  # a resumed run keeps them
         self._trainer = None
         self._refit_left = state["refit_left"]

@@ -30,7 +30,7 @@ import glob
 import math
 import os
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import torch
@@ -280,13 +280,16 @@ def spherical_distance(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 
 class ClipStyleLoss(nn.Module):
-    """Mean spherical distance between CLIP embeddings of random render crops and of the style image."""
+    """Mean spherical distance between CLIP embeddings of random render crops and of the style image; for several
+    paintings (``style_image`` a list, ``style_weights`` summing to 1) the weighted sum of the distances to each
+    painting's embedding (the render is embedded once)."""
 
     network = "clip"
     label = "CLIP ViT-B/32"
 
-    def __init__(self, encoder: ClipVisionEncoder, style_image: torch.Tensor, n_crops: int = 16,
-                 generator: torch.Generator | None = None) -> None:
+    def __init__(self, encoder: ClipVisionEncoder, style_image: torch.Tensor | Sequence[torch.Tensor],
+                 n_crops: int = 16, generator: torch.Generator | None = None,
+                 style_weights: Sequence[float] | None = None) -> None:
         super().__init__()
         self.encoder = encoder.eval().requires_grad_(False)
         self.n_crops = n_crops
@@ -294,9 +297,21 @@ class ClipStyleLoss(nn.Module):
         self.input_size = encoder.image_size
         self.register_buffer("mean", torch.tensor(CLIP_MEAN).view(1, 3, 1, 1), persistent=False)
         self.register_buffer("std", torch.tensor(CLIP_STD).view(1, 3, 1, 1), persistent=False)
-        style = _as_batch(style_image)
+        styles = _style_list(style_image)
         with torch.no_grad():
-            self.register_buffer("style_embedding", self.embed(resize_short_side_center_crop(style, self.input_size)))
+            embeddings = torch.cat([self.embed(resize_short_side_center_crop(_as_batch(s), self.input_size))
+                                    for s in styles])
+        self.register_buffer("style_embeddings", embeddings, persistent=False)  # [K, 512]
+        self.set_style_weights(style_weights)
+
+    @property
+    def style_embedding(self) -> torch.Tensor:
+        """The (first) painting's embedding [1, 512]."""
+        return self.style_embeddings[:1]
+
+    def set_style_weights(self, weights: Sequence[float] | None) -> None:
+        """Weights of the paintings (None: one painting, weight 1)."""
+        self.style_weights = _checked_weights(weights, self.style_embeddings.shape[0])
 
     def embed(self, images: torch.Tensor) -> torch.Tensor:
         """Embeddings of [N,3,S,S] RGB [0,1] images."""
@@ -306,7 +321,9 @@ class ClipStyleLoss(nn.Module):
         render = _as_batch(render)
         crops = torch.cat([random_square_crops(render[i:i + 1], self.n_crops, self.input_size, self.generator)
                            for i in range(render.shape[0])])
-        return spherical_distance(self.embed(crops), self.style_embedding).mean()
+        embedded = self.embed(crops)
+        return torch.stack([w * spherical_distance(embedded, self.style_embeddings[k:k + 1]).mean()
+                            for k, w in enumerate(self.style_weights) if w > 0]).sum()
 
 
 class CoarseStyleLoss(nn.Module):
@@ -321,14 +338,27 @@ class CoarseStyleLoss(nn.Module):
     takes_coverage = True
     label = COARSE_LABEL
 
-    def __init__(self, vgg: Callable[[torch.Tensor], dict[str, torch.Tensor]], style_image: torch.Tensor,
-                 downsample: int = 4) -> None:
+    def __init__(self, vgg: Callable[[torch.Tensor], dict[str, torch.Tensor]],
+                 style_image: torch.Tensor | Sequence[torch.Tensor], downsample: int = 4,
+                 style_weights: Sequence[float] | None = None) -> None:
         super().__init__()
         self.vgg = vgg
         self.downsample = downsample
+        self.styles_stats = []  # per painting: {layer: (mean, std)}
         with torch.no_grad():
-            stats = self._statistics(_as_batch(style_image))
-        self.style_stats = {name: (m.detach(), s.detach()) for name, (m, s) in stats.items()}
+            for style in _style_list(style_image):
+                stats = self._statistics(_as_batch(style))
+                self.styles_stats.append({name: (m.detach(), s.detach()) for name, (m, s) in stats.items()})
+        self.set_style_weights(style_weights)
+
+    @property
+    def style_stats(self) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+        """The (first) painting's statistics per layer."""
+        return self.styles_stats[0]
+
+    def set_style_weights(self, weights: Sequence[float] | None) -> None:
+        """Weights of the paintings (None: one painting, weight 1)."""
+        self.style_weights = _checked_weights(weights, len(self.styles_stats))
 
     def _statistics(self, img: torch.Tensor, coverage: torch.Tensor | None = None
                     ) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
@@ -353,14 +383,34 @@ class CoarseStyleLoss(nn.Module):
 
     def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
         """Relative error of the render's feature statistics (over the scene: ``coverage`` [H,W] or [B,1,H,W]
-        weights each position; None: the whole frame) against the style image's."""
-        terms = []
-        for name, (mean, std) in self._statistics(_as_batch(render), coverage).items():
-            style_mean, style_std = self.style_stats[name]
-            error = ((mean - style_mean) ** 2).sum(-1) + ((std - style_std) ** 2).sum(-1)  # [B]
-            scale = (style_mean**2).sum(-1) + (style_std**2).sum(-1) + 1e-8
-            terms.append((error / scale).mean())
-        return torch.stack(terms).mean()
+        weights each position; None: the whole frame) against the style image's (several: weighted sum)."""
+        render_stats = self._statistics(_as_batch(render), coverage)
+        per_style = []
+        for weight, style_stats in zip(self.style_weights, self.styles_stats, strict=True):
+            if weight <= 0:
+                continue
+            terms = []
+            for name, (mean, std) in render_stats.items():
+                style_mean, style_std = style_stats[name]
+                error = ((mean - style_mean) ** 2).sum(-1) + ((std - style_std) ** 2).sum(-1)  # [B]
+                scale = (style_mean**2).sum(-1) + (style_std**2).sum(-1) + 1e-8
+                terms.append((error / scale).mean())
+            per_style.append(weight * torch.stack(terms).mean())
+        return torch.stack(per_style).sum()
+
+
+def _style_list(style_image: torch.Tensor | Sequence[torch.Tensor]) -> list[torch.Tensor]:
+    """One painting or several, as a list (a list of none is an error)."""
+    styles = [style_image] if isinstance(style_image, torch.Tensor) else list(style_image)
+    if not styles:
+        raise ValueError("no style image given")
+    return styles
+
+
+def _checked_weights(weights: Sequence[float] | None, n_styles: int) -> tuple[float, ...]:
+    from .mix import normalise_style_weights
+
+    return (1.0,) if weights is None and n_styles == 1 else normalise_style_weights(weights, n_styles)
 
 
 def _as_batch(img: torch.Tensor) -> torch.Tensor:

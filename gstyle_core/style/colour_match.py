@@ -11,6 +11,9 @@ Colour values beyond ±1e100 are rejected (their covariance would overflow float
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import numpy as np
 
 EIGEN_MIN = 1e-8
@@ -46,11 +49,47 @@ def colour_statistics(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mean, centred.T @ centred / pixels.shape[0]
 
 
-def colour_transfer_matrix(content_pixels: np.ndarray, style_pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(A [3,3], b [3]) in float64 such that A·c + b has the style's mean and covariance.
+@dataclass(frozen=True)
+class Palette:
+    """A style's colour statistics: mean [3] and population covariance [3,3] of its pixels (float64)."""
+
+    mean: np.ndarray
+    cov: np.ndarray
+
+    @classmethod
+    def of(cls, pixels: np.ndarray) -> Palette:
+        """The palette of an image or pixel set [..., 3] (non-finite pixels ignored)."""
+        return cls(*colour_statistics(_as_pixels(pixels, "style")))
+
+    @classmethod
+    def mixture(cls, palettes: Sequence[Palette], weights: Sequence[float]) -> Palette:
+        """The palette of the paintings mixed with ``weights`` (normalised here): the moments of the mixture of their
+        pixel distributions, μ = Σ w_i μ_i and Σ = Σ w_i (Σ_i + μ_i μ_iᵀ) − μ μᵀ, as if each painting gave
+        that share of the pixels."""
+        w = np.asarray(weights, np.float64)
+        if len(palettes) == 0 or len(w) != len(palettes) or not (np.isfinite(w).all() and (w >= 0).all()
+                                                                  and w.sum() > 0):
+            raise ValueError(f"a palette mixture needs one weight >= 0 per palette, not all 0; got {list(weights)}")
+        w = w / w.sum()
+        mean = sum(wi * p.mean for wi, p in zip(w, palettes, strict=True))
+        second = sum(wi * (p.cov + np.outer(p.mean, p.mean)) for wi, p in zip(w, palettes, strict=True))
+        cov = second - np.outer(mean, mean)
+        return cls(mean, (cov + cov.T) / 2)
+
+
+def style_palette(style: np.ndarray | Palette) -> Palette:
+    """``style`` as a :class:`Palette` (pixels [..., 3] or a palette already)."""
+    return style if isinstance(style, Palette) else Palette.of(style)
+
+
+def colour_transfer_matrix(content_pixels: np.ndarray, style_pixels: np.ndarray | Palette
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """(A [3,3], b [3]) in float64 such that A·c + b has the style's mean and covariance (``style_pixels``: the
+    painting's pixels [..., 3] or its :class:`Palette`, e.g. the weighted palette of two paintings).
     Non-finite pixels are ignored; empty inputs raise ``ValueError``."""
     mean_c, cov_c = colour_statistics(_as_pixels(content_pixels, "content"))
-    mean_s, cov_s = colour_statistics(_as_pixels(style_pixels, "style"))
+    palette = style_palette(style_pixels)
+    mean_s, cov_s = palette.mean, palette.cov
     transform = _symmetric_power(cov_s, 0.5) @ _symmetric_power(cov_c, -0.5)
     offset = mean_s - transform @ mean_c
     return transform, offset

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from .colour_match import Palette
+
 RGB_TO_YIQ = np.array([[0.299, 0.587, 0.114],
                        [0.595716, -0.274453, -0.321263],
                        [0.211456, -0.522591, 0.311135]])
@@ -60,14 +62,21 @@ def with_chroma_of(colours: torch.Tensor, reference: torch.Tensor) -> torch.Tens
     return (y + k * offset).clamp(0.0, 1.0)
 
 
-def luminance_transfer_matrix(content_pixels: np.ndarray, style_pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def luminance_transfer_matrix(content_pixels: np.ndarray, style_pixels: np.ndarray | Palette
+                              ) -> tuple[np.ndarray, np.ndarray]:
     """(A [3,3], b [3]) in float64 such that A·c + b has the style's luminance mean and std and c's chroma:
     c' = c + ((a − 1)·Y(c) + β)·(1, 1, 1) with a = σ_s / σ_c, β = μ_s − a·μ_c (σ_c floored at ``MIN_STD``).
+    ``style_pixels``: the painting's pixels or its ``Palette`` (μ_s = LUMA·μ, σ_s² = LUMAᵀ Σ LUMA).
     Same form as ``colour_match.colour_transfer_matrix``, so ``apply_colour_transform`` applies it."""
     yc = luminance(_finite(content_pixels, "content"))
-    ys = luminance(_finite(style_pixels, "style"))
-    a = max(float(ys.std()), MIN_STD) / max(float(yc.std()), MIN_STD)
-    beta = float(ys.mean()) - a * float(yc.mean())
+    if isinstance(style_pixels, Palette):
+        style_mean = float(LUMA @ style_pixels.mean)
+        style_std = float(np.sqrt(max(float(LUMA @ style_pixels.cov @ LUMA), 0.0)))
+    else:
+        ys = luminance(_finite(style_pixels, "style"))
+        style_mean, style_std = float(ys.mean()), float(ys.std())
+    a = max(style_std, MIN_STD) / max(float(yc.std()), MIN_STD)
+    beta = style_mean - a * float(yc.mean())
     ones = np.ones(3)
     return np.eye(3) + (a - 1.0) * np.outer(ones, LUMA), beta * ones
 

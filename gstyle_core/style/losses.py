@@ -99,6 +99,33 @@ class StyleTarget:
         return cls(normalise_vectors(style_feats.detach().flatten(1).float(), dim=0))
 
 
+class WeightedTargets:
+    """The style targets of several paintings with weights that sum to 1 (``style/mix.py``): NNFM against them is
+    Σ w_i · NNFM_i over one set of render features; a painting of weight 0 is skipped."""
+
+    def __init__(self, targets: Sequence[StyleTarget], weights: Sequence[float]) -> None:
+        if len(targets) != len(weights) or not targets:
+            raise ValueError(f"{len(weights)} weight(s) for {len(targets)} style target(s)")
+        self.targets = list(targets)
+        self.weights = tuple(float(w) for w in weights)
+
+    @property
+    def vector_count(self) -> int:
+        """Candidate feature vectors over all paintings."""
+        return sum(t.matrix.shape[1] for t in self.targets)
+
+
+def style_nnfm(render_feats: torch.Tensor, style: StyleTarget | WeightedTargets | torch.Tensor, chunk: int = 4096,
+               weights: torch.Tensor | None = None) -> torch.Tensor:
+    """NNFM against one painting (:func:`nnfm_loss`) or a mix of them (Σ w_i · NNFM_i, weight-0 paintings
+    skipped); ``weights`` are the feature positions' weights, as for :func:`nnfm_loss`."""
+    if not isinstance(style, WeightedTargets):
+        return nnfm_loss(render_feats, style, chunk, weights=weights)
+    terms = [w * nnfm_loss(render_feats, t, chunk, weights=weights)
+             for t, w in zip(style.targets, style.weights, strict=True) if w > 0]
+    return torch.stack(terms).sum() if terms else render_feats.new_zeros(())
+
+
 def feature_weights(coverage: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> torch.Tensor | None:
     """The scene's coverage (rendered alpha, [H,W], [1,H,W] or [B,1,H,W] in [0, 1]) averaged over each cell of a
     feature grid of ``size`` (h, w) → [B,1,h,w] weights; None stays None (every feature vector counts fully)."""
@@ -207,14 +234,15 @@ def resize_to_width(img: torch.Tensor, width: int | None) -> torch.Tensor:
 class StyleLoss(nn.Module):
     """The combined loss. ``forward(render [1,3,H,W], gt [1,3,H,W] | None) -> (total, {term: value})``.
 
-    ``vgg`` and ``style_target`` serve NNFM and content; ``clip_term`` is a :class:`ClipStyleLoss` or a
+    ``vgg`` and ``style_target`` (one painting's or a :class:`WeightedTargets` mix) serve NNFM and content;
+    ``clip_term`` is a :class:`ClipStyleLoss` or a
     :class:`CoarseStyleLoss` (or None: the CLIP weight must then be 0). ``working_width`` resizes the render
     (and gt) before the networks, like the reference's 1024-px stylization size; TV uses the full render.
     A render (or gt) with a side below ``MIN_VGG_SIDE`` px is stretched to it for VGG (no relu3 features otherwise).
     Terms with weight 0 are skipped entirely and reported as 0.
     """
 
-    def __init__(self, vgg: nn.Module | None, style_target: StyleTarget | None,
+    def __init__(self, vgg: nn.Module | None, style_target: StyleTarget | WeightedTargets | None,
                  clip_term: nn.Module | None = None, weights: StyleWeights | Mapping[str, float] | None = None,
                  working_width: int | None = None, nnfm_chunk: int = 4096) -> None:
         super().__init__()
@@ -269,7 +297,7 @@ class StyleLoss(nn.Module):
             stacked = concat_features(feats)
             grid = feature_weights(coverage, stacked.shape[-2:])
             if w.nnfm > 0:
-                terms["nnfm"] = nnfm_loss(stacked, self.style_target, self.nnfm_chunk, weights=grid)
+                terms["nnfm"] = style_nnfm(stacked, self.style_target, self.nnfm_chunk, weights=grid)
             if w.content > 0:
                 if gt_feats is None:
                     gt_feats = self.content_features(gt, small.shape[-2:])
