@@ -7,12 +7,14 @@ from typing import Any
 
 # ``gstyle stylize`` options the studio may set (engine_config keys); None keeps the preset's value.
 ENGINE_OPTIONS = ("defaults", "lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
-                  "style_scale", "keep_colours", "working_width", "clip_weights", "vgg_weights", "max_gaussians")
+                  "style_scale", "keep_colours", "working_width", "clip_weights", "vgg_weights", "max_gaussians",
+                  "style_weights")
 
 
-def make_stylizer(scene: str | None = None, style: str | None = None, cameras: str | None = None,
+def make_stylizer(scene: str | None = None, style: str | list[str] | None = None, cameras: str | None = None,
                   preset: str = "preview", scene_kind: str = "auto", **overrides: Any):
-    """``gstyle_core.pipeline.Stylizer`` for a scene/style/cameras, as ``gstyle stylize`` builds it."""
+    """``gstyle_core.pipeline.Stylizer`` for a scene/style/cameras, as ``gstyle stylize`` builds it (``style``: one
+    image path, or a list of paintings to mix with ``style_weights``)."""
     from gstyle_core.pipeline.cli import build_stylizer
 
     unknown = set(overrides) - set(ENGINE_OPTIONS)

@@ -21,11 +21,16 @@ def stylize_without_display(args: argparse.Namespace, width: int = 640) -> tuple
     parser = argparse.ArgumentParser()
     add_stylize_arguments(parser)
     argv = ["--preset", args.preset, "--out", str(out), "--force"]
-    for flag, value in (("--defaults", getattr(args, "defaults", None)), ("--style", args.style),
-                        ("--cameras", args.cameras), ("--vgg-weights", args.vgg_weights),
-                        ("--clip-weights", args.clip_weights)):
+    for flag, value in (("--defaults", getattr(args, "defaults", None)), ("--cameras", args.cameras),
+                        ("--vgg-weights", args.vgg_weights), ("--clip-weights", args.clip_weights)):
         if value:
             argv += [flag, str(value)]
+    styles = [args.style] if isinstance(args.style, str) else list(args.style or [])
+    for style in styles:
+        argv += ["--style", str(style)]
+    if len(styles) == 2:
+        mix = 0.5 if getattr(args, "style_mix", None) is None else float(args.style_mix)
+        argv += ["--style-weights", f"{1.0 - mix:g},{mix:g}"]
     if args.scene:
         argv.insert(0, str(args.scene))
     stylize_command(parser.parse_args(argv))

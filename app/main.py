@@ -32,7 +32,10 @@ def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
     p = argparse.ArgumentParser(prog="gstyle-studio", description="Live G-Style stylization viewer.")
     p.add_argument("scene", nargs="?", default=None, help="scene .ply/.splat/.spz (default: the bundled demo)")
-    p.add_argument("--style", default=None, help="style image (default: the bundled painting)")
+    p.add_argument("--style", action="append", default=None, metavar="IMAGE",
+                   help="style image (default: the bundled painting); twice: a second painting mixed in")
+    p.add_argument("--style-mix", type=float, default=None, metavar="M",
+                   help="with two --style: the second painting's share, 0-1 (default 0.5; the panel's style mix)")
     p.add_argument("--cameras", default=None, help="cameras (cameras.json, COLMAP/LLFF folder, .npz)")
     p.add_argument("--preset", choices=["preview", "balanced", "final"], default="preview")
     p.add_argument("--defaults", choices=["calibrated", "paper"], default=None,
@@ -65,6 +68,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.frames is not None and args.frames < 1:
         print("gstyle-studio: --frames must be at least 1", file=sys.stderr)
+        return 2
+    if args.style and len(args.style) > 2:
+        print("gstyle-studio: the studio mixes at most two paintings (gstyle stylize takes more)", file=sys.stderr)
+        return 2
+    if args.style_mix is not None and not 0.0 <= args.style_mix <= 1.0:
+        print(f"gstyle-studio: --style-mix must be between 0 and 1, got {args.style_mix}", file=sys.stderr)
         return 2
     try:
         return run(args)
@@ -122,12 +131,14 @@ def loop(window, args: argparse.Namespace) -> int:
     from gstyle_core.render_cli import DEFAULT_STYLE
 
     loaded = load_scene_with_cameras(args.scene, args.cameras)
-    style = args.style or (str(DEFAULT_STYLE) if Path(DEFAULT_STYLE).is_file() else None)
-    app = StudioApp(window.ctx, loaded=loaded, style_path=style,
+    styles = args.style or ([str(DEFAULT_STYLE)] if Path(DEFAULT_STYLE).is_file() else [None])
+    app = StudioApp(window.ctx, loaded=loaded, style_path=styles[0],
                     engine_factory=make_stylizer if engine_on else None,
                     engine_config={"cameras": args.cameras, "preset": args.preset, "defaults": args.defaults,
                                    "vgg_weights": args.vgg_weights, "clip_weights": args.clip_weights},
                     output_dir=args.output_dir, show_ui=not args.hide_ui)
+    if len(styles) > 1:
+        app.set_style(styles[1], slot=1, mix=args.style_mix)
     app.view_mode = args.view
     if args.camera:
         if not 1 <= args.camera <= len(app.cameras):

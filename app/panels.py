@@ -59,6 +59,10 @@ KEEP_COLOURS_TOOLTIP = (
     "match and networks on luminance; each Gaussian's own chroma restored after every step). Turned on mid-run the "
     "hues come back at once; turned off, the painting's colours are matched again from the next step and at the "
     "end (--keep-colours).")
+STYLE_MIX_TOOLTIP = (
+    "Share of the second painting: 0 is the first alone, 1 the second alone. Every style term is the weighted sum of "
+    "its terms against each painting, and the colours match the weighted palette; changed mid-run it applies from "
+    "the next step (--style A --style B --style-weights).")
 VIEW_TOOLTIPS = {
     "stylized": "The stylized scene as the engine has it now.",
     "original": "The input scene, with its view-dependent colour (SH) when it has any.",
@@ -87,6 +91,9 @@ class PanelState:
     style_path: str = ""
     style_texture: int | None = None  # GL texture id of the style thumbnail
     style_size: tuple[int, int] = (1, 1)
+    style2_path: str = ""  # a second painting mixed in (empty: one painting)
+    style2_texture: int | None = None
+    style2_size: tuple[int, int] = (1, 1)
     phase: str = "-"
     step: int = 0
     total_steps: int = 0
@@ -198,10 +205,36 @@ def _files_section(state: PanelState, out: list[Command]) -> None:
     if button("Open style...", "Open a style image (the painting); dropping it on the window works too."):
         out.append(Command("open_style"))
     imgui.text_wrapped(f"Style: {state.style_path or '(none)'}")
-    if state.style_texture is not None:
-        w, h = state.style_size
-        scale = 120.0 / max(w, h, 1)
-        imgui.image(imgui.ImTextureRef(state.style_texture), imgui.ImVec2(w * scale, h * scale))
+    _thumbnail(state.style_texture, state.style_size)
+    _second_style(state, out)
+
+
+def _thumbnail(texture: int | None, size: tuple[int, int], side: float = 120.0) -> None:
+    if texture is not None:
+        w, h = size
+        scale = side / max(w, h, 1)
+        imgui.image(imgui.ImTextureRef(texture), imgui.ImVec2(w * scale, h * scale))
+
+
+def _second_style(state: PanelState, out: list[Command]) -> None:
+    """The second painting of a mix: open / remove it, its thumbnail and the mix slider."""
+    if not state.style2_path:
+        if button("Mix in a second style...", "Open a second painting to mix with the first (both their strokes, "
+                                              "the weighted palette; the mix slider sets the shares)."):
+            out.append(Command("open_style2"))
+        return
+    imgui.same_line()
+    _thumbnail(state.style2_texture, state.style2_size, 60.0)
+    imgui.text_wrapped(f"Second style: {state.style2_path}")
+    imgui.set_next_item_width(150)
+    mix = float(state.params.get("style_mix", 0.5))
+    changed, mix = imgui.slider_float("style mix", mix, 0.0, 1.0, "%.2f")
+    tooltip(STYLE_MIX_TOOLTIP)
+    if changed:
+        out.append(Command("set_params", {"style_mix": float(min(max(mix, 0.0), 1.0))}))
+    imgui.same_line()
+    if button("remove", "Back to the first painting alone (restarts the stylization).", small=True):
+        out.append(Command("remove_style2"))
 
 
 def _progress_section(state: PanelState, out: list[Command]) -> None:

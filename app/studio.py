@@ -92,7 +92,7 @@ class StudioApp:
         self._dragging: str | None = None
         self._last_mouse: tuple[float, float] | None = None
         self._scene_fbo: moderngl.Framebuffer | None = None
-        self._style_texture: moderngl.Texture | None = None
+        self._style_textures: list[moderngl.Texture | None] = [None, None]  # thumbnails of the first and second style
         self._dialog: tuple[str, Any] | None = None
         self._frame_times: list[float] = []
         self._last_frame = time.perf_counter()
@@ -148,7 +148,7 @@ class StudioApp:
             kind = classify_scene_kind(self.cameras)
         preset = self.engine_config.get("preset") or "preview"
         keys = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate", "style_scale",
-                "keep_colours")
+                "keep_colours", "style_weights")
         overrides = {k: self.engine_config.get(k) for k in keys} if with_overrides else {}
         overrides["clip_weights"] = self.engine_config.get("clip_weights")  # CLIP or not sets 360° λ_CLIP
         try:
@@ -169,20 +169,50 @@ class StudioApp:
         else:
             self.control.frame(centre, radius)
 
-    def set_style(self, path: str) -> None:
-        """Use a new style image: thumbnail in the panel, engine restarted with it."""
+    def set_style(self, path: str, slot: int = 0, mix: float | None = None) -> None:
+        """Use a new style image (``slot`` 0: the painting; 1: a second painting mixed in with the mix slider, at
+        ``mix``, by default the slider's value or an even mix): thumbnail in the panel; the caller restarts the
+        engine with it."""
         from gstyle_core.images import load_style_image
 
         rgb = load_style_image(path)
         thumb = np.ascontiguousarray((np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8))
-        if self._style_texture is not None:
-            self._style_texture.release()
+        self._release_style_texture(slot)
         h, w = thumb.shape[:2]
-        self._style_texture = self.ctx.texture((w, h), 3, thumb.tobytes(), alignment=1)
-        self.panel.style_texture = self._style_texture.glo
-        self.panel.style_size = (w, h)
-        self.panel.style_path = str(path)
-        self.engine_config["style"] = str(path)
+        texture = self.ctx.texture((w, h), 3, thumb.tobytes(), alignment=1)
+        self._style_textures[slot] = texture
+        if slot == 0:
+            self.panel.style_texture, self.panel.style_size, self.panel.style_path = texture.glo, (w, h), str(path)
+        else:
+            self.panel.style2_texture, self.panel.style2_size, self.panel.style2_path = texture.glo, (w, h), str(path)
+            if mix is not None:
+                self.panel.params["style_mix"] = float(mix)
+            elif not self.panel.params.get("style_mix"):  # a new second painting starts at an even mix
+                self.panel.params["style_mix"] = 0.5
+        self._update_style_config()
+
+    def remove_second_style(self) -> None:
+        """Back to one painting (the caller restarts the engine)."""
+        self._release_style_texture(1)
+        self.panel.style2_texture, self.panel.style2_path = None, ""
+        self.panel.params["style_mix"] = 0.0
+        self._update_style_config()
+
+    def _release_style_texture(self, slot: int) -> None:
+        if self._style_textures[slot] is not None:
+            self._style_textures[slot].release()
+            self._style_textures[slot] = None
+
+    def _update_style_config(self) -> None:
+        """The engine config's style: the painting's path, or both paths with their weights (the mix slider)."""
+        p = self.panel
+        if p.style2_path and p.style_path:
+            mix = float(p.params.get("style_mix", 0.5))
+            self.engine_config["style"] = [p.style_path, p.style2_path]
+            self.engine_config["style_weights"] = (1.0 - mix, mix)
+        else:
+            self.engine_config["style"] = p.style_path or None
+            self.engine_config.pop("style_weights", None)
 
     def session_checkpoint(self) -> Path | None:
         """Where the session of this scene + style is saved when the studio closes (cache folder), or None."""
@@ -408,8 +438,15 @@ class StudioApp:
             self.start_engine(resume=True)
         elif name == "set_params":
             self.panel.params.update(args)
+            if "style_mix" in args and self.panel.style2_path:  # a restarted engine keeps the mix
+                self._update_style_config()
             if bridge is not None:
                 bridge.set_params(**args)
+        elif name == "remove_style2":
+            self.remove_second_style()
+            self.panel.status = "back to one painting"
+            if bridge is not None:
+                self.start_engine()
         elif name == "view_mode":
             self.view_mode = args["mode"]
         elif name == "fov":
@@ -435,7 +472,7 @@ class StudioApp:
             self.panel.turntable_format = str(args.get("format", self.panel.turntable_format))
         elif name == "cancel_video" and self.video_job is not None:
             self.video_job.cancel()
-        elif name in ("open_scene", "open_style"):
+        elif name in ("open_scene", "open_style", "open_style2"):
             self._open_dialog(name)
 
     def export(self, path: str | Path | None = None, fmt: str = "ply") -> None:
@@ -506,14 +543,15 @@ class StudioApp:
             if len(paths) > 1:
                 self.panel.status += f" ({len(paths) - 1} more dropped file(s) ignored)"
 
-    def open_path(self, path: str) -> None:
-        """Open a dropped or chosen file: a scene (.ply/.splat/.spz) or a style image."""
+    def open_path(self, path: str, style_slot: int = 0) -> None:
+        """Open a dropped or chosen file: a scene (.ply/.splat/.spz) or a style image (``style_slot`` 1: as the second
+        painting of a mix)."""
         suffix = Path(path).suffix.lower()
         try:
-            if suffix in SCENE_SUFFIXES:
+            if suffix in SCENE_SUFFIXES and style_slot == 0:
                 self.set_scene(load_scene_with_cameras(path, None))
             elif suffix in IMAGE_SUFFIXES:
-                self.set_style(path)
+                self.set_style(path, style_slot)
             else:
                 self.panel.status = f"not a scene or image: {Path(path).name}"
                 return
@@ -533,16 +571,17 @@ class StudioApp:
         if kind == "open_scene":
             dialog = pfd.open_file("Open scene", "", ["Gaussian scenes", "*.ply *.splat *.spz"])
         else:
-            dialog = pfd.open_file("Open style image", "", ["Images", "*.png *.jpg *.jpeg *.webp *.bmp"])
+            title = "Open second style image" if kind == "open_style2" else "Open style image"
+            dialog = pfd.open_file(title, "", ["Images", "*.png *.jpg *.jpeg *.webp *.bmp"])
         self._dialog = (kind, dialog)
 
     def _poll_dialog(self) -> None:
         if self._dialog is None or not self._dialog[1].ready(0):
             return
-        _kind, dialog = self._dialog
+        kind, dialog = self._dialog
         self._dialog = None
         for path in dialog.result()[:1]:
-            self.open_path(path)
+            self.open_path(path, style_slot=1 if kind == "open_style2" else 0)
 
     # ----------------------------------------------------------------- output
     def save_png(self, path: str | Path, rgb: np.ndarray) -> Path:

@@ -113,6 +113,8 @@ class _EngineHost:
     def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
         if config is not None:
             self.config = config
+            for key in PAINTING_PARAMS:  # a new config's paintings come with their own mix (its style_weights)
+                self.params.pop(key, None)
         self.engine, self.done, self.failed = None, False, False
         self.sent_geometry_version = object()
         self.sent_decisions = None
@@ -230,7 +232,7 @@ class _EngineHost:
             self.send("error", "export: no engine is running")
             return
         try:
-            written = export_engine(self.engine, Path(path), self.last_report, self.params)
+            written = export_engine(self.engine, Path(path), self.last_report, self.params, self.config.get("style"))
         except Exception as exc:  # noqa: BLE001
             self.send("error", f"export: {one_line_error(exc)}")
             return
@@ -273,9 +275,10 @@ class _EngineHost:
 EXPORT_FORMATS = ("ply", "spz", "compressed-ply")  # what the studio exports (the web formats for web viewers)
 
 
-def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, params: dict[str, float]) -> str:
+def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, params: dict[str, float],
+                  style: str | list[str] | None = None) -> str:
     """Save the stylized scene as .ply, .spz or .compressed.ply (``gstyle_core.io.save_scene``) and a JSON summary
-    beside it (``name.json``)."""
+    beside it (``name.json``; ``style``: the engine's painting path(s), named there with their weights)."""
     from gstyle_core.atomic import atomic_write_text
     from gstyle_core.errors import GStyleError
     from gstyle_core.io import save_scene
@@ -290,7 +293,8 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
         snap = engine.snapshot()
         scene = GaussianScene(*(snap[k] for k in GEOMETRY_FIELDS), rgb_to_sh_dc(snap["colors"]))
     save_scene(scene, path)
-    summary = {"scene": str(path), "gaussians": scene.count, "report": last_report, "params": params,
+    summary = {"scene": str(path), "gaussians": scene.count, "styles": style_entries(engine, style),
+               "report": last_report, "params": params,
                "decisions": getattr(engine, "decisions", None),
                "settings": engine.settings.to_dict() if hasattr(getattr(engine, "settings", None), "to_dict")
                else None}
@@ -299,6 +303,16 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
     return str(path)
 
 
+def style_entries(engine: Any, style: str | list[str] | None) -> list[dict[str, Any]]:
+    """[{"path", "weight"}] for the engine's paintings (weights from its settings; equal when it has none)."""
+    paths = [style] if isinstance(style, str) else list(style or [])
+    weights = list(getattr(getattr(engine, "settings", None), "style_weights", ()) or [])
+    if len(weights) != len(paths):
+        weights = [1.0 / len(paths)] * len(paths) if paths else []
+    return [{"path": str(p), "weight": round(float(w), 6)} for p, w in zip(paths, weights, strict=True)]
+
+
+PAINTING_PARAMS = ("style_mix",)  # engine params that belong to the config's paintings, not carried to a new one
 WORKER_NICE = 10  # default niceness increment of the worker process (env GSTYLE_WORKER_NICE overrides it)
 
 

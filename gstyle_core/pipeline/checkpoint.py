@@ -56,10 +56,11 @@ def stylize_checkpoint_path(out: str | Path) -> Path:
     return checkpoints_dir() / f"stylize-{_slug(target.stem)}-{_digest(str(target))}{SUFFIX}"
 
 
-def studio_checkpoint_path(scene: str | Path, style: str | Path | None) -> Path:
-    """Checkpoint of a studio session: keyed by the absolute scene and style paths."""
+def studio_checkpoint_path(scene: str | Path, style: str | Path | list[str] | None) -> Path:
+    """Checkpoint of a studio session: keyed by the absolute scene and style paths (a mix: all its paintings)."""
     scene_abs = str(Path(scene).expanduser().resolve())
-    style_abs = str(Path(style).expanduser().resolve()) if style else ""
+    styles = [style] if isinstance(style, (str, Path)) else list(style or [])
+    style_abs = "|".join(str(Path(s).expanduser().resolve()) for s in styles)
     return checkpoints_dir() / f"studio-{_slug(Path(scene).stem)}-{_digest(scene_abs, style_abs)}{SUFFIX}"
 
 
