@@ -9,9 +9,10 @@ from typing import Any
 import numpy as np
 from imgui_bundle import imgui
 
-VIEW_MODES = ("stylized", "original", "compare", "ground truth")
+VIEW_MODES = ("stylized", "original", "compare", "ground truth", "take")
 TURNTABLE_FORMATS = ("mp4", "gif", "png frames")
 MAX_TURNTABLE_FRAMES = 3600
+PANEL_WIDTH = 330.0
 
 
 @dataclass(frozen=True)
@@ -68,11 +69,12 @@ VIEW_TOOLTIPS = {
     "original": "The input scene, with its view-dependent colour (SH) when it has any.",
     "compare": "Stylized left, original right; drag the white divider (C toggles).",
     "ground truth": "The colours the stylization is compared against (available once the engine sent them).",
+    "take": "The take chosen under Takes (an earlier export), alone.",
 }
 
 HELP_TEXT = """Mouse: left drag orbit, right drag pan, wheel zoom. W/A/S/D/Q/E fly.
-Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view
-Ctrl+S export .ply   F12 screenshot   H this help"""
+Space pause/resume   C compare   T compare with the next take (your exports)   R reset view
+1-9 scene cameras (all: the camera list)   Ctrl+S export .ply   F12 screenshot   H this help"""
 
 
 @dataclass
@@ -124,6 +126,11 @@ class PanelState:
     video_running: bool = False  # a turntable video is being rendered in the background
     video_fraction: float = 0.0
     video_label: str = ""
+    take_names: list[str] = field(default_factory=list)  # the last exports kept as takes, newest first
+    take_labels: list[str] = field(default_factory=list)
+    take_shown: int = -1  # the take loaded in the take view (-1: none)
+    compare_with_take: bool = False  # the compare view's right side is that take (else the original)
+    divider: float = 0.5  # the compare view's split, fraction of the width
 
 
 def shortcut_commands(state: PanelState) -> list[Command]:
@@ -145,6 +152,9 @@ def shortcut_commands(state: PanelState) -> list[Command]:
         out.append(Command("toggle_help"))
     if pressed(imgui.Key.r, False) and not io.key_ctrl:
         out.append(Command("reset_camera"))
+    if pressed(imgui.Key.t, False) and state.take_names:  # compare with the next take (newest first)
+        following = state.take_shown + 1 if state.compare_with_take else 0
+        out.append(Command("show_take", {"index": following % len(state.take_names), "compare": True}))
     for digit in range(1, 10):
         if pressed(getattr(imgui.Key, f"_{digit}"), False) and digit <= state.camera_count:
             out.append(Command("snap_camera", {"index": digit - 1}))
@@ -183,15 +193,22 @@ def draw_panel(state: PanelState) -> list[Command]:
     """Draw the control panel window and return the commands the user issued this frame."""
     out = shortcut_commands(state)
     imgui.set_next_window_pos(imgui.ImVec2(10, 10), imgui.Cond_.first_use_ever)
-    imgui.set_next_window_size(imgui.ImVec2(330, 0), imgui.Cond_.first_use_ever)
-    imgui.begin("G-Style Studio")
+    # As tall as its content (sections come and go: a second style, takes, a video's progress) but never taller
+    # than the window: beyond that it scrolls.
+    viewport = imgui.get_main_viewport()
+    imgui.set_next_window_size_constraints(imgui.ImVec2(PANEL_WIDTH, 0),
+                                           imgui.ImVec2(PANEL_WIDTH, max(100.0, viewport.size.y - 20)))
+    imgui.begin("G-Style Studio", None, imgui.WindowFlags_.always_auto_resize)
     _files_section(state, out)
     _progress_section(state, out)
     _decisions_section(state)
     _view_section(state, out)
     _params_section(state, out)
     _output_section(state, out)
+    _takes_section(state, out)
     imgui.end()
+    if state.view_mode == "compare":
+        _compare_labels(state)
     if state.show_help:
         _help_overlay()
     return out
@@ -327,7 +344,7 @@ def _decisions_section(state: PanelState) -> None:
 def _view_section(state: PanelState, out: list[Command]) -> None:
     imgui.separator()
     for mode in VIEW_MODES:
-        disabled = mode == "ground truth" and not state.has_ground_truth
+        disabled = (mode == "ground truth" and not state.has_ground_truth) or (mode == "take" and state.take_shown < 0)
         imgui.begin_disabled(disabled)
         if imgui.radio_button(mode, state.view_mode == mode) and state.view_mode != mode and not disabled:
             out.append(Command("view_mode", {"mode": mode}))
@@ -474,6 +491,59 @@ def _video_row(state: PanelState, out: list[Command]) -> None:
             tooltip(f"Write the turntable as {fmt}.")
         imgui.end_combo()
     tooltip("MP4 (H.264), an animated GIF, or a folder of numbered PNG frames.")
+
+
+def _takes_section(state: PanelState, out: list[Command]) -> None:
+    """The last exports as named takes: compare one with the current run (or the original), view it, rename it."""
+    if not state.take_names:
+        return
+    opened = imgui.collapsing_header("Takes", imgui.TreeNodeFlags_.default_open)
+    tooltip("Your last exports, kept to switch between and compare side by side with the current run.")
+    if not opened:
+        return
+    current = (state.take_names[state.take_shown] if state.compare_with_take and state.take_shown >= 0
+               else "the original")
+    imgui.set_next_item_width(180)
+    if imgui.begin_combo("compare with", current):
+        if imgui.selectable("the original", not state.compare_with_take)[0]:
+            out.append(Command("compare_original"))
+        for i, name in enumerate(state.take_names):
+            if imgui.selectable(f"{name}##take{i}", state.compare_with_take and i == state.take_shown)[0]:
+                out.append(Command("show_take", {"index": i, "compare": True}))
+        imgui.end_combo()
+    tooltip("What the compare view shows right of the divider: the input scene, or one of your takes (the current "
+            "run stays on the left; C toggles the compare view).")
+    for i, name in enumerate(state.take_names):
+        imgui.push_id(f"take{i}")
+        imgui.set_next_item_width(120)
+        changed, text = imgui.input_text("##name", name)
+        tooltip(state.take_labels[i] if i < len(state.take_labels) else name)
+        if changed and text.strip():
+            out.append(Command("rename_take", {"index": i, "name": text}))
+        imgui.same_line()
+        if button("compare", "Stylized now on the left, this take on the right (drag the divider).", small=True):
+            out.append(Command("show_take", {"index": i, "compare": True}))
+        imgui.same_line()
+        if button("view", "Show this take alone.", small=True):
+            out.append(Command("show_take", {"index": i, "compare": False}))
+        imgui.same_line()
+        if button("forget", "Take it off this list (its file stays in the output folder).", small=True):
+            out.append(Command("forget_take", {"index": i}))
+        imgui.pop_id()
+
+
+def _compare_labels(state: PanelState) -> None:
+    """Names of the two sides of the compare view, at the top beside the divider."""
+    viewport = imgui.get_main_viewport()
+    x = viewport.pos.x + viewport.size.x * min(max(state.divider, 0.0), 1.0)
+    right = (state.take_names[state.take_shown] if state.compare_with_take and 0 <= state.take_shown
+             < len(state.take_names) else "original")
+    draw = imgui.get_foreground_draw_list()
+    colour = imgui.get_color_u32(imgui.ImVec4(1.0, 1.0, 1.0, 0.9))
+    left = "now"
+    y = viewport.pos.y + viewport.size.y - 28
+    draw.add_text(imgui.ImVec2(x - 10 - imgui.calc_text_size(left).x, y), colour, left)
+    draw.add_text(imgui.ImVec2(x + 10, y), colour, right)
 
 
 def _help_overlay() -> None:

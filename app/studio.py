@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +24,7 @@ from .camera_control import CameraControl
 from .panels import Command, PanelState, draw_panel
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
 from .scene_view import SceneView, ViewPass
+from .takes import TakeShelf
 from .video_job import VideoJob, turntable_path
 from .worker import GEOMETRY_FIELDS, ThreadWorkerBridge, WorkerBridge
 
@@ -81,11 +83,15 @@ class StudioApp:
         self.worker_mode = worker_mode  # "process" (the default, measured better) or "thread" (bench/ui.py)
         self.original = SplatRenderer(ctx)
         self.stylized = SplatRenderer(ctx)
+        self.take_view = SplatRenderer(ctx)  # the take being looked at or compared with (app/takes.py)
+        self.take_shown: str | None = None  # its file (None: no take loaded)
         self.view = SceneView(ctx)
         self.progressive = True  # pace the scene render (see app/scene_view.py); False: full frames always
         self.control = CameraControl()
         self.panel = PanelState()
         self.output_dir = Path(output_dir)
+        self.takes = TakeShelf(self.output_dir)
+        self.compare_with_take = False  # compare view: stylized left, the loaded take (True) or the original right
         self.show_ui = show_ui
         self.view_mode = "stylized"
         self.divider = 0.5  # compare split position, fraction of the width
@@ -266,6 +272,7 @@ class StudioApp:
         self.view.release()
         self.original.release()
         self.stylized.release()
+        self.take_view.release()
         return clean
 
     # ----------------------------------------------------------------- per frame
@@ -300,18 +307,23 @@ class StudioApp:
             return
         mode = self.view_mode
         divider = float(np.clip(self.divider, 0.0, 1.0))
+        take = self.take_shown is not None and self.take_view.count > 0
         if mode == "original":
             passes = [ViewPass(self.original, self._original_layer())]
         elif mode == "ground truth" and "gt" in self.stylized.layers:
             passes = [ViewPass(self.stylized, "gt")]
+        elif mode == "take" and take:
+            passes = [ViewPass(self.take_view, self._take_layer())]
         elif mode == "compare":
-            passes = [ViewPass(self.stylized, DIFFUSE_LAYER, 0.0, divider),
-                      ViewPass(self.original, self._original_layer(), divider, 1.0)]
+            right = (self.take_view, self._take_layer()) if take and self.compare_with_take else (
+                self.original, self._original_layer())
+            passes = [ViewPass(self.stylized, DIFFUSE_LAYER, 0.0, divider), ViewPass(*right, divider, 1.0)]
         else:
             passes = [ViewPass(self.stylized, DIFFUSE_LAYER)]
         # Screenshots and the last frame of a --frames run show the exact current state at full resolution.
         self.view.progressive = self.progressive and not self.screenshot_requests
-        self.view.draw(target, camera, passes, (mode, divider, tuple(p.layer for p in passes)), BACKGROUND)
+        mode_key = (mode, divider, tuple(p.layer for p in passes), tuple(id(p.renderer) for p in passes))
+        self.view.draw(target, camera, passes, mode_key, BACKGROUND)
         if mode == "compare":
             split = int(round(divider * width))
             self.ctx.scissor = (max(split - 1, 0), 0, 2, height)
@@ -320,6 +332,55 @@ class StudioApp:
 
     def _original_layer(self) -> str:
         return SH_LAYER if SH_LAYER in self.original.layers else DIFFUSE_LAYER
+
+    def _take_layer(self) -> str:
+        return SH_LAYER if SH_LAYER in self.take_view.layers else DIFFUSE_LAYER
+
+    # ----------------------------------------------------------------- takes
+    def show_take(self, index: int, compare: bool = True) -> bool:
+        """Load take ``index`` (its exported file) into the take view; ``compare``: stylized left, the take right,
+        else the take alone. False (status says why) when its file cannot be read."""
+        if not 0 <= index < len(self.takes.takes):
+            return False
+        take = self.takes.takes[index]
+        if self.take_shown != take.path:
+            try:
+                scene = self.takes.load(index)
+            except (GStyleError, OSError) as exc:
+                self.panel.status = f"take {take.name}: cannot read {Path(take.path).name}: {exc}"
+                return False
+            self.take_view.set_scene(scene_arrays(scene))
+            self.take_shown = take.path
+        self.compare_with_take = compare
+        self.view_mode = "compare" if compare else "take"
+        self.panel.status = f"{'comparing with' if compare else 'showing'} {take.name} ({Path(take.path).name})"
+        return True
+
+    def compare_with_original(self) -> None:
+        """Compare view: stylized left, the original right (no take)."""
+        self.compare_with_take = False
+        self.view_mode = "compare"
+
+    def forget_take(self, index: int) -> None:
+        """Take a take off the shelf (its file stays); the view leaves it if it was shown."""
+        take = self.takes.forget(index)
+        if take is not None and take.path == self.take_shown:
+            self.take_shown, self.compare_with_take = None, False
+            if self.view_mode == "take":
+                self.view_mode = "stylized"
+
+    def _shelve_exports(self, exported: list[str]) -> None:
+        """New exports become takes (the Gaussian count from the export's JSON summary)."""
+        from gstyle_core.io.saver import format_of
+
+        for written in exported:
+            path = Path(written)
+            stem = path.name[: -len(".compressed.ply")] if format_of(path) == "compressed-ply" else path.stem
+            try:
+                gaussians = int(json.loads(path.with_name(stem + ".json").read_text())["gaussians"])
+            except (OSError, ValueError, KeyError, TypeError):
+                gaussians = self.stylized.count
+            self.takes.add(path, gaussians)
 
     def _apply_engine_updates(self) -> None:
         if self.bridge is None:
@@ -355,6 +416,12 @@ class StudioApp:
         p.gaussians = self.stylized.count
         p.viewer_notes = self.viewer_notes()
         p.resume_available = self.resume_available()
+        p.take_names = [t.name for t in self.takes.takes]
+        p.take_labels = [t.label for t in self.takes.takes]
+        shown = [i for i, t in enumerate(self.takes.takes) if t.path == self.take_shown]
+        p.take_shown = shown[0] if shown else -1
+        p.compare_with_take = self.compare_with_take and p.take_shown >= 0
+        p.divider = float(self.divider)
         self._poll_video()
         if self.bridge is None:
             p.running, p.paused = False, False
@@ -376,8 +443,10 @@ class StudioApp:
             p.status = f"resumed the last session at step {st.resumed.get('step')}"
         exports = (id(st.exported), len(st.exported))  # a restarted worker starts a new list
         if st.exported and exports != self._exports_seen:  # once per export: later messages stay visible
+            new = st.exported[self._exports_seen[1]:] if exports[0] == self._exports_seen[0] else st.exported[-1:]
             self._exports_seen = exports
-            p.status = f"exported {st.exported[-1]}"
+            self._shelve_exports(new)
+            p.status = f"exported {st.exported[-1]} (kept as {self.takes.takes[0].name})"
 
     def viewer_notes(self) -> list[str]:
         """What the viewer evaluates and skips (panel "Decisions"): view-dependent SH, sorts, uploads."""
@@ -472,6 +541,14 @@ class StudioApp:
             self.panel.turntable_format = str(args.get("format", self.panel.turntable_format))
         elif name == "cancel_video" and self.video_job is not None:
             self.video_job.cancel()
+        elif name == "show_take":
+            self.show_take(int(args["index"]), compare=bool(args.get("compare", True)))
+        elif name == "compare_original":
+            self.compare_with_original()
+        elif name == "rename_take":
+            self.takes.rename(int(args["index"]), str(args["name"]))
+        elif name == "forget_take":
+            self.forget_take(int(args["index"]))
         elif name in ("open_scene", "open_style", "open_style2"):
             self._open_dialog(name)
 

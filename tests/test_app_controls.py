@@ -45,7 +45,8 @@ def test_every_control_button_and_view_mode_has_a_tooltip(panel):
     drawn = driver.recorder.widgets
     kinds = {w.kind for w in drawn}
     assert {"button", "small_button", "checkbox", "radio_button", "slider_float", "begin_combo"} <= kinds
-    assert {w.path for w in drawn if w.kind == "radio_button"} == {"stylized", "original", "compare", "ground truth"}
+    assert {w.path for w in drawn if w.kind == "radio_button"} == {"stylized", "original", "compare", "ground truth",
+                                                                      "take"}
     assert [w.path for w in drawn if not w.tooltip] == []
 
 

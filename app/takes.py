@@ -1,0 +1,92 @@
+"""Takes: the studio's last few exports, kept as named snapshots to switch between and compare with the current run.
+
+A take is an exported file (.ply, .spz or .compressed.ply) with a name the artist can change. The shelf keeps the
+newest ``limit`` of them and remembers them in ``takes.json`` in the output folder, so a studio opened again on the
+same folder finds them (entries whose file is gone are dropped). Forgetting a take never deletes its file. No GL
+here: the studio loads a take's scene (``load``) into a renderer of its own.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from gstyle_core.atomic import atomic_write_text
+from gstyle_core.scene import GaussianScene
+
+TAKES_FILE = "takes.json"
+DEFAULT_LIMIT = 5
+MAX_NAME = 40
+
+
+@dataclass
+class Take:
+    """One export: its ``name`` (shown in the panel), file ``path``, Gaussian count and when it was written."""
+
+    name: str
+    path: str
+    gaussians: int
+    created: float
+
+    @property
+    def label(self) -> str:
+        """``name (N Gaussians, HH:MM)`` for lists."""
+        return f"{self.name} ({self.gaussians:,} Gaussians, {time.strftime('%H:%M', time.localtime(self.created))})"
+
+
+class TakeShelf:
+    """The newest ``limit`` exports of an output folder, newest first, remembered in its ``takes.json``."""
+
+    def __init__(self, folder: str | Path, limit: int = DEFAULT_LIMIT) -> None:
+        self.folder = Path(folder)
+        self.limit = max(1, int(limit))
+        self.takes: list[Take] = self._read()
+        self._counter = len(self.takes)
+
+    def _read(self) -> list[Take]:
+        """The remembered takes whose files still exist (an unreadable list is ignored: takes are a convenience)."""
+        try:
+            entries = json.loads((self.folder / TAKES_FILE).read_text())
+            takes = [Take(str(e["name"]), str(e["path"]), int(e["gaussians"]), float(e["created"])) for e in entries]
+        except (OSError, ValueError, TypeError, KeyError):
+            return []
+        return [t for t in takes if Path(t.path).is_file()][: self.limit]
+
+    def _write(self) -> None:
+        try:
+            atomic_write_text(self.folder / TAKES_FILE, json.dumps([asdict(t) for t in self.takes], indent=2))
+        except OSError:
+            pass  # a read-only folder: the takes still work for this session
+
+    def add(self, path: str | Path, gaussians: int, name: str | None = None) -> Take:
+        """Shelve an export (newest first; the oldest beyond ``limit`` is forgotten, its file kept)."""
+        self._counter += 1
+        take = Take(name or f"take {self._counter}", str(Path(path)), int(gaussians), time.time())
+        self.takes = [take] + [t for t in self.takes if t.path != take.path][: self.limit - 1]
+        self._write()
+        return take
+
+    def rename(self, index: int, name: str) -> None:
+        """Give take ``index`` a new name (trimmed; an empty name keeps the old one)."""
+        name = " ".join(str(name).split())[:MAX_NAME]
+        if name and 0 <= index < len(self.takes):
+            self.takes[index].name = name
+            self._write()
+
+    def forget(self, index: int) -> Take | None:
+        """Take ``index`` off the shelf (its file stays on disk)."""
+        if not 0 <= index < len(self.takes):
+            return None
+        take = self.takes.pop(index)
+        self._write()
+        return take
+
+    def load(self, index: int) -> GaussianScene:
+        """The scene of take ``index`` as its file holds it (``SceneFormatError`` / ``OSError`` when it cannot be
+        read any more)."""
+        from gstyle_core.io import load_scene
+
+        scene, _report = load_scene(self.takes[index].path)
+        return scene

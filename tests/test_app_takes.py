@@ -1,0 +1,106 @@
+"""Comparing takes (issue #15, item 6): the studio keeps its last exports as named takes that the artist views,
+renames, forgets and compares side by side with the current run; the list survives a restart of the studio."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("imgui_bundle")
+pytest.importorskip("moderngl")
+
+from fakes import make_fake_engine  # noqa: E402
+from imgui_driver import studio_driver  # noqa: E402
+from synthetic import blob_scene, ring_cameras  # noqa: E402
+
+from app.panels import Command  # noqa: E402
+from app.renderer import read_rgb  # noqa: E402
+from app.studio import LoadedScene, StudioApp  # noqa: E402
+from app.takes import TAKES_FILE, TakeShelf  # noqa: E402
+from gstyle_core.io import save_scene  # noqa: E402
+
+W, H = 700, 1100  # tall enough for the whole panel
+
+
+def test_the_shelf_keeps_the_newest_takes_and_remembers_them(tmp_path):
+    files = []
+    for i in range(4):
+        files.append(tmp_path / f"e{i}.ply")
+        save_scene(blob_scene(20 + i), files[-1])
+    shelf = TakeShelf(tmp_path, limit=3)
+    for i, f in enumerate(files):
+        shelf.add(f, 20 + i)
+    assert [t.name for t in shelf.takes] == ["take 4", "take 3", "take 2"]  # newest first, the oldest forgotten
+    assert files[0].exists()  # forgetting never deletes
+    shelf.rename(0, "  warm   version ")
+    shelf.rename(1, "   ")  # an empty name keeps the old one
+    assert [t.name for t in shelf.takes][:2] == ["warm version", "take 3"]
+    assert shelf.forget(2).name == "take 2" and files[2].exists()
+    assert shelf.load(0).count == 23
+    files[2 + 1].rename(tmp_path / "moved.ply")  # the file of "warm version" is gone
+    again = TakeShelf(tmp_path, limit=3)
+    assert [t.name for t in again.takes] == ["take 3"]
+    (tmp_path / TAKES_FILE).write_text("{not json")
+    assert TakeShelf(tmp_path).takes == []  # an unreadable list is ignored, never fatal
+
+
+def _render(app: StudioApp, fbo) -> np.ndarray:
+    fbo.use()
+    app.render_view(fbo)
+    return read_rgb(fbo).astype(np.int16)
+
+
+def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_path):
+    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
+                    engine_factory=make_fake_engine, engine_config={"n": 150}, worker_mode="thread")
+    try:
+        app.start_engine()
+        bridge = app.bridge
+        assert bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60), bridge.state.error
+        driver = studio_driver(window, monkeypatch, app)
+        exported = []
+        for count, name in enumerate(("early", "late"), start=1):
+            bridge.pause()
+            assert bridge.wait_until(lambda s: s.paused, 30)
+            exported.append(tmp_path / f"{name}.ply")
+            app.export(exported[-1])
+            assert bridge.wait_until(lambda s, n=count: len(s.exported) >= n or s.error, 30)
+            driver.frame()
+            bridge.resume()
+            seen = bridge.state.snapshots_received
+            assert bridge.wait_until(lambda s, seen=seen: s.snapshots_received >= seen + 30 or s.error, 60)
+        bridge.pause()
+        assert bridge.wait_until(lambda s: s.paused, 30)
+        driver.frame()
+        assert app.panel.take_names == ["take 2", "take 1"]
+        assert [t.path for t in app.takes.takes] == [str(exported[1]), str(exported[0])]
+        assert json.loads((tmp_path / TAKES_FILE).read_text())[1]["path"] == str(exported[0])
+        assert driver.recorder.find("take1/compare").tooltip
+        commands = driver.click("take1/compare")  # the older take, beside the current run
+        assert [c.name for c in commands] == ["show_take"]
+        assert app.view_mode == "compare" and app.compare_with_take and app.take_shown == str(exported[0])
+        app.execute(Command("rename_take", {"index": 1, "name": "first try"}))
+        assert TakeShelf(tmp_path).takes[1].name == "first try"
+
+        # the compare view: the current run left of the divider, the take right of it
+        app.progressive = False
+        fbo = window.ctx.simple_framebuffer((160, 120))
+        app.divider = 0.5
+        compare = _render(app, fbo)
+        app.view_mode = "take"
+        take_alone = _render(app, fbo)
+        app.view_mode = "stylized"
+        now_alone = _render(app, fbo)
+        app.compare_with_original()
+        with_original = _render(app, fbo)
+        right, left = np.s_[:, 82:], np.s_[:, :78]
+        assert np.abs(compare[right] - take_alone[right]).max() <= 1
+        assert np.abs(compare[left] - now_alone[left]).max() <= 1
+        assert np.abs(take_alone[right] - now_alone[right]).max() > 10  # the take is not the current state
+        assert np.abs(with_original[right] - compare[right]).max() > 10
+        app.forget_take(1)
+        assert app.take_shown is None and [t.name for t in app.takes.takes] == ["take 2"]
+    finally:
+        app.close()
