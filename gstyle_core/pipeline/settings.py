@@ -36,6 +36,8 @@ class StylizeSettings:
     working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
     style_scale: float = 1.0  # stroke size: the painting is matched at this × the working width (objective.py)
     keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
+    region: tuple[float, ...] | None = None  # x0,y0,z0,x1,y1,z1: stylize only the Gaussians centred in this box
+    # (pipeline/region.py); None: the whole scene
     epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
     min_steps: int = 0
     lr_start: float = 1e-1
@@ -171,6 +173,10 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         raise ValueError(f"strength must be 0 or more, got {s.strength}")
     check_style_scale(s.style_scale)
     s.keep_colours = bool(s.keep_colours)
+    if s.region is not None:
+        from .region import check_region
+
+        s.region = check_region(s.region)
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
     return s
