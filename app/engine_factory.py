@@ -8,7 +8,8 @@ from typing import Any
 # ``gstyle stylize`` options the studio may set (engine_config keys); None keeps the preset's value.
 ENGINE_OPTIONS = ("defaults", "lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
                   "style_scale", "keep_colours", "working_width", "clip_weights", "vgg_weights", "max_gaussians",
-                  "style_weights")
+                  "style_weights",
+                  "region", "selection")  # region: a box; selection: a bool mask (the studio's rectangle)
 
 
 def make_stylizer(scene: str | None = None, style: str | list[str] | None = None, cameras: str | None = None,

@@ -28,6 +28,12 @@ def parse_size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _region_arg(text: str) -> tuple[float, ...]:
+    from gstyle_core.pipeline.cli import _region_arg as parse
+
+    return parse(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
     p = argparse.ArgumentParser(prog="gstyle-studio", description="Live G-Style stylization viewer.")
@@ -57,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-pacing", dest="pacing", action="store_false",
                    help="draw every changed frame at full resolution at once (default: reduced resolution while the "
                         "camera moves, full resolution built progressively when it stops; see app/scene_view.py)")
+    p.add_argument("--region", type=_region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
+                   help="start with the selection tool on this box (stylize only the Gaussians centred in it; "
+                        "write --region=-1,... when x0 is negative)")
     p.add_argument("--output-dir", default="out", help="where exports and screenshots go")
     p.add_argument("--resume", action="store_true",
                    help="continue the session saved when the studio last closed with this scene and style")
@@ -140,6 +149,8 @@ def loop(window, args: argparse.Namespace) -> int:
     if len(styles) > 1:
         app.set_style(styles[1], slot=1, mix=args.style_mix)
     app.view_mode = args.view
+    if args.region is not None:  # the selection tool on, with this box (the engine starts with it)
+        app.set_region_box(args.region)
     if args.camera:
         if not 1 <= args.camera <= len(app.cameras):
             raise GStyleError(f"--camera must be 1..{len(app.cameras)}, got {args.camera}")

@@ -73,8 +73,9 @@ VIEW_TOOLTIPS = {
 }
 
 HELP_TEXT = """Mouse: left drag orbit, right drag pan, wheel zoom. W/A/S/D/Q/E fly.
-Space pause/resume   C compare   T compare with the next take (your exports)   R reset view
-1-9 scene cameras (all: the camera list)   Ctrl+S export .ply   F12 screenshot   H this help"""
+B region tool (Shift + drag: select by rectangle)   T compare with the next take (your exports)
+Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view
+Ctrl+S export .ply   F12 screenshot   H this help"""
 
 
 @dataclass
@@ -131,6 +132,14 @@ class PanelState:
     take_shown: int = -1  # the take loaded in the take view (-1: none)
     compare_with_take: bool = False  # the compare view's right side is that take (else the original)
     divider: float = 0.5  # the compare view's split, fraction of the width
+    region_enabled: bool = False  # the selection tool is on: its selection is highlighted and used at (re)start
+    region_mode: str = "box"  # "box" (the 3D box below) or "rectangle" (the last Shift + drag in the view)
+    region_box: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # x0,y0,z0,x1,y1,z1 in scene coordinates
+    region_selected: int = 0  # Gaussians of the input scene in the selection
+    region_total: int = 0
+    region_in_engine: str = ""  # what the running engine was started with ("" : the whole scene)
+    region_outline: list[tuple[float, float, float, float]] = field(default_factory=list)  # box edges on screen
+    region_drag: tuple[float, float, float, float] | None = None  # the rectangle being dragged (screen pixels)
 
 
 def shortcut_commands(state: PanelState) -> list[Command]:
@@ -150,6 +159,8 @@ def shortcut_commands(state: PanelState) -> list[Command]:
         out.append(Command("screenshot"))
     if pressed(imgui.Key.h, False):
         out.append(Command("toggle_help"))
+    if pressed(imgui.Key.b, False) and not io.key_ctrl:
+        out.append(Command("region_enable", {"on": not state.region_enabled}))
     if pressed(imgui.Key.r, False) and not io.key_ctrl:
         out.append(Command("reset_camera"))
     if pressed(imgui.Key.t, False) and state.take_names:  # compare with the next take (newest first)
@@ -204,11 +215,13 @@ def draw_panel(state: PanelState) -> list[Command]:
     _decisions_section(state)
     _view_section(state, out)
     _params_section(state, out)
+    _region_section(state, out)
     _output_section(state, out)
     _takes_section(state, out)
     imgui.end()
     if state.view_mode == "compare":
         _compare_labels(state)
+    _region_overlay(state)
     if state.show_help:
         _help_overlay()
     return out
@@ -446,6 +459,65 @@ def _param_row(state: PanelState, p: Param, out: list[Command]) -> None:
     imgui.same_line()
     if button("reset", f"Back to the preset's value ({default_value(state, p):.3g}).", small=True):
         out.append(Command("set_params", {p.key: default_value(state, p)}))
+
+
+REGION_TOOLTIP = (
+    "Stylize only part of the scene: the Gaussians whose centres are in the box (drag the numbers to place and "
+    "resize it; it is drawn in the view), or, with Shift held, drag a rectangle in the view to select the Gaussians "
+    "whose centres fall in it. The selection is drawn highlighted. Only the selected Gaussians are pre-processed, "
+    "split and stylized, the losses see only them, and every other Gaussian is exported untouched (SH included). "
+    "It applies when the run (re)starts (--region x0,y0,z0,x1,y1,z1). Shortcut: B.")
+
+
+def _region_section(state: PanelState, out: list[Command]) -> None:
+    flags = imgui.TreeNodeFlags_.default_open if state.region_enabled else 0
+    opened = imgui.collapsing_header("Selected region", flags)
+    tooltip(REGION_TOOLTIP)
+    if not opened:
+        return
+    changed, on = imgui.checkbox("select a region", state.region_enabled)
+    tooltip(REGION_TOOLTIP)
+    if changed:
+        out.append(Command("region_enable", {"on": bool(on)}))
+    if state.region_enabled:
+        box = list(state.region_box)
+        step = max(1e-3, 0.005 * max(abs(box[3] - box[0]), abs(box[4] - box[1]), abs(box[5] - box[2]), 1e-3))
+        ch_lo, lo = imgui.drag_float3("box min", box[:3], step, 0.0, 0.0, "%.3f")
+        tooltip("The box's low corner (x0, y0, z0) in scene coordinates: drag to move that face, or type a value.")
+        ch_hi, hi = imgui.drag_float3("box max", box[3:], step, 0.0, 0.0, "%.3f")
+        tooltip("The box's high corner (x1, y1, z1) in scene coordinates.")
+        if ch_lo or ch_hi:
+            lo, hi = list(lo), list(hi)
+            for k in range(3):  # a face dragged past the other pushes it along
+                if ch_lo and lo[k] > hi[k]:
+                    hi[k] = lo[k]
+                if ch_hi and hi[k] < lo[k]:
+                    lo[k] = hi[k]
+            out.append(Command("region_box", {"box": tuple(float(v) for v in (*lo, *hi))}))
+        if button("fit to scene", "Reset the box to the scene's bounds (every Gaussian selected).", small=True):
+            out.append(Command("region_fit"))
+        imgui.same_line()
+        if button("restart with it", "Restart the stylization with this selection.", small=True):
+            out.append(Command("restart"))
+        how = "box" if state.region_mode == "box" else "rectangle (Shift + drag; move the box to go back to it)"
+        imgui.text_wrapped(f"{state.region_selected:,} of {state.region_total:,} Gaussians selected by the {how}")
+        imgui.text_wrapped("Shift + drag in the view: select the Gaussians whose centres fall in the rectangle.")
+    if state.region_in_engine:
+        imgui.text_wrapped(f"running with {state.region_in_engine}")
+
+
+def _region_overlay(state: PanelState) -> None:
+    """The region box's edges and the rectangle being dragged, over the scene view."""
+    if not state.region_enabled or not (state.region_outline or state.region_drag):
+        return
+    draw = imgui.get_background_draw_list()
+    colour = imgui.get_color_u32(imgui.ImVec4(1.0, 0.62, 0.1, 0.9))
+    for x0, y0, x1, y1 in state.region_outline:
+        draw.add_line(imgui.ImVec2(x0, y0), imgui.ImVec2(x1, y1), colour, 1.5)
+    if state.region_drag is not None:
+        x0, y0, x1, y1 = state.region_drag
+        draw.add_rect(imgui.ImVec2(min(x0, x1), min(y0, y1)), imgui.ImVec2(max(x0, x1), max(y0, y1)), colour,
+                      rounding=0.0, thickness=1.5)
 
 
 def _output_section(state: PanelState, out: list[Command]) -> None:

@@ -47,6 +47,7 @@ from .splat_data import (
 
 SH_LAYER = "sh"
 DIFFUSE_LAYER = "diffuse"
+SELECTION_LAYER = "__selection__"  # the highlighted Gaussians (r = 1), see ``set_selection``
 NEAR = 0.01
 PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes")  # 2 + 4 + 4 floats per Gaussian
 PROJECTED_STRIDE = 40  # bytes per projected Gaussian
@@ -82,6 +83,7 @@ class SplatRenderer:
         self.projection_count = 0  # how many projection passes ran (one per new camera/target/geometry)
         self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
         self.sh_evaluations = 0  # view-dependent SH evaluations (one per camera position, original scene only)
+        self.highlight = False  # a selection is drawn highlighted (selected tinted, the rest dimmed)
 
     # ----------------------------------------------------------------- data
     @property
@@ -133,6 +135,8 @@ class SplatRenderer:
             self._sh = None
         for name in [k for k, v in self._layers.items() if getattr(v, "extra", None) != n]:
             self._layers.pop(name).release()
+        if SELECTION_LAYER not in self._layers:
+            self.highlight = False
         self._sorted_for = None
         self._sh_camera = None
         self.geometry_version += 1
@@ -159,6 +163,21 @@ class SplatRenderer:
         self.uploads["colors"] += 1
         if not layer.startswith("__"):  # internal layers (view-dependent SH) follow the camera, already in any key
             self.content_version += 1
+
+    def set_selection(self, mask: np.ndarray | None) -> None:
+        """Draw the Gaussians where ``mask`` (bool [N]) is True highlighted (tinted) and the others dimmed; None
+        draws them all as they are. A new geometry of another count drops the selection."""
+        if mask is None:
+            if self.highlight:
+                self.highlight = False
+                self.content_version += 1
+            return
+        mask = np.asarray(mask, bool)
+        if mask.shape != (self.count,):
+            raise ValueError(f"selection must have shape [{self.count}], got {list(mask.shape)}")
+        self.update_colors(np.repeat(mask[:, None], 3, axis=1).astype(np.float32), SELECTION_LAYER)
+        self.highlight = True
+        self.content_version += 1
 
     # ----------------------------------------------------------------- drawing
     def render(self, camera: Camera, fbo: moderngl.Framebuffer, background: Sequence[float] = (0.0, 0.0, 0.0),
@@ -277,6 +296,10 @@ class SplatRenderer:
         colour_tex.use(0)
         prog = self.program
         prog["u_color"].value = 0
+        highlight = self.highlight and SELECTION_LAYER in self._layers
+        (self._layers[SELECTION_LAYER] if highlight else colour_tex).use(1)
+        prog["u_select"].value = 1
+        prog["u_highlight"].value = int(highlight)
         prog["u_tex_width"].value = TEXTURE_WIDTH
         prog["u_target_size"].value = (float(width), float(height))
 

@@ -118,6 +118,16 @@ class StudioApp:
         self.screenshot_requests: list[Path] = []
         self.video_job: VideoJob | None = None
         self._exports_seen: tuple[int, int] = (0, 0)
+        # Selection tool (issue #15 item 4): a box in scene coordinates or a screen rectangle's mask of the input's
+        # Gaussians; highlighted in both renderers; handed to the engine when it (re)starts.
+        self.region_enabled = False
+        self.region_box: tuple[float, ...] | None = None
+        self.region_rect_mask: np.ndarray | None = None  # the last rectangle's selection (mode "rectangle")
+        self._region_version = 0
+        self._selection_shown: dict[str, Any] = {}
+        self._rect_start: tuple[float, float] | None = None
+        self._view_size: tuple[int, int] = (1, 1)
+        self.engine_region: str = ""
         if loaded is not None:
             self.set_scene(loaded)
         if style_path:
@@ -138,6 +148,8 @@ class StudioApp:
         self.panel.camera_index = 0 if self.cameras else -1
         self._frame_scene()
         self.engine_config["scene"] = loaded.path
+        self.region_box, self.region_rect_mask = None, None
+        self._region_version += 1
         self.panel.defaults = self._preset_params(with_overrides=False)
         self.panel.params = self._preset_params(with_overrides=True)
         self.panel.switched_off.clear()
@@ -243,6 +255,7 @@ class StudioApp:
         engine then starts afresh). Whether the checkpoint fits (same inputs and settings) the worker checks."""
         if self.engine_factory is None:
             return False
+        self._region_to_config()
         path = self.session_checkpoint()
         resume_from = path if resume and path is not None and path.is_file() else None
         self._resumed_from = resume_from
@@ -259,6 +272,103 @@ class StudioApp:
         self._snapshots_seen = 0
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
         return resume_from is not None
+
+    # ----------------------------------------------------------------- selected region
+    def scene_box(self) -> tuple[float, ...]:
+        """The input scene's bounds as a box (x0,y0,z0,x1,y1,z1)."""
+        if self.loaded is None or self.loaded.scene.count == 0:
+            return (0.0,) * 6
+        m = np.asarray(self.loaded.scene.means, np.float64)
+        return tuple(float(v) for v in (*m.min(0), *m.max(0)))
+
+    def set_region_box(self, box) -> None:
+        """Select the Gaussians centred in ``box`` (turns the tool on; the rectangle's selection is dropped)."""
+        from gstyle_core.pipeline.region import check_region
+
+        self.region_box = check_region(box)
+        self.region_rect_mask = None
+        self.region_enabled = True
+        self._region_version += 1
+
+    def select_rectangle(self, rect, width: int, height: int) -> int:
+        """Select the Gaussians whose centres project into the screen rectangle (x0, y0, x1, y1 in framebuffer
+        pixels, y down) of the current view of ``width`` x ``height``; returns how many."""
+        from gstyle_core.pipeline.region import rect_mask
+
+        if self.loaded is None:
+            return 0
+        mask = rect_mask(self.loaded.scene.means, self.control.camera(width, height), rect)
+        if not mask.any():
+            self.panel.status = "rectangle selection: no Gaussian centre in it (the selection is unchanged)"
+            return 0
+        self.region_rect_mask = mask
+        self.region_enabled = True
+        self._region_version += 1
+        self.panel.status = f"rectangle selection: {int(mask.sum()):,} Gaussians"
+        return int(mask.sum())
+
+    def region_mask(self) -> np.ndarray | None:
+        """The selection over the input scene's Gaussians (None: the tool is off)."""
+        if not self.region_enabled or self.loaded is None:
+            return None
+        if self.region_rect_mask is not None:
+            return self.region_rect_mask
+        from gstyle_core.pipeline.region import box_mask
+
+        if self.region_box is None:
+            self.region_box = self.scene_box()
+        return box_mask(self.loaded.scene.means, self.region_box)
+
+    def _region_to_config(self) -> None:
+        """Hand the selection to the engine's config (a box as ``region``, a rectangle as a ``selection`` mask)."""
+        self.engine_config.pop("region", None)
+        self.engine_config.pop("selection", None)
+        mask = self.region_mask()
+        if mask is None:
+            self.engine_region = ""
+        elif self.region_rect_mask is not None:
+            self.engine_config["selection"] = mask.copy()
+            self.engine_region = f"a rectangle selection ({int(mask.sum()):,} Gaussians)"
+        else:
+            self.engine_config["region"] = tuple(self.region_box)
+            self.engine_region = "box " + ",".join(f"{v:.3g}" for v in self.region_box)
+
+    def _apply_selection(self) -> None:
+        """Highlight the selection in both renderers (only when it or the geometry changed)."""
+        mask = self.region_mask()
+        for name, renderer in (("original", self.original), ("stylized", self.stylized)):
+            shown = mask
+            snap = self.bridge.state.snapshot if self.bridge is not None else {}
+            if mask is not None and renderer is self.stylized and renderer.count != len(mask):
+                engine_sel = snap.get("selected") if snap else None  # after splits: the engine's own selection
+                shown = engine_sel if engine_sel is not None and len(engine_sel) == renderer.count else None
+            key = (self._region_version, renderer.geometry_version, None if shown is None else len(shown),
+                   id(shown) if renderer is self.stylized and mask is not None and shown is not mask else 0)
+            if self._selection_shown.get(name) == key:
+                continue
+            self._selection_shown[name] = key
+            renderer.set_selection(shown)
+
+    def _region_outline(self, width: int, height: int) -> list[tuple[float, float, float, float]]:
+        """The region box's 12 edges projected into the view (window pixels), edges behind the camera left out."""
+        if not self.region_enabled or self.region_box is None or self.region_rect_mask is not None:
+            return []
+        cam = self.control.camera(width, height)
+        b = self.region_box
+        corners = np.array([[b[3 * (i & 1)], b[1 + 3 * ((i >> 1) & 1)], b[2 + 3 * ((i >> 2) & 1)]] for i in range(8)])
+        pc = corners @ np.asarray(cam.world_to_cam)[:3, :3].T + np.asarray(cam.world_to_cam)[:3, 3]
+        scale = imgui.get_io().display_framebuffer_scale if imgui.get_current_context() is not None else None
+        sx, sy = (scale.x, scale.y) if scale is not None and scale.x > 0 else (1.0, 1.0)
+        edges = []
+        for i in range(8):
+            for bit in (1, 2, 4):
+                j = i | bit
+                if j == i or min(pc[i, 2], pc[j, 2]) <= 1e-3:
+                    continue
+                (u0, v0), (u1, v1) = ((cam.fx * pc[k, 0] / pc[k, 2] + cam.cx, cam.fy * pc[k, 1] / pc[k, 2] + cam.cy)
+                                      for k in (i, j))
+                edges.append((u0 / sx, v0 / sy, u1 / sx, v1 / sy))
+        return edges
 
     def close(self, timeout: float = 20.0) -> bool:
         """Stop the engine (it saves the session in the cache folder; killed after ``timeout`` s) and free GL
@@ -285,8 +395,10 @@ class StudioApp:
         dt, self._last_frame = now - self._last_frame, now
         self._frame_times = (self._frame_times + [dt])[-60:]
         self._apply_engine_updates()
+        self._apply_selection()
         self._poll_dialog()
         commands: list[Command] = []
+        self._view_size = target_size(target)
         if with_ui:
             self._handle_input(target_size(target), dt)
             self._fill_panel()
@@ -422,6 +534,16 @@ class StudioApp:
         p.take_shown = shown[0] if shown else -1
         p.compare_with_take = self.compare_with_take and p.take_shown >= 0
         p.divider = float(self.divider)
+        p.region_enabled = self.region_enabled
+        mask = self.region_mask()
+        p.region_mode = "rectangle" if self.region_rect_mask is not None else "box"
+        if self.region_box is not None:
+            p.region_box = tuple(self.region_box)
+        p.region_selected = int(mask.sum()) if mask is not None else 0
+        p.region_total = self.loaded.scene.count if self.loaded is not None else 0
+        p.region_in_engine = self.engine_region if self.bridge is not None else ""
+        width, height = self._view_size
+        p.region_outline = self._region_outline(width, height)
         self._poll_video()
         if self.bridge is None:
             p.running, p.paused = False, False
@@ -467,9 +589,19 @@ class StudioApp:
         io_ = imgui.get_io()
         width, height = size
         mouse = (io_.mouse_pos.x, io_.mouse_pos.y)
+        scale = io_.display_framebuffer_scale
+        fb_mouse = (mouse[0] * (scale.x or 1.0), mouse[1] * (scale.y or 1.0))
+        if self._dragging == "select" and not imgui.is_mouse_down(0):  # released: select what the rectangle holds
+            start, self._rect_start = self._rect_start, None
+            self.panel.region_drag = None
+            if start is not None and abs(fb_mouse[0] - start[0]) >= 2 and abs(fb_mouse[1] - start[1]) >= 2:
+                self.select_rectangle((*start, *fb_mouse), width, height)
         if not io_.want_capture_mouse:
             divider_x = self.divider * width
-            if imgui.is_mouse_clicked(0):
+            if imgui.is_mouse_clicked(0) and io_.key_shift and self.loaded is not None:
+                self._dragging, self._rect_start = "select", fb_mouse
+                self.region_enabled = True
+            elif imgui.is_mouse_clicked(0):
                 near_divider = self.view_mode == "compare" and abs(mouse[0] - divider_x) <= DIVIDER_GRAB_PIXELS
                 self._dragging = "divider" if near_divider else "orbit"
             elif imgui.is_mouse_clicked(1):
@@ -486,6 +618,9 @@ class StudioApp:
                 self.control.orbit(dx, dy)
             elif self._dragging == "pan" and (dx or dy):
                 self.control.pan(dx, dy, height)
+            elif self._dragging == "select" and self._rect_start is not None:
+                sx, sy = scale.x or 1.0, scale.y or 1.0
+                self.panel.region_drag = (self._rect_start[0] / sx, self._rect_start[1] / sy, *mouse)
         self._last_mouse = mouse
         if not io_.want_capture_keyboard and not io_.key_ctrl:
             down = imgui.is_key_down
@@ -527,6 +662,13 @@ class StudioApp:
             self.control.snap_to(cam)
             self.panel.camera_index = args["index"]
             self.panel.status = f"camera {args['index'] + 1}: {cam.name}"
+        elif name == "region_enable":
+            self.region_enabled = bool(args.get("on", True))
+            self._region_version += 1
+        elif name == "region_box":
+            self.set_region_box(args["box"])
+        elif name == "region_fit":
+            self.set_region_box(self.scene_box())
         elif name == "toggle_help":
             self.panel.show_help = not self.panel.show_help
         elif name == "screenshot":

@@ -5,7 +5,11 @@
 // Gaussian cost ~75 ms for 40k Gaussians even at 200x150 pixels.)
 
 uniform sampler2D u_color;   // rgb, - (one texel per Gaussian, 4096 per row)
+uniform sampler2D u_select;  // selected region: r = 1 for a selected Gaussian (read only when u_highlight is 1)
+uniform int u_highlight;     // 1: tint the selected Gaussians, dim the others (the studio's selection tool)
 uniform int u_tex_width;
+
+const vec3 HIGHLIGHT = vec3(1.0, 0.62, 0.1);
 
 in vec2 in_center;    // means2d in framebuffer pixels, y down
 in vec4 in_conic;     // inverse 2D covariance (a, b, c), opacity
@@ -21,6 +25,11 @@ void main() {
     g_center = in_center;
     g_conic = in_conic;
     g_axes = in_axes;
-    g_rgb = texelFetch(u_color, ivec2(in_index % u_tex_width, in_index / u_tex_width), 0).rgb;
+    ivec2 texel = ivec2(in_index % u_tex_width, in_index / u_tex_width);
+    g_rgb = texelFetch(u_color, texel, 0).rgb;
+    if (u_highlight == 1) {
+        bool selected = texelFetch(u_select, texel, 0).r > 0.5;
+        g_rgb = selected ? mix(g_rgb, HIGHLIGHT, 0.45) : g_rgb * 0.4;
+    }
     gl_Position = vec4(0.0, 0.0, 0.0, 1.0);  // unused: the geometry stage places the corners
 }

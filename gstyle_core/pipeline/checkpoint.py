@@ -95,6 +95,9 @@ def engine_fingerprint(engine: Any) -> dict[str, str]:
     photos = getattr(engine, "photos", None)
     if photos is not None:
         out["photos"] = _hash_arrays(photos)
+    selection = getattr(engine, "input_selection", None)
+    if selection is not None:
+        out["selection"] = _hash_arrays([np.asarray(selection, bool)])
     settings = getattr(engine, "settings", None)
     if settings is not None and hasattr(settings, "to_dict"):
         out["settings"] = _digest(json.dumps(settings.to_dict(), sort_keys=True, default=str))

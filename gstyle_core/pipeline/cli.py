@@ -35,6 +35,9 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
                         "0.5: half; subtle at the preview's 256 px, README); default 1")
     p.add_argument("--keep-colours", action="store_true", default=None,
                    help="keep the scene's hues and take only the painting's luminance pattern")
+    p.add_argument("--region", type=_region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
+                   help="stylize only the Gaussians centred in this axis-aligned box (scene coordinates); the others "
+                        "are exported untouched, SH included (write --region=-1,... when x0 is negative)")
     p.add_argument("--split-rate", type=float, default=None, help="fraction of Gaussians split by colour gradient")
     p.add_argument("--working-width", type=int, default=None, help="render width for the networks")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
@@ -81,6 +84,26 @@ def style_paths(style: str | list[str] | tuple[str, ...] | None) -> list[str]:
     return [str(style)] if isinstance(style, (str, Path)) else [str(s) for s in style]
 
 
+def _region_arg(text: str) -> tuple[float, ...]:
+    """``--region``: six comma-separated finite numbers, low corner first (argparse reports anything else)."""
+    from .region import RegionError, parse_region
+
+    try:
+        return parse_region(text)
+    except RegionError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def region_summary(engine) -> dict | None:
+    """OUT.json's ``region``: the box (if any) and how many Gaussians were selected, of how many (None: none)."""
+    mask = getattr(engine, "input_selection", None)
+    if mask is None:
+        return None
+    box = engine.settings.region
+    return {"box": list(box) if box is not None else None, "selected": int(np.sum(mask)), "total": int(len(mask)),
+            "selected_after_splits": int(engine._selected.sum()) if engine._selected is not None else None}
+
+
 def build_stylizer(args: argparse.Namespace, **setting_overrides):
     """Load scene, cameras, photos and style, resolve settings and build the engine (shared with the app worker
     and bench/tradeoff.py, which passes further ``StylizeSettings`` fields as ``setting_overrides``). Returns
@@ -108,6 +131,7 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
         working_width=args.working_width,
         clip_weights=args.clip_weights, vgg_weights=getattr(args, "vgg_weights", None),
         max_gaussians=getattr(args, "max_gaussians", None), style_weights=weights,
+        region=getattr(args, "region", None),
     )
     overrides.update(setting_overrides)
     defaults = overrides.pop("defaults", None) or getattr(args, "defaults", None)
@@ -115,7 +139,8 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
     photos = None
     if cams.has_images:
         photos = cams.load_images(max_width=max(settings.working_width * 2, 256))
-    engine = Stylizer(scene, cams.cameras, styles[0] if len(styles) == 1 else styles, settings, photos=photos)
+    engine = Stylizer(scene, cams.cameras, styles[0] if len(styles) == 1 else styles, settings, photos=photos,
+                      selection=getattr(args, "selection", None))  # the studio's rectangle selection
     return engine, scene, report, cams, engine.style_input()
 
 
@@ -154,7 +179,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
-    for key in ("sh", "preprocess", "culled", "loss_terms", "clip", "vgg", "styles"):  # what this scene needed
+    for key in ("region", "sh", "preprocess", "culled", "loss_terms", "clip", "vgg", "styles"):  # what it needed
         # (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
@@ -174,6 +199,7 @@ def stylize_command(args: argparse.Namespace) -> int:
         "seconds_per_phase": {k: round(v, 2) for k, v in engine.timings.items()},
         "seconds_total": round(time.perf_counter() - t0, 1),
         "gaussians_before": scene.count, "gaussians_after": stylized.count, "quality": quality,
+        "region": region_summary(engine),
         "resumed": resumed, "checkpoints_written": checkpointer.saved,
     }
     atomic_write_text(stem.with_suffix(".json"), json.dumps(summary, indent=2, default=_json_default))

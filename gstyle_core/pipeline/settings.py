@@ -38,6 +38,8 @@ class StylizeSettings:
     keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
     style_weights: tuple[float, ...] = ()  # several paintings: their weights (style/mix.py; the engine normalises
     # them to sum 1; empty: equal shares)
+    region: tuple[float, ...] | None = None  # x0,y0,z0,x1,y1,z1: stylize only the Gaussians centred in this box
+    # (pipeline/region.py); None: the whole scene
     epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
     min_steps: int = 0
     lr_start: float = 1e-1
@@ -178,6 +180,10 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         from ..style.mix import normalise_style_weights
 
         normalise_style_weights(s.style_weights, len(s.style_weights))
+    if s.region is not None:
+        from .region import check_region
+
+        s.region = check_region(s.region)
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
     return s

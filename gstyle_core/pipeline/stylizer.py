@@ -56,6 +56,7 @@ from ..style.clip import CLIP_OFF, clip_status, clip_term_name
 from ..style.colour_match import Palette
 from ..style.mix import normalise_style_weights, weights_with_mix
 from .preprocess import ElongationClampStrategy, evenness_verdict, flat_split_mask, size_evenness
+from .region import region_note, selection_mask
 from .scene_box import SCENE_BOX_MARGIN_PX, box_fraction, scene_box
 from .settings import StylizeSettings, ui_params
 from .visibility import culling_note, seen_mask
@@ -86,6 +87,13 @@ def objective_generator(objective) -> torch.Generator | None:
     return gen if isinstance(gen, torch.Generator) else None
 
 
+def _row_mask_hook(free: torch.Tensor):
+    """A gradient hook that zeroes the rows not in ``free`` (bool [N]): Adam never moves them."""
+    def hook(grad: torch.Tensor) -> torch.Tensor:
+        return grad * free.reshape((-1,) + (1,) * (grad.ndim - 1)).to(grad.dtype)
+    return hook
+
+
 def choose_views(cameras: list[Camera], max_views: int) -> list[int]:
     """Indices of at most ``max_views`` cameras, evenly spread over the list."""
     n = len(cameras)
@@ -106,6 +114,7 @@ class Stylizer:
         *,
         objective_factory=None,
         photos: list[np.ndarray] | None = None,
+        selection: np.ndarray | None = None,
     ) -> None:
         if scene.count == 0:
             raise ValueError("the scene has no Gaussians")
@@ -145,7 +154,19 @@ class Stylizer:
         self._seen_ids: torch.Tensor | None = None  # Gaussians some training camera sees (None: all)
         self._c_opt: torch.Tensor | None = None  # the optimised c_s rows (the seen ones) during stylization
         self._trainer_ids: torch.Tensor | None = None  # the Gaussians the running refit works on (None: all)
+        self._frozen = None  # region runs: (rows of the refit's copy that must not move, their values)
         self._gt_sh_degree = used_sh_degree(scene.sh_rest)
+        # A selected region (settings.region and/or a ``selection`` mask, region.py): only these Gaussians are
+        # pre-processed, split, refitted and stylized; ``_origin`` maps each current Gaussian to its input row.
+        mask = selection_mask(scene.means, settings.region, selection)
+        self.input_selection = mask  # over the input's Gaussians (None: all); in the checkpoint fingerprint
+        self._selected = None if mask is None else torch.as_tensor(mask, dtype=torch.bool)
+        self._origin = None if mask is None else torch.arange(scene.count)
+        self.region_coverage: list[torch.Tensor] = []  # the selected Gaussians' weight in each view (region runs)
+        self._active_key: tuple[int, int] | None = None
+        self._active_ids: torch.Tensor | None = None
+        if mask is not None:
+            self.decisions["region"] = region_note(settings.region, int(mask.sum()), scene.count)
         self.decisions["sh"] = self._sh_note(scene.sh_degree)
         self.clip_name = clip_term_name(settings.clip_weights)  # "CLIP", or the coarse substitute's name
         self._note_planned_clip()
@@ -291,16 +312,32 @@ class Stylizer:
             "opacity_logits": p["opacity_logits"].detach().numpy().copy(),
             "colors": colors.detach().clamp(0, 1).numpy().copy(),
             "colors_gt": self._gt_rgb().detach().clamp(0, 1).numpy().copy(),
+            "selected": None if self._selected is None else self._selected.numpy().copy(),
             "geometry_version": self.geometry_version,
             "colour_version": self.colour_version,
             "phase": self.phase,
         }
 
     def stylized_scene(self) -> GaussianScene:
-        """The current scene with c_s as its (SH degree 0) colour."""
+        """The current scene with c_s as its (SH degree 0) colour. A region run: the Gaussians outside the selection
+        are the input's rows exactly (every attribute, their SH bands included; stylized ones get zero bands)."""
         scene = scene_from_params(self.params)
         scene.sh_dc = rgb_to_sh_dc(self.c_s.detach().clamp(0, 1).numpy())
-        return scene
+        if self._selected is None:
+            return scene
+        inp = self.input_scene
+        keep = (~self._selected).numpy()
+        rows = self._origin.numpy()[keep]
+        fields = {}
+        for name in ("means", "log_scales", "quats", "opacity_logits", "sh_dc"):
+            src = np.asarray(getattr(inp, name))
+            arr = np.asarray(getattr(scene, name)).astype(src.dtype, copy=True)
+            arr[keep] = src[rows]
+            fields[name] = arr
+        rest = np.asarray(inp.sh_rest)
+        sh_rest = np.zeros((scene.count,) + rest.shape[1:], rest.dtype)
+        sh_rest[keep] = rest[rows]
+        return GaussianScene(**fields, sh_rest=sh_rest)
 
     def step(self) -> StepReport:
         """Advance by one step of the current phase."""
@@ -378,6 +415,53 @@ class Stylizer:
         self._seen_key, self._seen_ids = key, ids
         return ids
 
+    def _active(self) -> torch.Tensor | None:
+        """Indices of the Gaussians the run works on: the seen ones, and of those only the selected ones in a region
+        run; None when that is all of them. These are pre-processed, split, refitted and optimised."""
+        ids = self._seen()
+        if self._selected is None:
+            return ids
+        key = (self.geometry_version, self.gaussian_count)
+        if key != self._active_key:
+            mask = self._selected.clone()
+            if ids is not None:
+                seen = torch.zeros_like(mask)
+                seen[ids] = True
+                mask &= seen
+            self._active_key, self._active_ids = key, torch.nonzero(mask).flatten()
+        return self._active_ids
+
+    def _active_in_seen(self) -> torch.Tensor | None:
+        """Positions of ``_active()`` in the colour caches' columns (``_seen()`` order); None: the same set."""
+        ids, active = self._seen(), self._active()
+        if self._selected is None:
+            return None
+        if ids is None:
+            return active
+        pos = torch.full((self.gaussian_count,), -1, dtype=torch.long)
+        pos[ids] = torch.arange(len(ids))
+        return pos[active]
+
+    def _in_seen(self, values: torch.Tensor) -> torch.Tensor:
+        ids = self._seen()
+        return values if ids is None else values[ids]
+
+    def _render_colours(self) -> torch.Tensor:
+        """The colours of the caches' Gaussians for a stylization render: the optimised rows (``_c_opt``) in place,
+        in a region run the others' colours held (no gradient)."""
+        pos = self._active_in_seen()
+        if pos is None:
+            return self._c_opt
+        base = self._in_seen(self.c_s).detach()
+        return base.index_put((pos,), self._c_opt)
+
+    @torch.no_grad()
+    def _selected_weight(self, view: int) -> torch.Tensor:
+        """[H, W]: how much of each pixel of a training view the selected Gaussians make (their rendered weight, in
+        front of or behind the others as they are): the region's coverage."""
+        indicator = self._in_seen(self._selected.to(torch.float32))[:, None].expand(-1, 3).contiguous()
+        return self._render_cs(view, indicator)[..., 0].clamp(0.0, 1.0)
+
     # ----------------------------------------------------------------- phases
     def _gt_rgb(self) -> torch.Tensor:
         return torch.as_tensor(sh_dc_to_rgb(self.params["sh_dc"].detach().numpy()))
@@ -414,9 +498,9 @@ class Stylizer:
 
     def _start_preprocess(self) -> None:
         s = self.settings
-        ids = self._seen()
+        ids = self._active()
         log_scales = self.params["log_scales"] if ids is None else self.params["log_scales"][ids]
-        crit = size_evenness(log_scales, s.preprocess_gamma)  # of the Gaussians the cameras see
+        crit = size_evenness(log_scales, s.preprocess_gamma)  # of the Gaussians the cameras see (and selected)
         self.decisions["size_evenness"] = {k: round(v, 4) for k, v in crit.items()}
         even, figures = evenness_verdict(crit)
         rounds = s.preprocess_rounds
@@ -441,17 +525,33 @@ class Stylizer:
                         trainable=trainable, seed=self.settings.seed + self.global_step,
                         backend=self.settings.raster_backend)
         ids = self._seen()
+        if self._selected is not None and ids is None:
+            ids = torch.arange(self.gaussian_count)
         params = self.params if ids is None else torch.nn.ParameterDict(
             {k: torch.nn.Parameter(v.detach()[ids].clone()) for k, v in self.params.items()})
         self._trainer_ids = ids
-        self.counters["refit_gaussians"] = int(params["means"].shape[0])
+        self._frozen = None
+        if self._selected is not None:  # region: the unselected Gaussians render as they are but never move
+            free = self._selected[ids]
+            self._frozen = (torch.nonzero(~free).flatten(), {k: v.detach()[~free].clone() for k, v in params.items()})
+            for p in params.values():
+                if p.requires_grad and p.ndim >= 1:
+                    p.register_hook(_row_mask_hook(free))
+            self.counters["refit_gaussians"] = int(free.sum())
+        else:
+            self.counters["refit_gaussians"] = int(params["means"].shape[0])
         return Trainer(params, self.cameras, self.gt_images, cfg, strategy, strategy_state={"extras": {}})
 
     def _trainer_step(self):
         rep = self._trainer.step()
         ids = self._trainer_ids
-        if ids is not None:
-            with torch.no_grad():
+        frozen = getattr(self, "_frozen", None)
+        with torch.no_grad():
+            if frozen is not None:  # undo whatever the strategy (elongation clamps) did to the unselected rows
+                rows, values = frozen
+                for k, v in self._trainer.params.items():
+                    v[rows] = values[k]
+            if ids is not None:
                 for k, v in self._trainer.params.items():
                     self.params[k][ids] = v.detach()
         return rep
@@ -459,6 +559,8 @@ class Stylizer:
     def _split(self, mask: torch.Tensor, children: int, divisor: float, priority: torch.Tensor | None = None) -> int:
         """Split the ``mask`` Gaussians; past ``max_gaussians`` the lowest-``priority`` candidates are dropped."""
         extras = {"c_s": self.c_s, "grad_acc": self._grad_acc}
+        if self._selected is not None:  # children inherit the selection (and their parent's input row)
+            extras.update(selected=self._selected, origin=self._origin)
         limit = max(0, self.max_gaussians - self.gaussian_count)
         n_sel = int(mask.sum())
         if n_sel * (children - 1) > limit:
@@ -474,6 +576,8 @@ class Stylizer:
         ops.split(self.params, {}, extras, mask, n_children=children, scale_divisor=divisor, generator=self._gen)
         self.c_s = extras["c_s"]
         self._grad_acc = extras["grad_acc"]
+        if self._selected is not None:
+            self._selected, self._origin = extras["selected"], extras["origin"]
         return int(mask.sum())
 
     def _step_preprocess(self) -> StepReport:
@@ -482,10 +586,10 @@ class Stylizer:
         msg = ""
         if self._trainer is None:
             gamma = s.preprocess_gamma * s.preprocess_gamma_growth**self._preprocess_round
-            ids = self._seen()
+            ids = self._active()
             if ids is None:
                 mask = flat_split_mask(self.params["log_scales"], gamma, s.preprocess_cap)
-            else:  # unseen Gaussians are never split
+            else:  # unseen (and unselected) Gaussians are never split
                 mask = torch.zeros(self.gaussian_count, dtype=torch.bool)
                 mask[ids] = flat_split_mask(self.params["log_scales"][ids], gamma, s.preprocess_cap)
             from .preprocess import gaussian_areas
@@ -513,10 +617,14 @@ class Stylizer:
     def _step_colour_match(self) -> StepReport:
         from ..style.colour_match import apply_colour_transform
 
+        if self._selected is not None:
+            self.region_coverage = [self._selected_weight(v) for v in range(len(self.cameras))]
         A, b = self._match_content_targets()
         c_gt = self._gt_rgb().numpy()
         keep = self.settings.keep_colours  # luminance map unclipped, then the chroma of c_gt as far as it fits
         self.c_s = torch.as_tensor(apply_colour_transform(c_gt, A, b, clip=not keep), dtype=torch.float32)
+        if self._selected is not None:  # outside the region the Gaussians keep their own colour
+            self.c_s = torch.where(self._selected[:, None], self.c_s, torch.as_tensor(c_gt, dtype=torch.float32))
         if keep:
             self._restore_chroma()
         self._grad_acc = torch.zeros(self.gaussian_count)
@@ -546,7 +654,8 @@ class Stylizer:
         """Colour-match the ground truth to the style: sets ``colour_transform`` and the content targets."""
         from ..style.colour_match import apply_colour_transform
 
-        gt_pixels = torch.cat([self._surface(g, m) for g, m in zip(self.gt_images, self.coverage, strict=True)]).numpy()
+        gt_pixels = torch.cat([self._surface(g, m) for g, m in zip(self.gt_images, self._match_coverage(),
+                                                                   strict=True)]).numpy()
         if len(gt_pixels) < 2:  # the scene covers no pixel: use whole frames
             gt_pixels = torch.cat([g.reshape(-1, 3) for g in self.gt_images]).numpy()
         A, b = self._transfer_matrix(gt_pixels)
@@ -555,37 +664,52 @@ class Stylizer:
         # over a black background, so c -> A c + b turns a pixel p into A p + alpha b. The background stays black
         # (transforming it too would ask c_s for a change no Gaussian can make, and pull at every silhouette).
         self.content_images = []
-        for g, a in zip(self.gt_images, self.coverage, strict=True):
+        for i, (g, a) in enumerate(zip(self.gt_images, self.coverage, strict=True)):
             p = apply_colour_transform(g.reshape(-1, 3).numpy(), A, np.zeros(3), clip=False)
             p = torch.as_tensor(p + a.reshape(-1, 1).numpy() * b, dtype=torch.float32)
             if self.settings.keep_colours:  # the view's own hues at the new luminance (as c_s gets them)
                 from ..style.keep_colours import with_chroma_of
 
                 p = with_chroma_of(p, g.reshape(-1, 3))
+            if self.region_coverage:  # region: the selected share of each pixel matched, the rest as it was
+                share = (self.region_coverage[i] / a.clamp_min(1e-6)).clamp(0.0, 1.0).reshape(-1, 1)
+                p = g.reshape(-1, 3) + share * (p - g.reshape(-1, 3))
             self.content_images.append(p.clamp(0.0, 1.0).reshape(g.shape))
         return A, b
 
     @torch.no_grad()
     def _restore_chroma(self) -> None:
-        """Keep colours: every Gaussian's c_s (and the optimised copy) takes the chroma of its c_gt back."""
+        """Keep colours: every (selected) Gaussian's c_s (and the optimised copy) takes the chroma of its c_gt back."""
         from ..style.keep_colours import with_chroma_of
 
         c_gt = self._gt_rgb().to(self.c_s.dtype)
-        self.c_s = with_chroma_of(self.c_s.detach(), c_gt)
+        restored = with_chroma_of(self.c_s.detach(), c_gt)
+        self.c_s = restored if self._selected is None else torch.where(self._selected[:, None], restored, self.c_s)
         if self._c_opt is not None:
-            ids = self._seen()
+            ids = self._active()
             self._c_opt.copy_(self.c_s if ids is None else self.c_s[ids])
 
+    def _match_coverage(self) -> list[torch.Tensor]:
+        """What the colour matches count as the scene in each view: its coverage, or the region's."""
+        return self.region_coverage if self.region_coverage else self.coverage
+
     def objective_coverage(self, view: int) -> torch.Tensor | None:
-        """The scene's coverage of a training view as the objective gets it: None for photos (they are all scene)."""
+        """The scene's coverage of a training view as the objective gets it: None for photos (they are all scene).
+        A region run: the selected Gaussians' weight (photos too), so the losses see only the selected part."""
+        if self.region_coverage:
+            return self.region_coverage[view]
         return None if self.photos is not None else self.coverage[view]
 
     def _network_area_note(self) -> str:
         """What the networks look at during stylization (see ``pipeline/scene_box.py``)."""
-        if self.photos is not None:
+        if self.photos is not None and not self.region_coverage:
             return "whole frames (photos: the scene fills every view)"
         if not self.settings.crop_to_scene:
             return "whole frames (crop_to_scene = False)"
+        if self.region_coverage:
+            share = float(np.mean([box_fraction(scene_box(c), *c.shape) for c in self.region_coverage]))
+            return (f"the box of each view that the selected region covers (+{SCENE_BOX_MARGIN_PX} px): "
+                    f"{100 * share:.0f} % of the frame's pixels on average; losses weighted by the region's coverage")
         share = float(np.mean([box_fraction(scene_box(c), *c.shape) for c in self.coverage]))
         return (f"the box of each view that the scene covers (+{SCENE_BOX_MARGIN_PX} px): {100 * share:.0f} % of the "
                 f"frame's pixels on average")
@@ -651,7 +775,7 @@ class Stylizer:
         s = self.settings
         if self._stylize_step in self.split_steps and s.split_rate > 0:
             return self._do_colour_split()
-        ids = self._seen()
+        ids = self._active()
         if self._opt is None:
             self._start_colour_optimiser(ids)
         for g in self._opt.param_groups:
@@ -660,7 +784,7 @@ class Stylizer:
         self._opt.zero_grad(set_to_none=True)
         total, terms = 0.0, {}
         for view in views:  # the mean loss over this step's views: gradients add up before one optimiser step
-            image = self._render_cs(view, self._c_opt)
+            image = self._render_cs(view, self._render_colours())
             loss, view_terms = self._objective_fn()(image, self.content_images[view], view,
                                                     coverage=self.objective_coverage(view))
             (loss / len(views)).backward()
@@ -719,7 +843,7 @@ class Stylizer:
         self.split_steps.remove(self._stylize_step)
         self.splits_done += 1
         n = self.gaussian_count
-        ids = self._seen()  # the split rate is a fraction of the seen Gaussians; unseen ones are never split
+        ids = self._active()  # the split rate is a fraction of the seen (selected) Gaussians; no others are split
         k = int(math.floor(s.split_rate * (n if ids is None else len(ids))))
         mask = torch.zeros(n, dtype=torch.bool)
         if k > 0:
@@ -752,13 +876,15 @@ class Stylizer:
         pixels = []
         for v in range(len(self.cameras)):
             image = self._render_cs(v)
-            pixels.append(self._surface(image, 1.0 - self._caches.get(v, self.geometry_version).t_final))
+            alpha = 1.0 - self._caches.get(v, self.geometry_version).t_final
+            pixels.append(self._surface(image, alpha if self._selected is None else self._selected_weight(v)))
         covered_pixels = torch.cat(pixels).numpy()
         if len(covered_pixels) < 2:
             covered_pixels = torch.cat([self._render_cs(v).reshape(-1, 3) for v in range(len(self.cameras))]).numpy()
         A, b = self._transfer_matrix(covered_pixels)
         keep = self.settings.keep_colours
-        self.c_s = torch.as_tensor(apply_colour_transform(self.c_s.numpy(), A, b, clip=not keep), dtype=torch.float32)
+        matched = torch.as_tensor(apply_colour_transform(self.c_s.numpy(), A, b, clip=not keep), dtype=torch.float32)
+        self.c_s = matched if self._selected is None else torch.where(self._selected[:, None], matched, self.c_s)
         if keep:
             self._restore_chroma()
         self._enter("done")
@@ -794,6 +920,9 @@ class Stylizer:
             "adam": copy.deepcopy(self._opt.state_dict()) if self._opt is not None else None,
             "generator": self._gen.get_state(),
             "objective_rng": g.get_state() if (g := objective_generator(self._objective)) is not None else None,
+            "selected": None if self._selected is None else self._selected.clone(),
+            "origin": None if self._origin is None else self._origin.clone(),
+            "region_coverage": [m.clone() for m in self.region_coverage],
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -804,6 +933,15 @@ class Stylizer:
         self.gt_images = [g.clone() for g in state["gt_images"]]
         self.coverage = [m.clone() for m in state["coverage"]]
         self.content_images = [g.clone() for g in state["content_images"]]
+        if (state.get("selected") is None) != (self._selected is None):
+            raise ValueError("the checkpoint was made " + ("with" if self._selected is None else "without")
+                             + " a selected region, this run is " + ("without" if self._selected is None else "with")
+                             + " one")
+        if self._selected is not None:
+            self._selected = torch.as_tensor(state["selected"]).to(torch.bool).clone()
+            self._origin = torch.as_tensor(state["origin"]).to(torch.long).clone()
+            self._active_key = None
+        self.region_coverage = [m.clone() for m in state.get("region_coverage") or []]
         self.phase = state["phase"]
         self.phase_step = state["phase_step"]
         self.global_step = state["global_step"]
@@ -824,7 +962,7 @@ class Stylizer:
             objective_generator(self._objective).set_state(self._objective_rng)
         self._opt, self._c_opt = None, None
         if state.get("adam") is not None:
-            self._start_colour_optimiser(self._seen())
+            self._start_colour_optimiser(self._active())
             self._opt.load_state_dict(state["adam"])
         saved = state.get("settings") or {}
         if len(saved.get("style_weights") or ()) == len(self.styles) > 1:  # the mix as it was (content targets too)
