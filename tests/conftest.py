@@ -48,3 +48,12 @@ def window(request):
         pytest.skip(f"no headless GL window (glfw NULL + EGL): {exc}")
     yield win
     win.close()
+
+
+@pytest.fixture
+def no_clip_weights(monkeypatch):
+    """No CLIP weights anywhere: runs get the coarse substitute (or no CLIP term), as on a machine without them."""
+    from gstyle_core.style import clip as clip_module
+
+    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
+    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)

@@ -135,3 +135,22 @@ def random_torchvision_vgg_state() -> dict:
     gen = torch.Generator().manual_seed(17)
     return {f"features.{i}.{kind}": torch.randn(shapes[f"features.{i}.{kind}"], generator=gen) * 0.05
             for i, _ in CONV_LAYERS for kind in ("weight", "bias")}
+
+
+def engine_at_stylize(vgg, scene, style, **overrides):
+    """A tiny real engine (the real ``StyleObjective`` on ``vgg``) over 3 ring cameras, stepped to its stylize phase:
+    preview settings without pre-processing or splits, 32 px wide, 3 epochs, unless ``overrides`` say otherwise."""
+    from synthetic import ring_cameras
+
+    from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    opts = dict(max_views=3, epochs=3, min_steps=0, preprocess_rounds=0, split_rate=0.0, working_width=32)
+    opts.update(overrides)
+    settings = resolve_settings("preview", "forward", 3, **opts)
+    engine = Stylizer(scene, ring_cameras(3), style, settings,
+                      objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
+    while engine.phase != "stylize":
+        engine.step()
+    return engine

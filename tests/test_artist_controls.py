@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 import torch
-from fakes import random_torchvision_vgg_state
-from synthetic import blob_scene, ring_cameras
+from fakes import engine_at_stylize, random_torchvision_vgg_state
+from synthetic import blob_scene
 
 from gstyle_core.io import save_scene
 from gstyle_core.pipeline.objective import MAX_STYLE_SIDE, StyleObjective, style_side
@@ -55,24 +55,11 @@ def vgg() -> VGGFeatures:
 
 
 @pytest.fixture
-def engine_for(vgg, monkeypatch):
+def engine_for(vgg, no_clip_weights):
     """A tiny real engine on the real StyleObjective (random VGG, no CLIP weights anywhere), up to stylization."""
-    from gstyle_core.style import clip as clip_module
-
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
-
     def build(scene=None, style=None, **overrides) -> Stylizer:
-        opts = dict(max_views=3, epochs=3, min_steps=0, preprocess_rounds=0, split_rate=0.0, working_width=32,
-                    lambda_clip=0.0)
-        opts.update(overrides)
-        settings = resolve_settings("preview", "forward", 3, **opts)
-        engine = Stylizer(warm_scene() if scene is None else scene, ring_cameras(3),
-                          blue_painting() if style is None else style, settings,
-                          objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
-        while engine.phase != "stylize":
-            engine.step()
-        return engine
+        return engine_at_stylize(vgg, warm_scene() if scene is None else scene,
+                                 blue_painting() if style is None else style, **{"lambda_clip": 0.0, **overrides})
 
     return build
 
@@ -224,12 +211,9 @@ def test_a_resumed_engine_keeps_both_controls(engine_for):
 
 
 # ====================================================================== command line and OUT.json
-def test_cli_takes_both_controls_and_records_them(tmp_path, monkeypatch):
+def test_cli_takes_both_controls_and_records_them(tmp_path, no_clip_weights):
     from gstyle_core.pipeline import cli
-    from gstyle_core.style import clip as clip_module
 
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
     scene_path, style_path = tmp_path / "warm.ply", tmp_path / "blue.png"
     save_scene(warm_scene(120), scene_path)
     from PIL import Image

@@ -74,30 +74,16 @@ def test_studio_command_line_takes_vgg_weights():
 
 # ====================================================================== terms switch on and off mid-run
 @pytest.fixture
-def small_engine(monkeypatch):
+def small_engine(no_clip_weights):
     """A tiny real engine on the real StyleObjective (random VGG, no CLIP weights anywhere), built with overrides."""
-    from synthetic import ring_cameras
+    from fakes import engine_at_stylize
 
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
-    from gstyle_core.style import clip as clip_module
-
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
     torch.manual_seed(0)
     vgg = VGGFeatures().eval()
     style = np.random.default_rng(0).uniform(size=(16, 16, 3)).astype(np.float32)
 
-    def build(**overrides) -> Stylizer:
-        opts = dict(max_views=3, epochs=3, min_steps=0, preprocess_rounds=0, split_rate=0.0, working_width=32,
-                    **overrides)
-        settings = resolve_settings("preview", "forward", 3, **opts)
-        engine = Stylizer(blob_scene(150, seed=3), ring_cameras(3), style, settings,
-                          objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
-        while engine.phase != "stylize":
-            engine.step()
-        return engine
+    def build(**overrides):
+        return engine_at_stylize(vgg, blob_scene(150, seed=3), style, **overrides)
 
     return build
 
@@ -116,12 +102,6 @@ def test_a_term_that_starts_at_zero_turns_on_mid_run(small_engine, term):
 
 
 # ====================================================================== the CLIP term says what it is
-@pytest.fixture
-def no_clip_weights(monkeypatch):
-    from gstyle_core.style import clip as clip_module
-
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
 
 
 class StopBeforeStepping(Exception):

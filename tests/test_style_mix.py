@@ -11,11 +11,10 @@ import json
 import numpy as np
 import pytest
 import torch
-from fakes import random_torchvision_vgg_state
-from synthetic import blob_scene, ring_cameras
+from fakes import engine_at_stylize, random_torchvision_vgg_state
+from synthetic import blob_scene
 
 from gstyle_core.errors import GStyleError
-from gstyle_core.pipeline.objective import StyleObjective
 from gstyle_core.pipeline.settings import resolve_settings, ui_params
 from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.style import losses as losses_module
@@ -46,24 +45,11 @@ def vgg() -> VGGFeatures:
 
 
 @pytest.fixture
-def engine_for(vgg, monkeypatch):
+def engine_for(vgg, no_clip_weights):
     """A tiny real engine on the real StyleObjective (random VGG, no CLIP weights), up to stylization."""
-    from gstyle_core.style import clip as clip_module
-
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
-
     def build(styles=(BLUE, RED), **overrides) -> Stylizer:
-        opts = dict(max_views=3, epochs=3, min_steps=0, preprocess_rounds=0, split_rate=0.0, working_width=32,
-                    lambda_clip=0.0)
-        opts.update(overrides)
-        settings = resolve_settings("preview", "forward", 3, **opts)
         style = styles[0] if len(styles) == 1 else list(styles)
-        engine = Stylizer(blob_scene(150, seed=3), ring_cameras(3), style, settings,
-                          objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
-        while engine.phase != "stylize":
-            engine.step()
-        return engine
+        return engine_at_stylize(vgg, blob_scene(150, seed=3), style, **{"lambda_clip": 0.0, **overrides})
 
     return build
 
@@ -215,13 +201,10 @@ def _save_png(path, img):
     Image.fromarray((img * 255).astype(np.uint8)).save(path)
 
 
-def test_cli_mixes_two_styles_and_names_them_with_weights(tmp_path, monkeypatch):
+def test_cli_mixes_two_styles_and_names_them_with_weights(tmp_path, no_clip_weights):
     from gstyle_core.io import save_scene
     from gstyle_core.pipeline import cli
-    from gstyle_core.style import clip as clip_module
 
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
     scene_path, blue_path, red_path = tmp_path / "s.ply", tmp_path / "blue.png", tmp_path / "red.png"
     save_scene(blob_scene(120, seed=3), scene_path)
     _save_png(blue_path, BLUE)

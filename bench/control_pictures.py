@@ -1,0 +1,92 @@
+"""Pictures of the artist controls for the README: the same views of several scenes, one labelled row each.
+
+    .venv/bin/python bench/control_pictures.py --scene SCENE [--cameras CAMS] --out docs/X.jpg \\
+        --row "input=SCENE" --row "The Starry Night=out/mix/starry.ply" --row "mix 0.5=out/mix/mix.ply" ...
+
+Every row renders ``--views`` cameras of ``SCENE`` (spread around its camera list, as the gallery does) at ``--width``
+px each; the rows are cropped to the columns and rows that any of them covers and labelled on the left.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+LABEL_WIDTH = 150
+
+
+def render_rows(scene: str | None, cameras: str | None, rows: list[tuple[str, str]], views: int, width: int
+                ) -> np.ndarray:
+    """[H, W, 3] uint8: one labelled strip of ``views`` renders per (label, scene path) row."""
+    from gstyle_core.io import load_scene
+    from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image
+
+    _base, _report, cams = load_scene_and_cameras(scene, cameras)
+    n = len(cams.cameras)
+    picks = sorted({int(i * n / min(views, n)) for i in range(min(views, n))})
+    chosen = [cams.cameras[i].resized_to_width(width) for i in picks]
+    strips, covered = [], None
+    for _label, path in rows:
+        row_scene, _ = load_scene(path)
+        images, alphas = zip(*(render_scene_image(row_scene, c, with_alpha=True) for c in chosen), strict=True)
+        strips.append(np.concatenate(images, axis=1))
+        cover = np.concatenate(alphas, axis=1) > 1.0 / 255.0
+        covered = cover if covered is None else covered | cover
+    rows_idx, cols_idx = np.flatnonzero(covered.any(axis=1)), np.flatnonzero(covered.any(axis=0))
+    if rows_idx.size and cols_idx.size:
+        r0, r1 = max(rows_idx[0] - 8, 0), min(rows_idx[-1] + 9, covered.shape[0])
+        c0, c1 = max(cols_idx[0] - 8, 0), min(cols_idx[-1] + 9, covered.shape[1])
+        strips = [s[r0:r1, c0:c1] for s in strips]
+    return np.concatenate([_labelled(s, label) for s, (label, _) in zip(strips, rows, strict=True)], axis=0)
+
+
+def _labelled(strip: np.ndarray, label: str) -> np.ndarray:
+    """``strip`` (float [0,1] or uint8) with a black label column on its left."""
+    from PIL import Image, ImageDraw
+
+    img = np.asarray(strip)
+    if img.dtype != np.uint8:
+        img = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
+    canvas = Image.new("RGB", (img.shape[1] + LABEL_WIDTH, img.shape[0]), (0, 0, 0))
+    canvas.paste(Image.fromarray(img), (LABEL_WIDTH, 0))
+    draw = ImageDraw.Draw(canvas)
+    y = img.shape[0] // 2 - 8
+    for line in label.split("\\n"):
+        draw.text((8, y), line, fill=(235, 235, 235))
+        y += 14
+    return np.asarray(canvas)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--scene", default=None, help="the scene whose cameras frame every row (default: the demo)")
+    p.add_argument("--cameras", default=None, help="its cameras (default: the scene's own or generated)")
+    p.add_argument("--row", action="append", required=True, metavar="LABEL=SCENE",
+                   help="a labelled row (a '\\n' in the label breaks the line)")
+    p.add_argument("--views", type=int, default=3)
+    p.add_argument("--width", type=int, default=384)
+    p.add_argument("--out", required=True, help="output .jpg/.png")
+    args = p.parse_args(argv)
+    rows = []
+    for spec in args.row:
+        label, sep, path = spec.partition("=")
+        if not sep:
+            p.error(f"--row must be LABEL=SCENE, got {spec!r}")
+        rows.append((label, path))
+    from PIL import Image
+
+    picture = render_rows(args.scene, args.cameras, rows, args.views, args.width)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(picture).save(args.out, quality=90)
+    print(f"wrote {args.out} ({picture.shape[1]}x{picture.shape[0]})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
