@@ -12,7 +12,7 @@ from imgui_bundle import imgui
 VIEW_MODES = ("stylized", "original", "compare", "ground truth", "take")
 TURNTABLE_FORMATS = ("mp4", "gif", "png frames")
 MAX_TURNTABLE_FRAMES = 3600
-PANEL_WIDTH = 330.0
+PANEL_WIDTH = 420.0  # wide enough for a λ row with the substitute's name and its reset button
 
 
 @dataclass(frozen=True)
@@ -363,7 +363,7 @@ def _view_section(state: PanelState, out: list[Command]) -> None:
             out.append(Command("view_mode", {"mode": mode}))
         tooltip(VIEW_TOOLTIPS[mode])
         imgui.end_disabled()
-        if mode != VIEW_MODES[-1]:
+        if mode not in (VIEW_MODES[-1], "compare"):  # two rows: the panel is narrower than five radio buttons
             imgui.same_line()
     changed, fov = imgui.slider_float("fov", state.fov_deg, 10.0, 120.0, "%.0f deg")
     tooltip("Vertical field of view of the viewer's camera.")
@@ -449,7 +449,7 @@ def _param_row(state: PanelState, p: Param, out: list[Command]) -> None:
             out.append(switch_command(state, p, on))
         imgui.same_line()
     imgui.begin_disabled(off)
-    imgui.set_next_item_width(150)
+    imgui.set_next_item_width(110)
     shown = state.switched_off.get(p.key, default_value(state, p)) if off else value
     changed, new = log_slider(param_label(state, p), shown, p.low, p.high)
     tooltip(param_tooltip(state, p))
