@@ -14,7 +14,7 @@ from imgui_driver import studio_driver  # noqa: E402
 from PIL import Image  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
-from app.panels import Command  # noqa: E402
+from app.panels import PANEL_WIDTH, Command  # noqa: E402
 from app.renderer import read_rgb  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
 from gstyle_core.pipeline.region import box_mask, rect_mask  # noqa: E402
@@ -39,7 +39,9 @@ def region_stylizer(region=None, selection=None, **_ignored):
 
 
 def orange_share(rgb: np.ndarray) -> float:
-    """How orange the lit pixels are (the highlight's tint): mean of R - B over pixels that are not background."""
+    """How orange the lit pixels of the view right of the panel are (the highlight's tint): mean of R - B over
+    pixels that are not background."""
+    rgb = rgb[:, int(PANEL_WIDTH) + 20:]
     lit = rgb.astype(np.float32).sum(-1) > 30
     return float((rgb[..., 0].astype(np.float32) - rgb[..., 2])[lit].mean()) if lit.any() else 0.0
 
@@ -76,7 +78,7 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         assert np.array_equal(app.region_mask(), inside) and 20 < inside.sum() < 130
         assert any(f"{int(inside.sum())} of 150 Gaussians" in t for t in driver.recorder.texts)
         # Shift + drag a rectangle over the right part of the view (clear of the panel)
-        rect = (420.0, 200.0, 690.0, 900.0)
+        rect = (PANEL_WIDTH + 40.0, 200.0, 690.0, 900.0)
         driver.frame(lambda io: io.add_key_event(imgui.Key.mod_shift, True),
                      lambda io: io.add_mouse_pos_event(rect[0], rect[1]))
         driver.frame(lambda io: io.add_mouse_button_event(0, True))
