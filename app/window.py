@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -60,6 +61,18 @@ class Window:
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
         if swap:
             glfw.swap_buffers(self.handle)
+
+    def draw(self, frame: Callable[[moderngl.Framebuffer], Any]) -> moderngl.Framebuffer:
+        """One whole frame without swapping (headless runs and benches): ImGui frame, ``frame(screen)`` into the
+        full-size default framebuffer, ImGui on top, GL finished. Returns the screen (to read back)."""
+        self.begin_frame()
+        screen = self.ctx.screen
+        screen.viewport = (0, 0, *self.framebuffer_size)
+        screen.use()
+        frame(screen)
+        self.end_frame(swap=False)
+        self.ctx.finish()
+        return screen
 
     def close(self) -> None:
         """Shut down ImGui backends and glfw."""

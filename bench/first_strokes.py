@@ -48,13 +48,7 @@ def main() -> None:
         app.start_engine()
         while marks:
             start = time.perf_counter()
-            window.begin_frame()
-            screen = window.ctx.screen
-            screen.viewport = (0, 0, *window.framebuffer_size)
-            screen.use()
-            app.frame(screen)
-            window.end_frame(swap=False)
-            window.ctx.finish()
+            screen = window.draw(app.frame)
             report = (app.bridge.state.last_report or {}) if app.bridge is not None else {}
             if app.bridge is not None and app.bridge.state.error:
                 raise SystemExit(f"worker failed: {app.bridge.state.error}")

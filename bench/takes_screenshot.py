@@ -31,13 +31,7 @@ def run_frames(window, app, until, timeout: float, fps: float = 30.0) -> float:
     t0 = time.perf_counter()
     while not until() and time.perf_counter() - t0 < timeout:
         start = time.perf_counter()
-        window.begin_frame()
-        screen = window.ctx.screen
-        screen.viewport = (0, 0, *window.framebuffer_size)
-        screen.use()
-        app.frame(screen)
-        window.end_frame(swap=False)
-        window.ctx.finish()
+        window.draw(app.frame)
         if app.bridge is not None and app.bridge.state.error:
             raise SystemExit(f"worker failed: {app.bridge.state.error}")
         time.sleep(max(0.0, 1.0 / fps - (time.perf_counter() - start)))
@@ -72,12 +66,8 @@ def main() -> None:
         app.execute(Command("show_take", {"index": 0, "compare": True}))
         app.panel.status = f"comparing with {app.takes.takes[0].name} (style mix {args.first})"
         run_frames(window, app, lambda: False, 6)
-        window.begin_frame()
-        screen = window.ctx.screen
-        screen.use()
         app.progressive = False
-        app.frame(screen)
-        window.end_frame(swap=False)
+        screen = window.draw(app.frame)
         print(f"wrote {app.save_png(args.out, app.capture(screen))}")
     finally:
         app.close()

@@ -57,3 +57,14 @@ def no_clip_weights(monkeypatch):
 
     monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
     monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
+
+
+@pytest.fixture(scope="module")
+def vgg():
+    """VGG-16 block 1-3 with random weights (seed 0), in eval mode: the loss definitions do not depend on them."""
+    import torch
+
+    from gstyle_core.style.vgg import VGGFeatures
+
+    torch.manual_seed(0)
+    return VGGFeatures().eval()

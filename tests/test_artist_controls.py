@@ -21,7 +21,6 @@ from gstyle_core.pipeline.settings import resolve_settings
 from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.scene import rgb_to_sh_dc
 from gstyle_core.style.keep_colours import chroma, luminance, luminance_transfer_matrix, with_chroma_of
-from gstyle_core.style.vgg import VGGFeatures
 
 
 def warm_scene(n: int = 150, seed: int = 3):
@@ -46,12 +45,6 @@ def blue_painting(size: int = 48) -> np.ndarray:
 def textured_painting(size: int = 64) -> np.ndarray:
     rng = np.random.default_rng(0)
     return rng.uniform(size=(size, size, 3)).astype(np.float32)
-
-
-@pytest.fixture(scope="module")
-def vgg() -> VGGFeatures:
-    torch.manual_seed(0)
-    return VGGFeatures().eval()
 
 
 @pytest.fixture

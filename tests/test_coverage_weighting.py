@@ -17,7 +17,6 @@ from gstyle_core.style.losses import (
     nnfm_loss,
     weighted_mean,
 )
-from gstyle_core.style.vgg import VGGFeatures
 from tests.fakes import MeanColourPull
 from tests.synthetic import blob_scene, ring_cameras
 
@@ -57,12 +56,6 @@ def test_uncovered_positions_neither_count_nor_get_gradient():
     ones = torch.ones(1, 1, 6, 8)
     torch.testing.assert_close(nnfm_loss(render, style, weights=ones), nnfm_loss(render, style))
     torch.testing.assert_close(content_loss(render, gt, weights=ones), content_loss(render, gt))
-
-
-@pytest.fixture(scope="module")
-def vgg():
-    torch.manual_seed(0)
-    return VGGFeatures()  # random weights: the definitions do not depend on them
 
 
 def test_substitute_statistics_ignore_the_background(vgg):

@@ -11,7 +11,6 @@ from gstyle_core.pipeline.objective import StyleObjective
 from gstyle_core.pipeline.scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, box_fraction, scene_box
 from gstyle_core.pipeline.settings import resolve_settings
 from gstyle_core.style.losses import StyleWeights
-from gstyle_core.style.vgg import VGGFeatures
 
 
 def _object_view(h: int = 96, w: int = 160, top: int = 30, left: int = 60, size: int = 36, seed: int = 0):
@@ -51,12 +50,6 @@ class _SizeRecorder(nn.Module):
     def forward(self, img):
         self.pixels.append(img.shape[-2] * img.shape[-1])
         return self.vgg(img)
-
-
-@pytest.fixture(scope="module")
-def vgg():
-    torch.manual_seed(0)
-    return VGGFeatures()
 
 
 def _objective(vgg, crop: bool) -> StyleObjective:

@@ -23,7 +23,6 @@ from gstyle_core.style.colour_match import Palette, apply_colour_transform, colo
 from gstyle_core.style.keep_colours import luminance, luminance_transfer_matrix
 from gstyle_core.style.losses import StyleLoss, StyleTarget, WeightedTargets
 from gstyle_core.style.mix import normalise_style_weights, parse_style_weights, weights_with_mix
-from gstyle_core.style.vgg import VGGFeatures
 
 
 def painting(colour: tuple[float, float, float], seed: int, size: int = 48) -> np.ndarray:
@@ -36,12 +35,6 @@ def painting(colour: tuple[float, float, float], seed: int, size: int = 48) -> n
 
 
 BLUE, RED = painting((0.2, 0.35, 0.9), 1), painting((0.9, 0.25, 0.15), 2)
-
-
-@pytest.fixture(scope="module")
-def vgg() -> VGGFeatures:
-    torch.manual_seed(0)
-    return VGGFeatures().eval()
 
 
 @pytest.fixture
