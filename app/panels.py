@@ -73,7 +73,8 @@ VIEW_TOOLTIPS = {
 }
 
 HELP_TEXT = """Mouse: left drag orbit, right drag pan, wheel zoom. W/A/S/D/Q/E fly.
-B region tool (Shift + drag: select by rectangle)   T compare with the next take (your exports)
+B region tool (Alt + drag / wheel: move / resize its box; Shift + drag: select by rectangle)
+T compare with the next take (your exports)
 Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view
 Ctrl+S export .ply   F12 screenshot   H this help"""
 
@@ -462,8 +463,9 @@ def _param_row(state: PanelState, p: Param, out: list[Command]) -> None:
 
 
 REGION_TOOLTIP = (
-    "Stylize only part of the scene: the Gaussians whose centres are in the box (drag the numbers to place and "
-    "resize it; it is drawn in the view), or, with Shift held, drag a rectangle in the view to select the Gaussians "
+    "Stylize only part of the scene: the Gaussians whose centres are in the box (it is drawn in the view: Alt + drag "
+    "moves it, Alt + wheel resizes it, the numbers set it exactly), or, with Shift held, drag a rectangle in the view "
+    "to select the Gaussians "
     "whose centres fall in it. The selection is drawn highlighted. Only the selected Gaussians are pre-processed, "
     "split and stylized, the losses see only them, and every other Gaussian is exported untouched (SH included). "
     "It applies when the run (re)starts (--region x0,y0,z0,x1,y1,z1). Shortcut: B.")
@@ -501,7 +503,8 @@ def _region_section(state: PanelState, out: list[Command]) -> None:
             out.append(Command("restart"))
         how = "box" if state.region_mode == "box" else "rectangle (Shift + drag; move the box to go back to it)"
         imgui.text_wrapped(f"{state.region_selected:,} of {state.region_total:,} Gaussians selected by the {how}")
-        imgui.text_wrapped("Shift + drag in the view: select the Gaussians whose centres fall in the rectangle.")
+        imgui.text_wrapped("In the view: Alt + drag moves the box, Alt + wheel resizes it; Shift + drag selects the "
+                           "Gaussians whose centres fall in a rectangle.")
     if state.region_in_engine:
         imgui.text_wrapped(f"running with {state.region_in_engine}")
 

@@ -30,6 +30,7 @@ from .worker import GEOMETRY_FIELDS, ThreadWorkerBridge, WorkerBridge
 
 SCENE_SUFFIXES = (".ply", ".splat", ".spz")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
+BOX_WHEEL_STEP = 1.1  # Alt + one wheel notch resizes the region box by this factor
 DIVIDER_GRAB_PIXELS = 6
 DIVIDER_COLOUR = (1.0, 1.0, 1.0)
 BACKGROUND = (0.0, 0.0, 0.0)
@@ -289,6 +290,29 @@ class StudioApp:
         self.region_rect_mask = None
         self.region_enabled = True
         self._region_version += 1
+
+    def _box_tool_on(self) -> bool:
+        return self.region_enabled and self.region_rect_mask is None and self.region_box is not None
+
+    def move_region_box(self, dx: float, dy: float, width: int, height: int) -> None:
+        """Move the region box by (dx, dy) framebuffer pixels in the view: parallel to the image plane at the depth of
+        its centre, so the centre follows the mouse."""
+        cam = self.control.camera(width, height)
+        box = np.asarray(self.region_box, np.float64)
+        centre = (box[:3] + box[3:]) / 2
+        w2c = np.asarray(cam.world_to_cam, np.float64)
+        depth = float((w2c[:3, :3] @ centre + w2c[:3, 3])[2])
+        if depth <= 1e-6:  # behind the camera: nothing sensible to follow
+            return
+        c2w = np.linalg.inv(w2c)
+        shift = c2w[:3, 0] * (dx * depth / cam.fx) + c2w[:3, 1] * (dy * depth / cam.fy)
+        self.set_region_box(tuple(np.concatenate([box[:3] + shift, box[3:] + shift])))
+
+    def scale_region_box(self, factor: float) -> None:
+        """Resize the region box about its centre by ``factor`` along every axis."""
+        box = np.asarray(self.region_box, np.float64)
+        centre, half = (box[:3] + box[3:]) / 2, (box[3:] - box[:3]) / 2 * float(factor)
+        self.set_region_box(tuple(np.concatenate([centre - half, centre + half])))
 
     def select_rectangle(self, rect, width: int, height: int) -> int:
         """Select the Gaussians whose centres project into the screen rectangle (x0, y0, x1, y1 in framebuffer
@@ -601,12 +625,16 @@ class StudioApp:
             if imgui.is_mouse_clicked(0) and io_.key_shift and self.loaded is not None:
                 self._dragging, self._rect_start = "select", fb_mouse
                 self.region_enabled = True
+            elif imgui.is_mouse_clicked(0) and io_.key_alt and self._box_tool_on():
+                self._dragging = "box"  # Alt + drag: place the region box in the view
             elif imgui.is_mouse_clicked(0):
                 near_divider = self.view_mode == "compare" and abs(mouse[0] - divider_x) <= DIVIDER_GRAB_PIXELS
                 self._dragging = "divider" if near_divider else "orbit"
             elif imgui.is_mouse_clicked(1):
                 self._dragging = "pan"
-            if io_.mouse_wheel:
+            if io_.mouse_wheel and io_.key_alt and self._box_tool_on():  # Alt + wheel: resize the box
+                self.scale_region_box(BOX_WHEEL_STEP ** io_.mouse_wheel)
+            elif io_.mouse_wheel:
                 self.control.zoom(io_.mouse_wheel)
         if not (imgui.is_mouse_down(0) or imgui.is_mouse_down(1)):
             self._dragging = None
@@ -618,6 +646,8 @@ class StudioApp:
                 self.control.orbit(dx, dy)
             elif self._dragging == "pan" and (dx or dy):
                 self.control.pan(dx, dy, height)
+            elif self._dragging == "box" and (dx or dy):
+                self.move_region_box(dx * (scale.x or 1.0), dy * (scale.y or 1.0), width, height)
             elif self._dragging == "select" and self._rect_start is not None:
                 sx, sy = scale.x or 1.0, scale.y or 1.0
                 self.panel.region_drag = (self._rect_start[0] / sx, self._rect_start[1] / sy, *mouse)

@@ -77,6 +77,26 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         inside = box_mask(scene.means, HALF)
         assert np.array_equal(app.region_mask(), inside) and 20 < inside.sum() < 130
         assert any(f"{int(inside.sum())} of 150 Gaussians" in t for t in driver.recorder.texts)
+        # Alt + drag moves the box in the view (its centre follows the mouse), Alt + wheel resizes it
+        def centre_pixel():
+            box = np.asarray(app.region_box)
+            cam = app.control.camera(W, H)
+            p = np.asarray(cam.world_to_cam)[:3, :3] @ ((box[:3] + box[3:]) / 2) + np.asarray(cam.world_to_cam)[:3, 3]
+            return np.array([cam.fx * p[0] / p[2] + cam.cx, cam.fy * p[1] / p[2] + cam.cy])
+
+        before, extent = centre_pixel(), np.subtract(HALF[3:], HALF[:3])
+        x0 = PANEL_WIDTH + 80.0
+        driver.frame(lambda io: io.add_mouse_pos_event(x0, 500))
+        driver.frame(lambda io: io.add_key_event(imgui.Key.mod_alt, True))
+        driver.frame(lambda io: io.add_mouse_button_event(0, True))
+        driver.frame(lambda io: io.add_mouse_pos_event(x0 + 40, 500))
+        driver.frame(lambda io: io.add_mouse_button_event(0, False))
+        assert np.allclose(centre_pixel() - before, (40, 0), atol=0.5)
+        driver.frame(lambda io: io.add_mouse_wheel_event(0, 1))
+        driver.frame(lambda io: io.add_key_event(imgui.Key.mod_alt, False))
+        box = np.asarray(app.region_box)
+        assert np.allclose(box[3:] - box[:3], 1.1 * extent) and np.allclose(centre_pixel() - before, (40, 0), atol=0.5)
+        app.execute(Command("region_box", {"box": HALF}))
         # Shift + drag a rectangle over the right part of the view (clear of the panel)
         rect = (PANEL_WIDTH + 40.0, 200.0, 690.0, 900.0)
         driver.frame(lambda io: io.add_key_event(imgui.Key.mod_shift, True),
