@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from gstyle_core.scene import SH_C0, sigmoid
+
+if TYPE_CHECKING:
+    from gstyle_core.scene import GaussianScene
 
 TEXTURE_WIDTH = 4096  # Gaussians per texture row; data lives in RGBA32F textures (no SSBO size limit)
 GEOMETRY_KEYS = ("means", "log_scales", "quats", "opacity_logits")
@@ -116,3 +120,9 @@ def sh_colors(sh: np.ndarray, means: np.ndarray, camera_position: np.ndarray) ->
                              torch.from_numpy(np.ascontiguousarray(means, np.float32)),
                              torch.tensor(np.asarray(camera_position, np.float32)), degree)
     return rgb.numpy()
+
+
+def scene_arrays(scene: GaussianScene) -> dict[str, np.ndarray]:
+    """GaussianScene -> the renderer's array dict (with SH)."""
+    return {"means": scene.means, "log_scales": scene.log_scales, "quats": scene.quats,
+            "opacity_logits": scene.opacity_logits, "sh_dc": scene.sh_dc, "sh_rest": scene.sh_rest}

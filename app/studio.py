@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import io
-import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -22,9 +21,12 @@ from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
 from .panels import Command, PanelState, draw_panel
+from .region_tool import RegionTool
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
 from .scene_view import SceneView, ViewPass
+from .splat_data import scene_arrays
 from .takes import TakeShelf
+from .takes_view import TakesView
 from .video_job import VideoJob, turntable_path
 from .worker import GEOMETRY_FIELDS, ThreadWorkerBridge, WorkerBridge
 
@@ -59,12 +61,6 @@ def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) ->
     return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras))
 
 
-def scene_arrays(scene: GaussianScene) -> dict[str, np.ndarray]:
-    """GaussianScene -> the renderer's array dict (with SH)."""
-    return {"means": scene.means, "log_scales": scene.log_scales, "quats": scene.quats,
-            "opacity_logits": scene.opacity_logits, "sh_dc": scene.sh_dc, "sh_rest": scene.sh_rest}
-
-
 def encode_png(rgb: np.ndarray) -> bytes:
     """uint8 [H, W, 3] -> PNG bytes."""
     from PIL import Image
@@ -74,7 +70,7 @@ def encode_png(rgb: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-class StudioApp:
+class StudioApp(RegionTool, TakesView):
     """Owns the renderers and the worker bridge; ``frame()`` draws one frame into the current framebuffer."""
 
     def __init__(self, ctx: moderngl.Context, *, loaded: LoadedScene | None = None, style_path: str | None = None,
@@ -274,126 +270,6 @@ class StudioApp:
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
         return resume_from is not None
 
-    # ----------------------------------------------------------------- selected region
-    def scene_box(self) -> tuple[float, ...]:
-        """The input scene's bounds as a box (x0,y0,z0,x1,y1,z1)."""
-        if self.loaded is None or self.loaded.scene.count == 0:
-            return (0.0,) * 6
-        m = np.asarray(self.loaded.scene.means, np.float64)
-        return tuple(float(v) for v in (*m.min(0), *m.max(0)))
-
-    def set_region_box(self, box) -> None:
-        """Select the Gaussians centred in ``box`` (turns the tool on; the rectangle's selection is dropped)."""
-        from gstyle_core.pipeline.region import check_region
-
-        self.region_box = check_region(box)
-        self.region_rect_mask = None
-        self.region_enabled = True
-        self._region_version += 1
-
-    def _box_tool_on(self) -> bool:
-        return self.region_enabled and self.region_rect_mask is None and self.region_box is not None
-
-    def move_region_box(self, dx: float, dy: float, width: int, height: int) -> None:
-        """Move the region box by (dx, dy) framebuffer pixels in the view: parallel to the image plane at the depth of
-        its centre, so the centre follows the mouse."""
-        cam = self.control.camera(width, height)
-        box = np.asarray(self.region_box, np.float64)
-        centre = (box[:3] + box[3:]) / 2
-        w2c = np.asarray(cam.world_to_cam, np.float64)
-        depth = float((w2c[:3, :3] @ centre + w2c[:3, 3])[2])
-        if depth <= 1e-6:  # behind the camera: nothing sensible to follow
-            return
-        c2w = np.linalg.inv(w2c)
-        shift = c2w[:3, 0] * (dx * depth / cam.fx) + c2w[:3, 1] * (dy * depth / cam.fy)
-        self.set_region_box(tuple(np.concatenate([box[:3] + shift, box[3:] + shift])))
-
-    def scale_region_box(self, factor: float) -> None:
-        """Resize the region box about its centre by ``factor`` along every axis."""
-        box = np.asarray(self.region_box, np.float64)
-        centre, half = (box[:3] + box[3:]) / 2, (box[3:] - box[:3]) / 2 * float(factor)
-        self.set_region_box(tuple(np.concatenate([centre - half, centre + half])))
-
-    def select_rectangle(self, rect, width: int, height: int) -> int:
-        """Select the Gaussians whose centres project into the screen rectangle (x0, y0, x1, y1 in framebuffer
-        pixels, y down) of the current view of ``width`` x ``height``; returns how many."""
-        from gstyle_core.pipeline.region import rect_mask
-
-        if self.loaded is None:
-            return 0
-        mask = rect_mask(self.loaded.scene.means, self.control.camera(width, height), rect)
-        if not mask.any():
-            self.panel.status = "rectangle selection: no Gaussian centre in it (the selection is unchanged)"
-            return 0
-        self.region_rect_mask = mask
-        self.region_enabled = True
-        self._region_version += 1
-        self.panel.status = f"rectangle selection: {int(mask.sum()):,} Gaussians"
-        return int(mask.sum())
-
-    def region_mask(self) -> np.ndarray | None:
-        """The selection over the input scene's Gaussians (None: the tool is off)."""
-        if not self.region_enabled or self.loaded is None:
-            return None
-        if self.region_rect_mask is not None:
-            return self.region_rect_mask
-        from gstyle_core.pipeline.region import box_mask
-
-        if self.region_box is None:
-            self.region_box = self.scene_box()
-        return box_mask(self.loaded.scene.means, self.region_box)
-
-    def _region_to_config(self) -> None:
-        """Hand the selection to the engine's config (a box as ``region``, a rectangle as a ``selection`` mask)."""
-        self.engine_config.pop("region", None)
-        self.engine_config.pop("selection", None)
-        mask = self.region_mask()
-        if mask is None:
-            self.engine_region = ""
-        elif self.region_rect_mask is not None:
-            self.engine_config["selection"] = mask.copy()
-            self.engine_region = f"a rectangle selection ({int(mask.sum()):,} Gaussians)"
-        else:
-            self.engine_config["region"] = tuple(self.region_box)
-            self.engine_region = "box " + ",".join(f"{v:.3g}" for v in self.region_box)
-
-    def _apply_selection(self) -> None:
-        """Highlight the selection in both renderers (only when it or the geometry changed)."""
-        mask = self.region_mask()
-        for name, renderer in (("original", self.original), ("stylized", self.stylized)):
-            shown = mask
-            snap = self.bridge.state.snapshot if self.bridge is not None else {}
-            if mask is not None and renderer is self.stylized and renderer.count != len(mask):
-                engine_sel = snap.get("selected") if snap else None  # after splits: the engine's own selection
-                shown = engine_sel if engine_sel is not None and len(engine_sel) == renderer.count else None
-            key = (self._region_version, renderer.geometry_version, None if shown is None else len(shown),
-                   id(shown) if renderer is self.stylized and mask is not None and shown is not mask else 0)
-            if self._selection_shown.get(name) == key:
-                continue
-            self._selection_shown[name] = key
-            renderer.set_selection(shown)
-
-    def _region_outline(self, width: int, height: int) -> list[tuple[float, float, float, float]]:
-        """The region box's 12 edges projected into the view (window pixels), edges behind the camera left out."""
-        if not self.region_enabled or self.region_box is None or self.region_rect_mask is not None:
-            return []
-        cam = self.control.camera(width, height)
-        b = self.region_box
-        corners = np.array([[b[3 * (i & 1)], b[1 + 3 * ((i >> 1) & 1)], b[2 + 3 * ((i >> 2) & 1)]] for i in range(8)])
-        pc = corners @ np.asarray(cam.world_to_cam)[:3, :3].T + np.asarray(cam.world_to_cam)[:3, 3]
-        scale = imgui.get_io().display_framebuffer_scale if imgui.get_current_context() is not None else None
-        sx, sy = (scale.x, scale.y) if scale is not None and scale.x > 0 else (1.0, 1.0)
-        edges = []
-        for i in range(8):
-            for bit in (1, 2, 4):
-                j = i | bit
-                if j == i or min(pc[i, 2], pc[j, 2]) <= 1e-3:
-                    continue
-                (u0, v0), (u1, v1) = ((cam.fx * pc[k, 0] / pc[k, 2] + cam.cx, cam.fy * pc[k, 1] / pc[k, 2] + cam.cy)
-                                      for k in (i, j))
-                edges.append((u0 / sx, v0 / sy, u1 / sx, v1 / sy))
-        return edges
-
     def close(self, timeout: float = 20.0) -> bool:
         """Stop the engine (it saves the session in the cache folder; killed after ``timeout`` s) and free GL
         objects. Returns False when the engine had to be killed (nothing saved)."""
@@ -471,52 +347,6 @@ class StudioApp:
 
     def _take_layer(self) -> str:
         return SH_LAYER if SH_LAYER in self.take_view.layers else DIFFUSE_LAYER
-
-    # ----------------------------------------------------------------- takes
-    def show_take(self, index: int, compare: bool = True) -> bool:
-        """Load take ``index`` (its exported file) into the take view; ``compare``: stylized left, the take right,
-        else the take alone. False (status says why) when its file cannot be read."""
-        if not 0 <= index < len(self.takes.takes):
-            return False
-        take = self.takes.takes[index]
-        if self.take_shown != take.path:
-            try:
-                scene = self.takes.load(index)
-            except (GStyleError, OSError) as exc:
-                self.panel.status = f"take {take.name}: cannot read {Path(take.path).name}: {exc}"
-                return False
-            self.take_view.set_scene(scene_arrays(scene))
-            self.take_shown = take.path
-        self.compare_with_take = compare
-        self.view_mode = "compare" if compare else "take"
-        self.panel.status = f"{'comparing with' if compare else 'showing'} {take.name} ({Path(take.path).name})"
-        return True
-
-    def compare_with_original(self) -> None:
-        """Compare view: stylized left, the original right (no take)."""
-        self.compare_with_take = False
-        self.view_mode = "compare"
-
-    def forget_take(self, index: int) -> None:
-        """Take a take off the shelf (its file stays); the view leaves it if it was shown."""
-        take = self.takes.forget(index)
-        if take is not None and take.path == self.take_shown:
-            self.take_shown, self.compare_with_take = None, False
-            if self.view_mode == "take":
-                self.view_mode = "stylized"
-
-    def _shelve_exports(self, exported: list[str]) -> None:
-        """New exports become takes (the Gaussian count from the export's JSON summary)."""
-        from gstyle_core.io.saver import format_of
-
-        for written in exported:
-            path = Path(written)
-            stem = path.name[: -len(".compressed.ply")] if format_of(path) == "compressed-ply" else path.stem
-            try:
-                gaussians = int(json.loads(path.with_name(stem + ".json").read_text())["gaussians"])
-            except (OSError, ValueError, KeyError, TypeError):
-                gaussians = self.stylized.count
-            self.takes.add(path, gaussians)
 
     def _apply_engine_updates(self) -> None:
         if self.bridge is None:

@@ -1,0 +1,132 @@
+"""The studio's selected-region tool (issue #15, item 4): a box placed in the view or a screen rectangle, the
+selection it makes over the input scene's Gaussians, its highlight and its hand-over to the engine's config.
+A mixin of ``StudioApp`` (it uses the app's scene, camera control, renderers, panel and engine config)."""
+
+from __future__ import annotations
+
+import numpy as np
+from imgui_bundle import imgui
+
+
+class RegionTool:
+    """``StudioApp``'s region methods; the state lives on the app (``region_enabled``, ``region_box``,
+    ``region_rect_mask``, ``engine_region``, ``_region_version``, ``_selection_shown``)."""
+
+    def scene_box(self) -> tuple[float, ...]:
+        """The input scene's bounds as a box (x0,y0,z0,x1,y1,z1)."""
+        if self.loaded is None or self.loaded.scene.count == 0:
+            return (0.0,) * 6
+        m = np.asarray(self.loaded.scene.means, np.float64)
+        return tuple(float(v) for v in (*m.min(0), *m.max(0)))
+
+    def set_region_box(self, box) -> None:
+        """Select the Gaussians centred in ``box`` (turns the tool on; the rectangle's selection is dropped)."""
+        from gstyle_core.pipeline.region import check_region
+
+        self.region_box = check_region(box)
+        self.region_rect_mask = None
+        self.region_enabled = True
+        self._region_version += 1
+
+    def _box_tool_on(self) -> bool:
+        return self.region_enabled and self.region_rect_mask is None and self.region_box is not None
+
+    def move_region_box(self, dx: float, dy: float, width: int, height: int) -> None:
+        """Move the region box by (dx, dy) framebuffer pixels in the view: parallel to the image plane at the depth of
+        its centre, so the centre follows the mouse."""
+        cam = self.control.camera(width, height)
+        box = np.asarray(self.region_box, np.float64)
+        centre = (box[:3] + box[3:]) / 2
+        w2c = np.asarray(cam.world_to_cam, np.float64)
+        depth = float((w2c[:3, :3] @ centre + w2c[:3, 3])[2])
+        if depth <= 1e-6:  # behind the camera: nothing sensible to follow
+            return
+        c2w = np.linalg.inv(w2c)
+        shift = c2w[:3, 0] * (dx * depth / cam.fx) + c2w[:3, 1] * (dy * depth / cam.fy)
+        self.set_region_box(tuple(np.concatenate([box[:3] + shift, box[3:] + shift])))
+
+    def scale_region_box(self, factor: float) -> None:
+        """Resize the region box about its centre by ``factor`` along every axis."""
+        box = np.asarray(self.region_box, np.float64)
+        centre, half = (box[:3] + box[3:]) / 2, (box[3:] - box[:3]) / 2 * float(factor)
+        self.set_region_box(tuple(np.concatenate([centre - half, centre + half])))
+
+    def select_rectangle(self, rect, width: int, height: int) -> int:
+        """Select the Gaussians whose centres project into the screen rectangle (x0, y0, x1, y1 in framebuffer
+        pixels, y down) of the current view of ``width`` x ``height``; returns how many."""
+        from gstyle_core.pipeline.region import rect_mask
+
+        if self.loaded is None:
+            return 0
+        mask = rect_mask(self.loaded.scene.means, self.control.camera(width, height), rect)
+        if not mask.any():
+            self.panel.status = "rectangle selection: no Gaussian centre in it (the selection is unchanged)"
+            return 0
+        self.region_rect_mask = mask
+        self.region_enabled = True
+        self._region_version += 1
+        self.panel.status = f"rectangle selection: {int(mask.sum()):,} Gaussians"
+        return int(mask.sum())
+
+    def region_mask(self) -> np.ndarray | None:
+        """The selection over the input scene's Gaussians (None: the tool is off)."""
+        if not self.region_enabled or self.loaded is None:
+            return None
+        if self.region_rect_mask is not None:
+            return self.region_rect_mask
+        from gstyle_core.pipeline.region import box_mask
+
+        if self.region_box is None:
+            self.region_box = self.scene_box()
+        return box_mask(self.loaded.scene.means, self.region_box)
+
+    def _region_to_config(self) -> None:
+        """Hand the selection to the engine's config (a box as ``region``, a rectangle as a ``selection`` mask)."""
+        self.engine_config.pop("region", None)
+        self.engine_config.pop("selection", None)
+        mask = self.region_mask()
+        if mask is None:
+            self.engine_region = ""
+        elif self.region_rect_mask is not None:
+            self.engine_config["selection"] = mask.copy()
+            self.engine_region = f"a rectangle selection ({int(mask.sum()):,} Gaussians)"
+        else:
+            self.engine_config["region"] = tuple(self.region_box)
+            self.engine_region = "box " + ",".join(f"{v:.3g}" for v in self.region_box)
+
+    def _apply_selection(self) -> None:
+        """Highlight the selection in both renderers (only when it or the geometry changed)."""
+        mask = self.region_mask()
+        for name, renderer in (("original", self.original), ("stylized", self.stylized)):
+            shown = mask
+            snap = self.bridge.state.snapshot if self.bridge is not None else {}
+            if mask is not None and renderer is self.stylized and renderer.count != len(mask):
+                engine_sel = snap.get("selected") if snap else None  # after splits: the engine's own selection
+                shown = engine_sel if engine_sel is not None and len(engine_sel) == renderer.count else None
+            key = (self._region_version, renderer.geometry_version, None if shown is None else len(shown),
+                   id(shown) if renderer is self.stylized and mask is not None and shown is not mask else 0)
+            if self._selection_shown.get(name) == key:
+                continue
+            self._selection_shown[name] = key
+            renderer.set_selection(shown)
+
+    def _region_outline(self, width: int, height: int) -> list[tuple[float, float, float, float]]:
+        """The region box's 12 edges projected into the view (window pixels), edges behind the camera left out."""
+        if not self.region_enabled or self.region_box is None or self.region_rect_mask is not None:
+            return []
+        cam = self.control.camera(width, height)
+        b = self.region_box
+        corners = np.array([[b[3 * (i & 1)], b[1 + 3 * ((i >> 1) & 1)], b[2 + 3 * ((i >> 2) & 1)]] for i in range(8)])
+        pc = corners @ np.asarray(cam.world_to_cam)[:3, :3].T + np.asarray(cam.world_to_cam)[:3, 3]
+        scale = imgui.get_io().display_framebuffer_scale if imgui.get_current_context() is not None else None
+        sx, sy = (scale.x, scale.y) if scale is not None and scale.x > 0 else (1.0, 1.0)
+        edges = []
+        for i in range(8):
+            for bit in (1, 2, 4):
+                j = i | bit
+                if j == i or min(pc[i, 2], pc[j, 2]) <= 1e-3:
+                    continue
+                (u0, v0), (u1, v1) = ((cam.fx * pc[k, 0] / pc[k, 2] + cam.cx, cam.fy * pc[k, 1] / pc[k, 2] + cam.cy)
+                                      for k in (i, j))
+                edges.append((u0 / sx, v0 / sy, u1 / sx, v1 / sy))
+        return edges
