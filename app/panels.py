@@ -450,7 +450,7 @@ def _param_row(state: PanelState, p: Param, out: list[Command]) -> None:
             out.append(switch_command(state, p, on))
         imgui.same_line()
     imgui.begin_disabled(off)
-    imgui.set_next_item_width(110)
+    imgui.set_next_item_width(96)  # room for the longest label, its reset button and the panel's scrollbar
     shown = state.switched_off.get(p.key, default_value(state, p)) if off else value
     changed, new = log_slider(param_label(state, p), shown, p.low, p.high)
     tooltip(param_tooltip(state, p))
