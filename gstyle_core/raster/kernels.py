@@ -69,7 +69,7 @@ def gather_records(ids, per_gaussian):  # pragma: no cover - numba
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pair_alpha(rec, j, px, py):  # pragma: no cover - numba
     """(alpha, gaussian value, dx, dy) of entry j at a pixel centre; alpha = 0 when the pair is skipped."""
     dx = px - rec[j, 0]
@@ -112,9 +112,76 @@ def _row_candidates(rec, cand, n_cand, py, out):  # pragma: no cover - numba
     return n
 
 
+@njit(cache=True)
+def _span_coefficients(rec, cand, n_cand, row0, rows, out):  # pragma: no cover - numba
+    """Per tile candidate, the row-independent numbers of ``_column_span`` (see there): out[ci] =
+    (b / a, 1 / a, b^2 - a c, -2 a thr); out[ci, 1] = NaN where there is no bound (a <= 0, opacity <= 0, or an
+    unbounded reach)."""
+    for ci in range(n_cand):
+        j = cand[ci]
+        a, b, c = np.float64(rec[j, 2]), np.float64(rec[j, 3]), np.float64(rec[j, 4])
+        opac, rx = np.float64(rec[j, 5]), np.float64(rec[j, 10])
+        if not (a > 0.0 and opac > 0.0 and rx < 1e30 and abs(b) < 1e30 and abs(c) < 1e30):
+            out[ci, 1] = np.nan
+            continue
+        # the largest |dy| over the tile's pixel centres bounds the float32 rounding slack for every row
+        my = np.float64(rec[j, 1])
+        dy_max = max(abs(row0 + 0.5 - my), abs(row0 + rows - 0.5 - my))
+        thr = max(POWER_REJECT, math.log(ALPHA_MIN / opac))
+        thr -= 1e-6 * (0.5 * a * rx * rx + 0.5 * abs(c) * dy_max * dy_max + abs(b) * rx * dy_max) + 1e-5
+        out[ci, 0] = b / a
+        out[ci, 1] = 1.0 / a
+        out[ci, 2] = b * b - a * c
+        out[ci, 3] = -2.0 * a * thr
+
+
+@njit(cache=True, inline="always")
+def _column_span(rec, j, coef, ci, py, col0, cols):  # pragma: no cover - numba
+    """Tile-local columns [first, end) where entry j (tile candidate ci) can reach alpha >= 1/255 on the pixel
+    row at py.
+
+    Conservative: outside the span the exact float32 test in ``_pair_alpha`` rejects the pair for sure, so
+    skipping those pixels changes no result (inside, that test still decides). alpha >= 1/255 needs
+    power >= thr := max(POWER_REJECT, ln(1 / (255 opacity))): on a row, 0.5 a dx^2 + b dy dx + 0.5 c dy^2 + thr
+    <= 0, whose roots dx = -(b/a) dy +- sqrt((b^2 - a c) dy^2 - 2 a thr) / a bound the span (float64, with thr
+    lowered by a bound on the float32 rounding of power, exp and the product with opacity;
+    ``_span_coefficients``). The reach box bounds it too.
+    """
+    mx, rx = np.float64(rec[j, 0]), np.float64(rec[j, 10])
+    lo, hi = mx - rx, mx + rx
+    inv_a = coef[ci, 1]
+    if inv_a == inv_a:  # not NaN: a bound exists
+        dy = np.float64(py) - np.float64(rec[j, 1])
+        disc = coef[ci, 2] * dy * dy + coef[ci, 3]
+        if disc < 0.0:
+            return 0, 0
+        half = math.sqrt(disc) * inv_a
+        centre = mx - coef[ci, 0] * dy
+        lo, hi = max(lo, centre - half), min(hi, centre + half)
+    if not (lo <= hi):  # also NaN: fall back to the whole tile row (the exact test decides)
+        if lo > hi:
+            return 0, 0
+        return 0, cols
+    # clamp to the tile first: math.ceil/floor give int64 in numba, which huge values overflow
+    lo = max(lo - 0.5 - col0, -1.0)
+    hi = min(hi - 0.5 - col0, np.float64(cols))
+    if hi < lo:
+        return 0, 0
+    first = max(0, math.ceil(lo))
+    end = min(cols, math.floor(hi) + 1)
+    if end <= first:
+        return 0, 0
+    return first, end
+
+
 @njit(parallel=True, cache=True)
 def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x):  # pragma: no cover - numba
-    """Front-to-back blending: features [H, W, 4] (no background), final transmittance, last entry + 1."""
+    """Front-to-back blending: features [H, W, 4] (no background), final transmittance, last entry + 1.
+
+    Per pixel the same arithmetic, in the same order, as the per-pixel loop of the torch twin
+    (``reference._blend_tile``); the loops run entry-major over a pixel row so that each entry visits only the
+    pixels of its ``_column_span``.
+    """
     feats = np.zeros((height, width, FEATURES), np.float32)
     t_final = np.ones((height, width), np.float32)
     last = np.zeros((height, width), np.int64)
@@ -125,36 +192,51 @@ def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x): 
         rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
         cand = np.empty(end - start, np.int64)
         n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
-        row_cand = np.empty(n_cand, np.int64)
+        coef = np.empty((n_cand, 4), np.float64)
+        _span_coefficients(rec, cand, n_cand, row0, rows, coef)
+        trans = np.empty(cols, np.float32)
+        acc = np.empty((cols, FEATURES), np.float32)
+        stop = np.empty(cols, np.int64)
+        done = np.empty(cols, np.bool_)
         for row in range(row0, row0 + rows):
             py = np.float32(row + 0.5)
-            n_row = _row_candidates(rec, cand, n_cand, py, row_cand)
-            for col in range(col0, col0 + cols):
-                px = np.float32(col + 0.5)
-                trans = np.float32(1.0)
-                f0 = f1 = f2 = f3 = np.float32(0.0)
-                stop = start
-                for c in range(n_row):
-                    j = row_cand[c]
-                    alpha, _, _, _ = _pair_alpha(rec, j, px, py)
+            trans[:] = _ONE
+            acc[:] = _ZERO
+            stop[:] = start
+            done[:] = False
+            active = cols
+            for ci in range(n_cand):
+                j = cand[ci]
+                if abs(py - rec[j, 1]) > rec[j, 11]:
+                    continue
+                first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
+                for lc in range(first, span_end):
+                    if done[lc]:
+                        continue
+                    alpha, _, _, _ = _pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
                     if alpha == 0.0:
                         continue
-                    next_trans = trans * (_ONE - alpha)
+                    tr = trans[lc]
+                    next_trans = tr * (_ONE - alpha)
                     if next_trans < TRANSMITTANCE_MIN:
-                        break
-                    w = alpha * trans
-                    f0 += rec[j, 6] * w
-                    f1 += rec[j, 7] * w
-                    f2 += rec[j, 8] * w
-                    f3 += rec[j, 9] * w
-                    trans = next_trans
-                    stop = j + 1
-                feats[row, col, 0] = f0
-                feats[row, col, 1] = f1
-                feats[row, col, 2] = f2
-                feats[row, col, 3] = f3
-                t_final[row, col] = trans
-                last[row, col] = stop
+                        done[lc] = True
+                        active -= 1
+                        continue
+                    w = alpha * tr
+                    acc[lc, 0] += rec[j, 6] * w
+                    acc[lc, 1] += rec[j, 7] * w
+                    acc[lc, 2] += rec[j, 8] * w
+                    acc[lc, 3] += rec[j, 9] * w
+                    trans[lc] = next_trans
+                    stop[lc] = j + 1
+                if active == 0:
+                    break
+            for lc in range(cols):
+                col = col0 + lc
+                for f in range(FEATURES):
+                    feats[row, col, f] = acc[lc, f]
+                t_final[row, col] = trans[lc]
+                last[row, col] = stop[lc]
     return feats, t_final, last
 
 
@@ -162,7 +244,11 @@ def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x): 
 def blend_backward(
     offsets, rec, tile_order, width, height, tile_size, tiles_x, t_final, last, grad_feats, grad_t_final
 ):  # pragma: no cover - numba
-    """Back-to-front gradient of blend_forward; returns per-entry gradients [P, GRAD_FIELDS]."""
+    """Back-to-front gradient of blend_forward; returns per-entry gradients [P, GRAD_FIELDS].
+
+    Entry-major over each pixel row like ``blend_forward``: an entry's gradient is summed over the row's pixels
+    in registers, then added to its row of the result once.
+    """
     grads = np.zeros((rec.shape[0], GRAD_FIELDS), np.float32)
     for k in prange(tile_order.shape[0]):
         t = tile_order[k]
@@ -171,53 +257,77 @@ def blend_backward(
         rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
         cand = np.empty(end - start, np.int64)
         n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
-        row_cand = np.empty(n_cand, np.int64)
+        coef = np.empty((n_cand, 4), np.float64)
+        _span_coefficients(rec, cand, n_cand, row0, rows, coef)
+        trans = np.empty(cols, np.float32)
+        behind = np.empty((cols, FEATURES), np.float32)  # colour blended behind the current entry
+        g = np.empty((cols, FEATURES), np.float32)
+        g_bg = np.empty(cols, np.float32)
+        stop = np.empty(cols, np.int64)
         for row in range(row0, row0 + rows):
             py = np.float32(row + 0.5)
-            n_row = _row_candidates(rec, cand, n_cand, py, row_cand)
-            for col in range(col0, col0 + cols):
-                px = np.float32(col + 0.5)
+            max_stop = start
+            for lc in range(cols):
+                col = col0 + lc
                 tf = t_final[row, col]
-                trans = tf
-                g0, g1, g2, g3 = (
-                    grad_feats[row, col, 0],
-                    grad_feats[row, col, 1],
-                    grad_feats[row, col, 2],
-                    grad_feats[row, col, 3],
-                )
-                g_bg = grad_t_final[row, col] * tf
-                s0 = s1 = s2 = s3 = np.float32(0.0)  # colour blended behind the current entry
-                stop = last[row, col]
-                for c in range(n_row - 1, -1, -1):
-                    j = row_cand[c]
-                    if j >= stop:
+                trans[lc] = tf
+                for f in range(FEATURES):
+                    g[lc, f] = grad_feats[row, col, f]
+                    behind[lc, f] = _ZERO
+                g_bg[lc] = grad_t_final[row, col] * tf
+                stop[lc] = last[row, col]
+                max_stop = max(max_stop, stop[lc])
+            for ci in range(n_cand - 1, -1, -1):
+                j = cand[ci]
+                if j >= max_stop or abs(py - rec[j, 1]) > rec[j, 11]:
+                    continue
+                first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
+                if span_end <= first:
+                    continue
+                c0, c1, c2, c3 = rec[j, 6], rec[j, 7], rec[j, 8], rec[j, 9]
+                a, b, c = rec[j, 2], rec[j, 3], rec[j, 4]
+                d_c0 = d_c1 = d_c2 = d_c3 = _ZERO
+                d_op = d_mx = d_my = d_a = d_b = d_c = _ZERO
+                for lc in range(first, span_end):
+                    if j >= stop[lc]:
                         continue
-                    alpha, gval, dx, dy = _pair_alpha(rec, j, px, py)
+                    alpha, gval, dx, dy = _pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
                     if alpha == 0.0:
                         continue
                     one_minus = 1.0 - alpha
-                    trans = trans / one_minus
-                    w = alpha * trans
-                    c0, c1, c2, c3 = rec[j, 6], rec[j, 7], rec[j, 8], rec[j, 9]
-                    grads[j, 6] += g0 * w
-                    grads[j, 7] += g1 * w
-                    grads[j, 8] += g2 * w
-                    grads[j, 9] += g3 * w
-                    d_alpha = trans * (g0 * (c0 - s0) + g1 * (c1 - s1) + g2 * (c2 - s2) + g3 * (c3 - s3))
-                    d_alpha -= g_bg / one_minus
-                    s0 = alpha * c0 + one_minus * s0
-                    s1 = alpha * c1 + one_minus * s1
-                    s2 = alpha * c2 + one_minus * s2
-                    s3 = alpha * c3 + one_minus * s3
+                    tr = trans[lc] / one_minus
+                    trans[lc] = tr
+                    w = alpha * tr
+                    g0, g1, g2, g3 = g[lc, 0], g[lc, 1], g[lc, 2], g[lc, 3]
+                    d_c0 += g0 * w
+                    d_c1 += g1 * w
+                    d_c2 += g2 * w
+                    d_c3 += g3 * w
+                    s0, s1, s2, s3 = behind[lc, 0], behind[lc, 1], behind[lc, 2], behind[lc, 3]
+                    d_alpha = tr * (g0 * (c0 - s0) + g1 * (c1 - s1) + g2 * (c2 - s2) + g3 * (c3 - s3))
+                    d_alpha -= g_bg[lc] / one_minus
+                    behind[lc, 0] = alpha * c0 + one_minus * s0
+                    behind[lc, 1] = alpha * c1 + one_minus * s1
+                    behind[lc, 2] = alpha * c2 + one_minus * s2
+                    behind[lc, 3] = alpha * c3 + one_minus * s3
                     if rec[j, 5] * gval <= ALPHA_MAX:  # alpha not clamped: it depends on opacity and power
-                        grads[j, 5] += gval * d_alpha
+                        d_op += gval * d_alpha
                         d_power = alpha * d_alpha
-                        a, b, c = rec[j, 2], rec[j, 3], rec[j, 4]
-                        grads[j, 0] += d_power * (a * dx + b * dy)
-                        grads[j, 1] += d_power * (b * dx + c * dy)
-                        grads[j, 2] += -0.5 * d_power * dx * dx
-                        grads[j, 3] += -d_power * dx * dy
-                        grads[j, 4] += -0.5 * d_power * dy * dy
+                        d_mx += d_power * (a * dx + b * dy)
+                        d_my += d_power * (b * dx + c * dy)
+                        d_a += -0.5 * d_power * dx * dx
+                        d_b += -d_power * dx * dy
+                        d_c += -0.5 * d_power * dy * dy
+                grads[j, 0] += d_mx
+                grads[j, 1] += d_my
+                grads[j, 2] += d_a
+                grads[j, 3] += d_b
+                grads[j, 4] += d_c
+                grads[j, 5] += d_op
+                grads[j, 6] += d_c0
+                grads[j, 7] += d_c1
+                grads[j, 8] += d_c2
+                grads[j, 9] += d_c3
     return grads
 
 
