@@ -58,6 +58,75 @@ def bin_gaussians(order, tile_min, tile_max, tiles_x, n_tiles):  # pragma: no co
     return offsets, ids
 
 
+@njit(cache=True)
+def depth_order(depths, visible):  # pragma: no cover - numba
+    """Ids of the visible Gaussians sorted by depth, ties in id order (as a stable argsort): an LSD radix sort
+    of the float32 depths' bit patterns (4 passes of 8 bits), mapped so that integer order is float order."""
+    n_vis = 0
+    for i in range(visible.shape[0]):
+        if visible[i]:
+            n_vis += 1
+    keys = np.empty(n_vis, np.uint32)
+    ids = np.empty(n_vis, np.int64)
+    bits = depths.view(np.uint32)
+    k = 0
+    for i in range(visible.shape[0]):
+        if visible[i]:
+            b = bits[i]
+            keys[k] = b ^ np.uint32(0xFFFFFFFF) if b >> np.uint32(31) else b | np.uint32(0x80000000)
+            ids[k] = i
+            k += 1
+    keys_tmp = np.empty_like(keys)
+    ids_tmp = np.empty_like(ids)
+    counts = np.empty(257, np.int64)
+    for shift in range(0, 32, 8):
+        counts[:] = 0
+        for k in range(n_vis):
+            counts[((keys[k] >> np.uint32(shift)) & np.uint32(0xFF)) + 1] += 1
+        if counts[1:].max() == n_vis:  # every key has the same digit: this pass would not move anything
+            continue
+        for d in range(256):
+            counts[d + 1] += counts[d]
+        for k in range(n_vis):
+            d = (keys[k] >> np.uint32(shift)) & np.uint32(0xFF)
+            pos = counts[d]
+            keys_tmp[pos] = keys[k]
+            ids_tmp[pos] = ids[k]
+            counts[d] = pos + 1
+        keys, keys_tmp = keys_tmp, keys
+        ids, ids_tmp = ids_tmp, ids
+    return ids
+
+
+@njit(parallel=True, cache=True)
+def gaussian_records(means2d, conics, opacities, features, visible):  # pragma: no cover - numba
+    """Per-Gaussian records [N, RECORD_FIELDS] (the layout of the module docstring) of the visible ones, reach
+    boxes as ``reach_boxes`` computes them (rows of culled Gaussians are left unset)."""
+    n = means2d.shape[0]
+    out = np.empty((n, RECORD_FIELDS), np.float32)
+    for i in prange(n):
+        if not visible[i]:
+            continue
+        out[i, 0], out[i, 1] = means2d[i, 0], means2d[i, 1]
+        out[i, 2], out[i, 3], out[i, 4] = conics[i, 0], conics[i, 1], conics[i, 2]
+        out[i, 5] = opacities[i]
+        for f in range(FEATURES):
+            out[i, 6 + f] = features[i, f]
+        a, b, c = np.float64(conics[i, 0]), np.float64(conics[i, 1]), np.float64(conics[i, 2])
+        det = a * c - b * b
+        k = 2.0 * math.log(max(255.0 * np.float64(opacities[i]), 1e-30))
+        if k < 0:
+            out[i, 10], out[i, 11] = -1.0, -1.0
+            continue
+        for axis in range(2):
+            sigma = (c if axis == 0 else a) / det if det > 0 else np.inf
+            r = math.sqrt(k * sigma) * 1.01 + 0.05
+            if r != r:
+                r = np.inf
+            out[i, 10 + axis] = min(r, 3e38)
+    return out
+
+
 @njit(parallel=True, cache=True)
 def gather_records(ids, per_gaussian):  # pragma: no cover - numba
     """Copy each list entry's Gaussian record into a contiguous [P, RECORD_FIELDS] array."""
@@ -331,14 +400,14 @@ def blend_backward(
     return grads
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def scatter_entry_grads(ids, entry_grads, n_gaussians):  # pragma: no cover - numba
-    """Sum per-entry gradient rows into per-Gaussian rows [N, GRAD_FIELDS] (float64 accumulation)."""
+    """Sum per-entry gradient rows into per-Gaussian rows [N, GRAD_FIELDS] (float64 accumulation, entries in
+    order); parallel over the fields, so threads never write the same cell."""
     out = np.zeros((n_gaussians, entry_grads.shape[1]), np.float64)
-    for j in range(ids.shape[0]):
-        g = ids[j]
-        for f in range(entry_grads.shape[1]):
-            out[g, f] += entry_grads[j, f]
+    for f in prange(entry_grads.shape[1]):
+        for j in range(ids.shape[0]):
+            out[ids[j], f] += entry_grads[j, f]
     return out
 
 
