@@ -170,18 +170,6 @@ def _tile_candidates(rec, start, end, row0, col0, rows, cols, out):  # pragma: n
 
 
 @njit(cache=True)
-def _row_candidates(rec, cand, n_cand, py, out):  # pragma: no cover - numba
-    """Keep the tile candidates whose reach box covers the pixel row at height py; count."""
-    n = 0
-    for c in range(n_cand):
-        j = cand[c]
-        if abs(py - rec[j, 1]) <= rec[j, 11]:
-            out[n] = j
-            n += 1
-    return n
-
-
-@njit(cache=True)
 def _span_coefficients(rec, cand, n_cand, row0, rows, out):  # pragma: no cover - numba
     """Per tile candidate, the row-independent numbers of ``_column_span`` (see there): out[ci] =
     (b / a, 1 / a, b^2 - a c, -2 a thr); out[ci, 1] = NaN where there is no bound (a <= 0, opacity <= 0, or an
@@ -413,8 +401,10 @@ def scatter_entry_grads(ids, entry_grads, n_gaussians):  # pragma: no cover - nu
 
 @njit(parallel=True, cache=True)
 def count_blend_weights(offsets, rec, tile_order, width, height, tile_size, tiles_x):  # pragma: no cover
-    """Number of Gaussians that contribute to each pixel, [H * W] int64."""
+    """Number of Gaussians that contribute to each pixel, [H * W] int64, and the final transmittance [H, W]
+    (the loops of ``blend_forward``)."""
     counts = np.zeros(height * width, np.int64)
+    t_final = np.ones((height, width), np.float32)
     for k in prange(tile_order.shape[0]):
         t = tile_order[k]
         start, end = offsets[t], offsets[t + 1]
@@ -422,24 +412,38 @@ def count_blend_weights(offsets, rec, tile_order, width, height, tile_size, tile
         rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
         cand = np.empty(end - start, np.int64)
         n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
-        row_cand = np.empty(n_cand, np.int64)
+        coef = np.empty((n_cand, 4), np.float64)
+        _span_coefficients(rec, cand, n_cand, row0, rows, coef)
+        trans = np.empty(cols, np.float32)
+        done = np.empty(cols, np.bool_)
         for row in range(row0, row0 + rows):
-            n_row = _row_candidates(rec, cand, n_cand, np.float32(row + 0.5), row_cand)
-            for col in range(col0, col0 + cols):
-                trans = np.float32(1.0)
-                n = 0
-                for c in range(n_row):
-                    j = row_cand[c]
-                    alpha, _, _, _ = _pair_alpha(rec, j, np.float32(col + 0.5), np.float32(row + 0.5))
+            py = np.float32(row + 0.5)
+            trans[:] = _ONE
+            done[:] = False
+            active = cols
+            for ci in range(n_cand):
+                j = cand[ci]
+                if abs(py - rec[j, 1]) > rec[j, 11]:
+                    continue
+                first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
+                for lc in range(first, span_end):
+                    if done[lc]:
+                        continue
+                    alpha, _, _, _ = _pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
                     if alpha == 0.0:
                         continue
-                    next_trans = trans * (_ONE - alpha)
+                    next_trans = trans[lc] * (_ONE - alpha)
                     if next_trans < TRANSMITTANCE_MIN:
-                        break
-                    trans = next_trans
-                    n += 1
-                counts[row * width + col] = n
-    return counts
+                        done[lc] = True
+                        active -= 1
+                        continue
+                    trans[lc] = next_trans
+                    counts[row * width + col0 + lc] += 1
+                if active == 0:
+                    break
+            for lc in range(cols):
+                t_final[row, col0 + lc] = trans[lc]
+    return counts, t_final
 
 
 @njit(parallel=True, cache=True)
@@ -456,25 +460,62 @@ def fill_blend_weights(
         rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
         cand = np.empty(end - start, np.int64)
         n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
-        row_cand = np.empty(n_cand, np.int64)
+        coef = np.empty((n_cand, 4), np.float64)
+        _span_coefficients(rec, cand, n_cand, row0, rows, coef)
+        trans = np.empty(cols, np.float32)
+        done = np.empty(cols, np.bool_)
+        pos = np.empty(cols, np.int64)
         for row in range(row0, row0 + rows):
-            n_row = _row_candidates(rec, cand, n_cand, np.float32(row + 0.5), row_cand)
-            for col in range(col0, col0 + cols):
-                trans = np.float32(1.0)
-                pos = row_ptr[row * width + col]
-                for c in range(n_row):
-                    j = row_cand[c]
-                    alpha, _, _, _ = _pair_alpha(rec, j, np.float32(col + 0.5), np.float32(row + 0.5))
+            py = np.float32(row + 0.5)
+            trans[:] = _ONE
+            done[:] = False
+            for lc in range(cols):
+                pos[lc] = row_ptr[row * width + col0 + lc]
+            active = cols
+            for ci in range(n_cand):
+                j = cand[ci]
+                if abs(py - rec[j, 1]) > rec[j, 11]:
+                    continue
+                first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
+                for lc in range(first, span_end):
+                    if done[lc]:
+                        continue
+                    alpha, _, _, _ = _pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
                     if alpha == 0.0:
                         continue
-                    next_trans = trans * (_ONE - alpha)
+                    tr = trans[lc]
+                    next_trans = tr * (_ONE - alpha)
                     if next_trans < TRANSMITTANCE_MIN:
-                        break
-                    gaussian_ids[pos] = ids[j]
-                    vals[pos] = alpha * trans
-                    trans = next_trans
-                    pos += 1
+                        done[lc] = True
+                        active -= 1
+                        continue
+                    gaussian_ids[pos[lc]] = ids[j]
+                    vals[pos[lc]] = alpha * tr
+                    pos[lc] += 1
+                    trans[lc] = next_trans
+                if active == 0:
+                    break
     return gaussian_ids, vals
+
+
+@njit(cache=True)
+def csr_transpose(row_ptr, cols, vals, n_cols):  # pragma: no cover - numba
+    """The transpose of a CSR matrix [R, n_cols] as CSR [n_cols, R] (column indices sorted in each row)."""
+    t_ptr = np.zeros(n_cols + 1, np.int64)
+    for k in range(cols.shape[0]):
+        t_ptr[cols[k] + 1] += 1
+    for c in range(n_cols):
+        t_ptr[c + 1] += t_ptr[c]
+    cursor = t_ptr[:n_cols].copy()
+    t_cols = np.empty(cols.shape[0], np.int64)
+    t_vals = np.empty(cols.shape[0], vals.dtype)
+    for r in range(row_ptr.shape[0] - 1):
+        for k in range(row_ptr[r], row_ptr[r + 1]):
+            c = cols[k]
+            t_cols[cursor[c]] = r
+            t_vals[cursor[c]] = vals[k]
+            cursor[c] += 1
+    return t_ptr, t_cols, t_vals
 
 
 def balanced_tile_order(offsets: np.ndarray, n_threads: int) -> np.ndarray:
