@@ -84,8 +84,9 @@ def rasterize(
     width, height, tile_size = int(width), int(height), int(tile_size)
     dtype = means.dtype
     viewmat = viewmat.detach().to(dtype)
-    # float32 on the fast backend: the numba twin of the projection (forward and backward kernels)
-    project = project_gaussians_fast if backend == "fast" and dtype == torch.float32 else project_gaussians
+    # float32: the numba kernels of the projection (forward and backward), shared by both backends so that they
+    # agree on culling bit for bit; float64 runs its torch twin (tests/test_raster_projection.py: the two agree)
+    project = project_gaussians_fast if dtype == torch.float32 else project_gaussians
     proj = project(means, quats, scales, viewmat, K, width, height, near, far, tile_size)
     if sh_degree is None:
         rgb = colors
