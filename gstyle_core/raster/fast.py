@@ -53,10 +53,11 @@ class _BlendFunction(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx, means2d, conics, opacities, features, lists, width, height, tile_size):  # noqa: D401
+        spans = np.empty((lists.records.shape[0], tile_size, 2), np.int8 if tile_size < 128 else np.int32)
         feats, t_final, last = kernels.blend_forward(
-            lists.offsets, lists.records, lists.tile_order, width, height, tile_size, lists.tiles_x
+            lists.offsets, lists.records, lists.tile_order, width, height, tile_size, lists.tiles_x, spans
         )
-        ctx.lists, ctx.size = lists, (width, height, tile_size)
+        ctx.lists, ctx.size, ctx.spans = lists, (width, height, tile_size), spans
         ctx.n = means2d.shape[0]
         ctx.dtypes = (means2d.dtype, conics.dtype, opacities.dtype, features.dtype)
         ctx.t_final_np, ctx.last = t_final, last
@@ -81,6 +82,7 @@ class _BlendFunction(torch.autograd.Function):
             lists.tiles_x,
             ctx.t_final_np,
             ctx.last,
+            ctx.spans,
             _to_numpy32(grad_feats),
             _to_numpy32(grad_t_final),
         )

@@ -232,8 +232,12 @@ def _column_span(rec, j, coef, ci, py, col0, cols):  # pragma: no cover - numba
 
 
 @njit(parallel=True, cache=True)
-def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x):  # pragma: no cover - numba
+def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x, spans):  # pragma: no cover
     """Front-to-back blending: features [H, W, 4] (no background), final transmittance, last entry + 1.
+
+    ``spans`` [P, tile_size, 2] (a small integer type) receives each visited entry's ``_column_span`` per tile
+    row, (0, 0) where the row misses its reach, for ``blend_backward`` to reuse; entries past the point where
+    every pixel of a row stopped are left unset there (the backward never reads them: they lie beyond ``last``).
 
     Per pixel the same arithmetic, in the same order, as the per-pixel loop of the torch twin
     (``reference._blend_tile``); the loops run entry-major over a pixel row so that each entry visits only the
@@ -262,11 +266,16 @@ def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x): 
             stop[:] = start
             done[:] = False
             active = cols
+            lr = row - row0
             for ci in range(n_cand):
                 j = cand[ci]
                 if abs(py - rec[j, 1]) > rec[j, 11]:
+                    spans[j, lr, 0] = 0
+                    spans[j, lr, 1] = 0
                     continue
                 first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
+                spans[j, lr, 0] = first
+                spans[j, lr, 1] = span_end
                 for lc in range(first, span_end):
                     if done[lc]:
                         continue
@@ -299,12 +308,12 @@ def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x): 
 
 @njit(parallel=True, cache=True)
 def blend_backward(
-    offsets, rec, tile_order, width, height, tile_size, tiles_x, t_final, last, grad_feats, grad_t_final
+    offsets, rec, tile_order, width, height, tile_size, tiles_x, t_final, last, spans, grad_feats, grad_t_final
 ):  # pragma: no cover - numba
     """Back-to-front gradient of blend_forward; returns per-entry gradients [P, GRAD_FIELDS].
 
-    Entry-major over each pixel row like ``blend_forward``: an entry's gradient is summed over the row's pixels
-    in registers, then added to its row of the result once.
+    Entry-major over each pixel row like ``blend_forward``, with its column ``spans``: an entry's gradient is
+    summed over the row's pixels in registers, then added to its row of the result once.
     """
     grads = np.zeros((rec.shape[0], GRAD_FIELDS), np.float32)
     for k in prange(tile_order.shape[0]):
@@ -314,8 +323,6 @@ def blend_backward(
         rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
         cand = np.empty(end - start, np.int64)
         n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
-        coef = np.empty((n_cand, 4), np.float64)
-        _span_coefficients(rec, cand, n_cand, row0, rows, coef)
         trans = np.empty(cols, np.float32)
         behind = np.empty((cols, FEATURES), np.float32)  # colour blended behind the current entry
         g = np.empty((cols, FEATURES), np.float32)
@@ -334,11 +341,12 @@ def blend_backward(
                 g_bg[lc] = grad_t_final[row, col] * tf
                 stop[lc] = last[row, col]
                 max_stop = max(max_stop, stop[lc])
+            lr = row - row0
             for ci in range(n_cand - 1, -1, -1):
                 j = cand[ci]
-                if j >= max_stop or abs(py - rec[j, 1]) > rec[j, 11]:
+                if j >= max_stop:
                     continue
-                first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
+                first, span_end = np.int64(spans[j, lr, 0]), np.int64(spans[j, lr, 1])
                 if span_end <= first:
                     continue
                 c0, c1, c2, c3 = rec[j, 6], rec[j, 7], rec[j, 8], rec[j, 9]
