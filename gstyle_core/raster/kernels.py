@@ -38,20 +38,24 @@ _POWER_REJECT32 = np.float32(POWER_REJECT)
 @njit(cache=True)
 def bin_gaussians(order, tile_min, tile_max, tiles_x, n_tiles):  # pragma: no cover - numba
     """Per-tile lists of Gaussian ids in the given (depth) order: (offsets [T+1] int64, ids [P] int32)."""
+    n = order.shape[0]
+    rects = np.empty((n, 4), np.int32)  # tile rectangles in the given order: both passes then read in sequence
     offsets = np.zeros(n_tiles + 1, np.int64)
-    for k in range(order.shape[0]):
+    for k in range(n):
         g = order[k]
-        for ty in range(tile_min[g, 1], tile_max[g, 1]):
-            for tx in range(tile_min[g, 0], tile_max[g, 0]):
+        x0, y0, x1, y1 = tile_min[g, 0], tile_min[g, 1], tile_max[g, 0], tile_max[g, 1]
+        rects[k, 0], rects[k, 1], rects[k, 2], rects[k, 3] = x0, y0, x1, y1
+        for ty in range(y0, y1):
+            for tx in range(x0, x1):
                 offsets[ty * tiles_x + tx + 1] += 1
     for t in range(n_tiles):
         offsets[t + 1] += offsets[t]
     ids = np.empty(offsets[n_tiles], np.int32)
     cursor = offsets[:n_tiles].copy()
-    for k in range(order.shape[0]):
-        g = order[k]
-        for ty in range(tile_min[g, 1], tile_max[g, 1]):
-            for tx in range(tile_min[g, 0], tile_max[g, 0]):
+    for k in range(n):
+        g = np.int32(order[k])
+        for ty in range(rects[k, 1], rects[k, 3]):
+            for tx in range(rects[k, 0], rects[k, 2]):
                 t = ty * tiles_x + tx
                 ids[cursor[t]] = g
                 cursor[t] += 1
