@@ -144,11 +144,12 @@ def gather_records(ids, per_gaussian):  # pragma: no cover - numba
 
 @njit(cache=True, inline="always")
 def _pair_alpha(rec, j, px, py):  # pragma: no cover - numba
-    """(alpha, gaussian value, dx, dy) of entry j at a pixel centre; alpha = 0 when the pair is skipped."""
+    """(alpha, gaussian value, dx, dy) of entry j at a pixel centre; alpha = 0 when the pair is skipped.
+
+    Callers visit only the pixels of ``_column_span``, inside the reach box (alpha < 1/255 outside, for sure).
+    """
     dx = px - rec[j, 0]
     dy = py - rec[j, 1]
-    if abs(dx) > rec[j, 10]:  # outside the reach box: alpha < 1/255 for sure
-        return _ZERO, _ZERO, dx, dy
     power = -_HALF * (rec[j, 2] * dx * dx + rec[j, 4] * dy * dy) - rec[j, 3] * dx * dy
     if not (power <= _ZERO and power >= _POWER_REJECT32):  # also rejects NaN
         return _ZERO, _ZERO, dx, dy
@@ -364,7 +365,8 @@ def blend_backward(
                     if alpha == 0.0:
                         continue
                     one_minus = 1.0 - alpha
-                    tr = trans[lc] / one_minus
+                    inv_one_minus = _ONE / one_minus
+                    tr = trans[lc] * inv_one_minus
                     trans[lc] = tr
                     w = alpha * tr
                     g0, g1, g2, g3 = g[lc, 0], g[lc, 1], g[lc, 2], g[lc, 3]
@@ -374,7 +376,7 @@ def blend_backward(
                     d_c3 += g3 * w
                     s0, s1, s2, s3 = behind[lc, 0], behind[lc, 1], behind[lc, 2], behind[lc, 3]
                     d_alpha = tr * (g0 * (c0 - s0) + g1 * (c1 - s1) + g2 * (c2 - s2) + g3 * (c3 - s3))
-                    d_alpha -= g_bg[lc] / one_minus
+                    d_alpha -= g_bg[lc] * inv_one_minus
                     behind[lc, 0] = alpha * c0 + one_minus * s0
                     behind[lc, 1] = alpha * c1 + one_minus * s1
                     behind[lc, 2] = alpha * c2 + one_minus * s2
