@@ -1,4 +1,7 @@
-"""Fast backend: the 2D half (sort, bin, blend and its backward) as numba kernels in an autograd Function."""
+"""Fast backend: the 2D half (sort, bin, blend and its backward) as numba kernels in an autograd Function.
+
+Its torch twin is ``reference.py``; the projection before it is ``projection_kernels.py`` (twin: ``projection.py``).
+"""
 
 from __future__ import annotations
 

@@ -5,7 +5,9 @@ Per-entry record layout (one row per Gaussian-tile pair, float32, contiguous per
 the first ten fields. ``reach`` is the half-size of the box outside which the Gaussian's alpha is below
 1/255 for sure: each tile first drops the entries whose box misses the tile, then each pixel row those
 whose box misses the row. Results are unchanged (the 3DGS tile lists and stats stay as they are); about
-half of the pixel-Gaussian evaluations go.
+half of the pixel-Gaussian evaluations go. Within a pixel row, an entry then visits only the columns of its
+``_column_span`` (where alpha can reach 1/255; a conservative bound, so images stay bit-identical): the loops run
+entry-major over a row and keep each pixel's state in small arrays (the torch twin: ``reference._blend_tile``).
 Each list entry belongs to exactly one tile and each tile to one thread, so per-entry gradient rows are
 written without collisions and summed into Gaussians afterwards (``scatter_entry_grads``).
 """
