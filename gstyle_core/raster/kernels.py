@@ -453,35 +453,39 @@ def count_blend_weights(offsets, rec, tile_order, width, height, tile_size, tile
         n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
         coef = np.empty((n_cand, 4), np.float64)
         _span_coefficients(rec, cand, n_cand, row0, rows, coef)
-        trans = np.empty(cols, np.float32)
-        done = np.empty(cols, np.bool_)
-        for row in range(row0, row0 + rows):
-            py = np.float32(row + 0.5)
-            trans[:] = _ONE
-            done[:] = False
-            active = cols
-            for ci in range(n_cand):
-                j = cand[ci]
-                if abs(py - rec[j, 1]) > rec[j, 11]:
+        n_pix = rows * cols
+        trans = np.ones(n_pix, np.float32)
+        done = np.zeros(n_pix, np.bool_)
+        row_active = np.full(rows, cols, np.int64)
+        active = n_pix
+        for ci in range(n_cand):
+            j = cand[ci]
+            r_first, r_end = _row_range(rec, j, row0, rows)
+            for lr in range(r_first, r_end):
+                py = np.float32(row0 + lr + 0.5)
+                if row_active[lr] == 0 or abs(py - rec[j, 1]) > rec[j, 11]:
                     continue
                 first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
                 for lc in range(first, span_end):
-                    if done[lc]:
+                    p = lr * cols + lc
+                    if done[p]:
                         continue
                     alpha, _, _, _ = _pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
                     if alpha == 0.0:
                         continue
-                    next_trans = trans[lc] * (_ONE - alpha)
+                    next_trans = trans[p] * (_ONE - alpha)
                     if next_trans < TRANSMITTANCE_MIN:
-                        done[lc] = True
+                        done[p] = True
+                        row_active[lr] -= 1
                         active -= 1
                         continue
-                    trans[lc] = next_trans
-                    counts[row * width + col0 + lc] += 1
-                if active == 0:
-                    break
+                    trans[p] = next_trans
+                    counts[(row0 + lr) * width + col0 + lc] += 1
+            if active == 0:
+                break
+        for lr in range(rows):
             for lc in range(cols):
-                t_final[row, col0 + lc] = trans[lc]
+                t_final[row0 + lr, col0 + lc] = trans[lr * cols + lc]
     return counts, t_final
 
 
@@ -501,39 +505,43 @@ def fill_blend_weights(
         n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
         coef = np.empty((n_cand, 4), np.float64)
         _span_coefficients(rec, cand, n_cand, row0, rows, coef)
-        trans = np.empty(cols, np.float32)
-        done = np.empty(cols, np.bool_)
-        pos = np.empty(cols, np.int64)
-        for row in range(row0, row0 + rows):
-            py = np.float32(row + 0.5)
-            trans[:] = _ONE
-            done[:] = False
+        n_pix = rows * cols
+        trans = np.ones(n_pix, np.float32)
+        done = np.zeros(n_pix, np.bool_)
+        pos = np.empty(n_pix, np.int64)
+        for lr in range(rows):
             for lc in range(cols):
-                pos[lc] = row_ptr[row * width + col0 + lc]
-            active = cols
-            for ci in range(n_cand):
-                j = cand[ci]
-                if abs(py - rec[j, 1]) > rec[j, 11]:
+                pos[lr * cols + lc] = row_ptr[(row0 + lr) * width + col0 + lc]
+        row_active = np.full(rows, cols, np.int64)
+        active = n_pix
+        for ci in range(n_cand):
+            j = cand[ci]
+            r_first, r_end = _row_range(rec, j, row0, rows)
+            for lr in range(r_first, r_end):
+                py = np.float32(row0 + lr + 0.5)
+                if row_active[lr] == 0 or abs(py - rec[j, 1]) > rec[j, 11]:
                     continue
                 first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
                 for lc in range(first, span_end):
-                    if done[lc]:
+                    p = lr * cols + lc
+                    if done[p]:
                         continue
                     alpha, _, _, _ = _pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
                     if alpha == 0.0:
                         continue
-                    tr = trans[lc]
+                    tr = trans[p]
                     next_trans = tr * (_ONE - alpha)
                     if next_trans < TRANSMITTANCE_MIN:
-                        done[lc] = True
+                        done[p] = True
+                        row_active[lr] -= 1
                         active -= 1
                         continue
-                    gaussian_ids[pos[lc]] = ids[j]
-                    vals[pos[lc]] = alpha * tr
-                    pos[lc] += 1
-                    trans[lc] = next_trans
-                if active == 0:
-                    break
+                    gaussian_ids[pos[p]] = ids[j]
+                    vals[pos[p]] = alpha * tr
+                    pos[p] += 1
+                    trans[p] = next_trans
+            if active == 0:
+                break
     return gaussian_ids, vals
 
 
