@@ -1,10 +1,11 @@
 """Per-phase timing of a stylization run, and the stylize step against its floor (VGG + NNFM).
 
-Prints a per-phase table and ``RESULT step_over_floor=X``: X = mean stylization step time / the time of a VGG-16
-(conv1_1…relu3_3) + NNFM forward+backward at the same working resolution, measured in the same run. For an object
-scene without photos the step's VGG sees only the box of each view that the scene covers
-(``pipeline/scene_box.py``); the floor on those same pixels (mean over the training views) is printed too, as
-``per-pixel``. ``--whole-frames`` switches the boxes off (``crop_to_scene = False``) to compare.
+Prints a per-phase table, a table of where the stylize step's time goes, and
+``RESULT step_over_floor=X same_pixels=Y``: X = mean stylization step time / (views per step × the time of a VGG-16
+(conv1_1…relu3_3) + NNFM forward+backward on a whole frame at the working resolution), measured in the same run;
+Y = the step against its floor on the same pixels: VGG + NNFM forward+backward on exactly what the step's networks
+saw (for an object scene without photos, the box of each view that the scene covers, ``pipeline/scene_box.py``),
+summed over the step's views. ``--whole-frames`` switches the boxes off (``crop_to_scene = False``) to compare.
 
     .venv/bin/python bench/stylize.py [SCENE] [--style IMAGE] [--preset preview] [--steps 60]
 """
@@ -15,6 +16,8 @@ import argparse
 import statistics
 import sys
 import time
+from collections import defaultdict
+from contextlib import contextmanager
 from pathlib import Path
 
 import torch
@@ -22,7 +25,85 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_stylizer  # noqa: E402
+from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
+from gstyle_core.raster import colour_cache  # noqa: E402
+from gstyle_core.style import losses  # noqa: E402
 from gstyle_core.style.losses import concat_features, nnfm_loss  # noqa: E402
+
+
+class PartTimer:
+    """Wall time spent inside chosen functions during the stylize steps (bench-only wrappers, removed after)."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = defaultdict(float)
+        self.active = False
+        self._undo: list = []
+
+    def wrap(self, owner, name: str, part: str) -> None:
+        original = getattr(owner, name)
+
+        def timed(*args, **kwargs):
+            if not self.active:
+                return original(*args, **kwargs)
+            t0 = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                self.seconds[part] += time.perf_counter() - t0
+
+        setattr(owner, name, timed)
+        self._undo.append((owner, name, original, name in vars(owner)))
+
+    def restore(self) -> None:
+        for owner, name, original, own in reversed(self._undo):
+            if own:
+                setattr(owner, name, original)
+            else:
+                delattr(owner, name)
+
+    @contextmanager
+    def on(self):
+        self.active = True
+        try:
+            yield
+        finally:
+            self.active = False
+
+
+PARTS = (
+    "VGG forward",
+    "NNFM forward",
+    "backward (all terms)",
+    "content term forward",
+    "content features (once per view)",
+    "TV forward",
+    "CLIP / coarse substitute forward",
+    "Adam step",
+    "colour cache: builds",
+    "colour cache: render",
+    "colour cache: backward",
+)
+
+
+def instrument(engine) -> PartTimer:
+    """Time the parts of the stylize step: the colour cache (builds, render, its backward), the networks' forward
+    passes and loss terms, the whole backward pass and the optimiser step."""
+    timer = PartTimer()
+    objective = engine._objective_fn()
+    timer.wrap(engine, "_build_cache", "colour cache: builds")
+    timer.wrap(colour_cache.ColourCache, "render", "colour cache: render")
+    timer.wrap(colour_cache._SparseLinear, "backward", "colour cache: backward")
+    timer.wrap(objective.loss.vgg, "forward", "VGG forward")
+    timer.wrap(objective.loss, "content_features", "content features (once per view)")
+    timer.wrap(losses, "nnfm_loss", "NNFM forward")
+    timer.wrap(losses, "content_loss", "content term forward")
+    timer.wrap(losses, "tv_loss", "TV forward")
+    if objective.loss.clip_term is not None:
+        timer.wrap(objective.loss.clip_term, "forward", "CLIP / coarse substitute forward")
+    timer.wrap(torch.Tensor, "backward", "backward (all terms)")
+    timer.wrap(VisibleAdam, "step", "Adam step")
+    timer.wrap(torch.optim.Adam, "step", "Adam step")
+    return timer
 
 
 def floor_time(objective, height: int, width: int, repeats: int = 7) -> float:
@@ -57,28 +138,65 @@ def main() -> None:
     engine, scene, _, cams, _ = build_stylizer(args, crop_to_scene=not args.whole_frames)
     phase_times: dict[str, list[float]] = {}
     stylize_times: list[float] = []
+    timer: PartTimer | None = None
+    step_views: list[int] = []
     while not engine.done and len(stylize_times) < args.steps + 5:
-        rep = engine.step()
+        timed = engine.phase == "stylize" and len(stylize_times) >= 5
+        if timed and timer is None:
+            timer = instrument(engine)
+        if timed and engine._stylize_step not in engine.split_steps:
+            s = engine.settings
+            step_views += [engine._stylize_view(engine._stylize_step * s.views_per_step + j)
+                           for j in range(s.views_per_step)]
+        with timer.on() if timed else _nothing():
+            rep = engine.step()
         phase_times.setdefault(rep.phase, []).append(rep.seconds)
         if rep.phase == "stylize" and rep.losses:
             stylize_times.append(rep.seconds)
+    if timer is not None:
+        timer.restore()
     cam = engine.cameras[0]
     sizes = network_sizes(engine)
     floors = {size: floor_time(engine._objective, *size) for size in sorted(set(sizes))}
     floor = statistics.mean(floors[size] for size in sizes)
     full_floor = floors.get((cam.height, cam.width)) or floor_time(engine._objective, cam.height, cam.width)
-    step = statistics.mean(stylize_times[5:]) if len(stylize_times) > 5 else float("nan")
+    timed_steps = stylize_times[5:]
+    step = statistics.mean(timed_steps) if timed_steps else float("nan")
+    views_per_step = engine.settings.views_per_step
+    # the floor on the same pixels: each timed step's own views (their boxes), summed
+    same_floor = (sum(floors[sizes[v]] for v in step_views) / len(timed_steps)) if timed_steps else float("nan")
     print(f"scene: {scene.count} Gaussians, {len(engine.cameras)} views, working {cam.width}x{cam.height}, "
-          f"torch threads {torch.get_num_threads()}")
+          f"{views_per_step} view(s) per step, torch threads {torch.get_num_threads()}")
     print(f"{'phase':>14} {'steps':>6} {'total s':>9} {'mean s':>8}")
     for phase, ts in phase_times.items():
         print(f"{phase:>14} {len(ts):>6} {sum(ts):>9.2f} {statistics.mean(ts):>8.3f}")
     share = statistics.mean(h * w for h, w in sizes) / (cam.height * cam.width)
     print(f"VGG sees {100 * share:.0f} % of the frame's pixels on average ({engine.decisions.get('network_area')})")
-    print(f"{'floor (VGG+NNFM fwd+bwd)':>30}: {full_floor:.3f} s at {cam.width}x{cam.height}, {floor:.3f} s on the "
-          f"pixels VGG sees; stylize step mean {step:.3f} s")
-    print(f"per-pixel: step / floor on the same pixels = {step / floor:.2f}")
-    print(f"RESULT step_over_floor={step / full_floor:.2f}")
+    print(f"{'floor (VGG+NNFM fwd+bwd)':>30}: {full_floor:.3f} s a view at {cam.width}x{cam.height}, {floor:.3f} s a "
+          f"view on the pixels VGG sees; stylize step mean {step:.3f} s ({views_per_step} view(s))")
+    if timer is not None and timed_steps:
+        n = len(timed_steps)
+        print(f"where a stylize step goes (mean over {n} steps; wall time inside each part; the backward pass "
+              "includes VGG's, NNFM's and the colour cache's backward):")
+        print(f"{'part':>36} {'s / step':>9} {'share':>7}")
+        for part in PARTS:
+            secs = timer.seconds.get(part, 0.0)
+            note = ""
+            if part == "CLIP / coarse substitute forward" and engine._objective.loss.clip_term is None:
+                note = "  (off: λ_CLIP = 0)"
+            elif part == "content features (once per view)" and secs == 0.0:
+                note = "  (cached before the timed steps)"
+            print(f"{part:>36} {secs / n:>9.4f} {100 * secs / n / step:>6.1f}%{note}")
+        other = step - sum(timer.seconds.values()) / n
+        print(f"{'rest (step bookkeeping, grad norms)':>36} {other:>9.4f} {100 * other / step:>6.1f}%")
+        print(f"{'floor on the same pixels':>36} {same_floor:>9.4f} {100 * same_floor / step:>6.1f}%")
+    print(f"per-pixel: step / floor on the same pixels = {step / same_floor:.2f}")
+    print(f"RESULT step_over_floor={step / (views_per_step * full_floor):.2f} same_pixels={step / same_floor:.2f}")
+
+
+@contextmanager
+def _nothing():
+    yield
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ from torch import Tensor
 
 from . import kernels
 from .fast import build_tile_lists
-from .projection import project_gaussians
+from .projection_kernels import project_gaussians_fast
 
 
 class _SparseLinear(torch.autograd.Function):
@@ -53,7 +53,7 @@ class ColourCache:
         self.n_gaussians = int(means.shape[0])
         with torch.no_grad():
             f32 = torch.float32
-            proj = project_gaussians(
+            proj = project_gaussians_fast(
                 means.to(f32),
                 quats.to(f32),
                 scales.to(f32),
@@ -76,8 +76,7 @@ class ColourCache:
             tile_size,
             lists.tiles_x,
         )
-        _, t_final, _ = kernels.blend_forward(*args)
-        counts = kernels.count_blend_weights(*args)
+        counts, t_final = kernels.count_blend_weights(*args)
         row_ptr = np.zeros(counts.shape[0] + 1, np.int64)
         np.cumsum(counts, out=row_ptr[1:])
         cols, vals = kernels.fill_blend_weights(
@@ -92,6 +91,7 @@ class ColourCache:
             row_ptr,
         )
         shape = (self.height * self.width, self.n_gaussians)
+        t_ptr, t_cols, t_vals = kernels.csr_transpose(row_ptr, cols, vals, self.n_gaussians)
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="Sparse CSR tensor support is in beta")
             self.weights = torch.sparse_csr_tensor(
@@ -101,7 +101,13 @@ class ColourCache:
                 size=shape,
                 check_invariants=False,
             )
-            self.weights_t = self.weights.t().to_sparse_csr()
+            self.weights_t = torch.sparse_csr_tensor(
+                torch.from_numpy(t_ptr),
+                torch.from_numpy(t_cols),
+                torch.from_numpy(t_vals),
+                size=shape[::-1],
+                check_invariants=False,
+            )
         self.t_final = torch.from_numpy(t_final)  # [H, W]
 
     @property

@@ -1,4 +1,7 @@
-"""Fast backend: the 2D half (sort, bin, blend and its backward) as numba kernels in an autograd Function."""
+"""Fast backend: the 2D half (sort, bin, blend and its backward) as numba kernels in an autograd Function.
+
+Its torch twin is ``reference.py``; the projection before it is ``projection_kernels.py`` (twin: ``projection.py``).
+"""
 
 from __future__ import annotations
 
@@ -30,26 +33,20 @@ def _to_numpy32(t: Tensor) -> np.ndarray:
 
 
 def build_tile_lists(proj: Projected, opacities: Tensor, features: Tensor) -> TileLists:
-    """Sort visible Gaussians by depth, bin them into tiles and gather per-entry records."""
+    """Sort visible Gaussians by depth, bin them into tiles and gather per-entry records.
+
+    (The torch twin: ``reference.tile_lists_torch``; ``kernels.depth_order`` is a radix sort.)
+    """
     n_tiles = proj.tiles_x * proj.tiles_y
-    visible_ids = torch.nonzero(proj.visible).flatten()
-    depth_order = torch.argsort(proj.depths.detach()[visible_ids], stable=True)
-    order = visible_ids[depth_order].numpy().astype(np.int64)
+    visible = np.ascontiguousarray(proj.visible.numpy())
+    order = kernels.depth_order(_to_numpy32(proj.depths), visible)
     offsets, ids = kernels.bin_gaussians(
         order, proj.tile_min.numpy(), proj.tile_max.numpy(), proj.tiles_x, n_tiles
     )
-    conics, opac = _to_numpy32(proj.conics), _to_numpy32(opacities)
-    per_gaussian = np.concatenate(
-        [
-            _to_numpy32(proj.means2d),
-            conics,
-            opac[:, None],
-            _to_numpy32(features),
-            kernels.reach_boxes(conics, opac),
-        ],
-        axis=1,
+    per_gaussian = kernels.gaussian_records(
+        _to_numpy32(proj.means2d), _to_numpy32(proj.conics), _to_numpy32(opacities), _to_numpy32(features), visible
     )
-    records = kernels.gather_records(ids, np.ascontiguousarray(per_gaussian))
+    records = kernels.gather_records(ids, per_gaussian)
     tile_order = kernels.balanced_tile_order(offsets, numba.get_num_threads())
     return TileLists(offsets, ids, records, tile_order, proj.tiles_x, proj.tiles_y)
 
@@ -59,10 +56,11 @@ class _BlendFunction(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx, means2d, conics, opacities, features, lists, width, height, tile_size):  # noqa: D401
+        spans = np.empty((lists.records.shape[0], tile_size, 2), np.int8 if tile_size < 128 else np.int32)
         feats, t_final, last = kernels.blend_forward(
-            lists.offsets, lists.records, lists.tile_order, width, height, tile_size, lists.tiles_x
+            lists.offsets, lists.records, lists.tile_order, width, height, tile_size, lists.tiles_x, spans
         )
-        ctx.lists, ctx.size = lists, (width, height, tile_size)
+        ctx.lists, ctx.size, ctx.spans = lists, (width, height, tile_size), spans
         ctx.n = means2d.shape[0]
         ctx.dtypes = (means2d.dtype, conics.dtype, opacities.dtype, features.dtype)
         ctx.t_final_np, ctx.last = t_final, last
@@ -87,6 +85,7 @@ class _BlendFunction(torch.autograd.Function):
             lists.tiles_x,
             ctx.t_final_np,
             ctx.last,
+            ctx.spans,
             _to_numpy32(grad_feats),
             _to_numpy32(grad_t_final),
         )

@@ -1,6 +1,8 @@
 """The 3D half of the rasterizer: project Gaussians to screen-space ellipses (vectorised torch, autograd).
 
-Both backends share this code, so they agree on means2d, conics, radii and culling bit for bit.
+This is the readable torch twin of ``projection_kernels.py``: for float32 inputs both backends run those numba
+kernels (forward and backward), for float64 this code; either way the two backends share one projection, so they
+agree on means2d, conics, radii and culling bit for bit (``tests/test_raster_projection.py``: kernels vs twin).
 Maths follows Kerbl et al. 2023 (EWA splatting with the 3DGS clamp and a 0.3 px low-pass dilation);
 see ``gstyle_core/raster/__init__.py`` for the pixel convention.
 """

@@ -9,6 +9,7 @@ from torch import Tensor
 
 from .fast import blend_fast
 from .projection import project_gaussians
+from .projection_kernels import project_gaussians_fast
 from .reference import blend_reference
 from .sh import eval_sh_colors
 
@@ -83,7 +84,10 @@ def rasterize(
     width, height, tile_size = int(width), int(height), int(tile_size)
     dtype = means.dtype
     viewmat = viewmat.detach().to(dtype)
-    proj = project_gaussians(means, quats, scales, viewmat, K, width, height, near, far, tile_size)
+    # float32: the numba kernels of the projection (forward and backward), shared by both backends so that they
+    # agree on culling bit for bit; float64 runs its torch twin (tests/test_raster_projection.py: the two agree)
+    project = project_gaussians_fast if dtype == torch.float32 else project_gaussians
+    proj = project(means, quats, scales, viewmat, K, width, height, near, far, tile_size)
     if sh_degree is None:
         rgb = colors
     else:
