@@ -238,6 +238,20 @@ def _column_span(rec, j, coef, ci, py, col0, cols):  # pragma: no cover - numba
     return first, end
 
 
+@njit(cache=True)
+def _tile_setup(offsets, rec, t, width, height, tile_size, tiles_x):  # pragma: no cover - numba
+    """Tile ``t``'s pixel rectangle and the entries of its list that can reach it (depth order), with their column
+    span coefficients: (row0, col0, rows, cols, cand, n_cand, coef), as the forward, count and fill passes walk it."""
+    start, end = offsets[t], offsets[t + 1]
+    row0, col0 = (t // tiles_x) * tile_size, (t % tiles_x) * tile_size
+    rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
+    cand = np.empty(end - start, np.int64)
+    n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
+    coef = np.empty((n_cand, 4), np.float64)
+    _span_coefficients(rec, cand, n_cand, row0, rows, coef)
+    return row0, col0, rows, cols, cand, n_cand, coef
+
+
 @njit(cache=True, inline="always")
 def _row_range(rec, j, row0, rows):  # pragma: no cover - numba
     """Tile-local rows [first, end), a superset of those whose pixel centres lie in entry j's reach (the loops
@@ -267,18 +281,12 @@ def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x, s
     t_final = np.ones((height, width), np.float32)
     last = np.zeros((height, width), np.int64)
     for k in prange(tile_order.shape[0]):
-        t = tile_order[k]
-        start, end = offsets[t], offsets[t + 1]
-        row0, col0 = (t // tiles_x) * tile_size, (t % tiles_x) * tile_size
-        rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
-        cand = np.empty(end - start, np.int64)
-        n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
-        coef = np.empty((n_cand, 4), np.float64)
-        _span_coefficients(rec, cand, n_cand, row0, rows, coef)
+        row0, col0, rows, cols, cand, n_cand, coef = _tile_setup(offsets, rec, tile_order[k], width, height,
+                                                                 tile_size, tiles_x)
         n_pix = rows * cols
         trans = np.ones(n_pix, np.float32)
         acc = np.zeros((n_pix, FEATURES), np.float32)
-        stop = np.full(n_pix, start, np.int64)
+        stop = np.full(n_pix, offsets[tile_order[k]], np.int64)  # no contributor: the list's start
         done = np.zeros(n_pix, np.bool_)
         row_active = np.full(rows, cols, np.int64)
         active = n_pix
@@ -445,14 +453,8 @@ def count_blend_weights(offsets, rec, tile_order, width, height, tile_size, tile
     counts = np.zeros(height * width, np.int64)
     t_final = np.ones((height, width), np.float32)
     for k in prange(tile_order.shape[0]):
-        t = tile_order[k]
-        start, end = offsets[t], offsets[t + 1]
-        row0, col0 = (t // tiles_x) * tile_size, (t % tiles_x) * tile_size
-        rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
-        cand = np.empty(end - start, np.int64)
-        n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
-        coef = np.empty((n_cand, 4), np.float64)
-        _span_coefficients(rec, cand, n_cand, row0, rows, coef)
+        row0, col0, rows, cols, cand, n_cand, coef = _tile_setup(offsets, rec, tile_order[k], width, height,
+                                                                 tile_size, tiles_x)
         n_pix = rows * cols
         trans = np.ones(n_pix, np.float32)
         done = np.zeros(n_pix, np.bool_)
@@ -497,14 +499,8 @@ def fill_blend_weights(
     gaussian_ids = np.empty(row_ptr[-1], np.int64)
     vals = np.empty(row_ptr[-1], np.float32)
     for k in prange(tile_order.shape[0]):
-        t = tile_order[k]
-        start, end = offsets[t], offsets[t + 1]
-        row0, col0 = (t // tiles_x) * tile_size, (t % tiles_x) * tile_size
-        rows, cols = min(tile_size, height - row0), min(tile_size, width - col0)
-        cand = np.empty(end - start, np.int64)
-        n_cand = _tile_candidates(rec, start, end, row0, col0, rows, cols, cand)
-        coef = np.empty((n_cand, 4), np.float64)
-        _span_coefficients(rec, cand, n_cand, row0, rows, coef)
+        row0, col0, rows, cols, cand, n_cand, coef = _tile_setup(offsets, rec, tile_order[k], width, height,
+                                                                 tile_size, tiles_x)
         n_pix = rows * cols
         trans = np.ones(n_pix, np.float32)
         done = np.zeros(n_pix, np.bool_)
