@@ -115,7 +115,8 @@ class StyleObjective:
 
     def refresh_style(self) -> bool:
         """Re-extract the style features (NNFM target, the coarse CLIP substitute; CLIP's style embedding) when the
-        settings' ``style_scale`` or ``keep_colours`` changed since they were built; True when they were."""
+        settings' ``style_scale`` or ``keep_colours`` changed since they were built; True when they were. Otherwise
+        only the settings' mix weights are applied (``set_style_weights``)."""
         s = self._settings
         if self._built_for == (bool(s.keep_colours), float(s.style_scale)):
             self.set_style_weights()
