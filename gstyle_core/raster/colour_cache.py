@@ -67,29 +67,12 @@ class ColourCache:
             )
             features = torch.zeros(self.n_gaussians, kernels.FEATURES)
             lists = build_tile_lists(proj, opacities.to(f32), features)
-        args = (
-            lists.offsets,
-            lists.records,
-            lists.tile_order,
-            self.width,
-            self.height,
-            tile_size,
-            lists.tiles_x,
-        )
+        args = (lists.offsets, lists.ids, lists.records, lists.tile_order, self.width, self.height, tile_size,
+                lists.tiles_x)
         counts, t_final = kernels.count_blend_weights(*args)
         row_ptr = np.zeros(counts.shape[0] + 1, np.int64)
         np.cumsum(counts, out=row_ptr[1:])
-        cols, vals = kernels.fill_blend_weights(
-            lists.offsets,
-            lists.ids,
-            lists.records,
-            lists.tile_order,
-            self.width,
-            self.height,
-            tile_size,
-            lists.tiles_x,
-            row_ptr,
-        )
+        cols, vals = kernels.fill_blend_weights(*args, row_ptr)
         shape = (self.height * self.width, self.n_gaussians)
         t_ptr, t_cols, t_vals = kernels.csr_transpose(row_ptr, cols, vals, self.n_gaussians)
         with warnings.catch_warnings():

@@ -447,67 +447,27 @@ def scatter_entry_grads(ids, entry_grads, n_gaussians):  # pragma: no cover - nu
 
 
 @njit(parallel=True, cache=True)
-def count_blend_weights(offsets, rec, tile_order, width, height, tile_size, tiles_x):  # pragma: no cover
-    """Number of Gaussians that contribute to each pixel, [H * W] int64, and the final transmittance [H, W]
-    (the loops of ``blend_forward``)."""
-    counts = np.zeros(height * width, np.int64)
-    t_final = np.ones((height, width), np.float32)
+def _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x, row_ptr,
+                        fill):  # pragma: no cover - numba
+    """The loops of ``blend_forward`` recording the blend weights alpha_i * T_i of every pixel x Gaussian pair.
+    ``fill`` False: count them per pixel ([H * W] int64) and keep the final transmittance [H, W]; True: write the
+    Gaussian ids and weights into the CSR rows that ``row_ptr`` (from the counts) lays out. Returns (counts,
+    t_final, ids, weights); the arrays of the other pass are empty."""
+    counts = np.zeros(0 if fill else height * width, np.int64)
+    t_final = np.ones((0, 0) if fill else (height, width), np.float32)
+    gaussian_ids = np.empty(row_ptr[-1] if fill else 0, np.int64)
+    vals = np.empty(row_ptr[-1] if fill else 0, np.float32)
     for k in prange(tile_order.shape[0]):
         row0, col0, rows, cols, cand, n_cand, coef = _tile_setup(offsets, rec, tile_order[k], width, height,
                                                                  tile_size, tiles_x)
         n_pix = rows * cols
         trans = np.ones(n_pix, np.float32)
         done = np.zeros(n_pix, np.bool_)
-        row_active = np.full(rows, cols, np.int64)
-        active = n_pix
-        for ci in range(n_cand):
-            j = cand[ci]
-            r_first, r_end = _row_range(rec, j, row0, rows)
-            for lr in range(r_first, r_end):
-                py = np.float32(row0 + lr + 0.5)
-                if row_active[lr] == 0 or abs(py - rec[j, 1]) > rec[j, 11]:
-                    continue
-                first, span_end = _column_span(rec, j, coef, ci, py, col0, cols)
-                for lc in range(first, span_end):
-                    p = lr * cols + lc
-                    if done[p]:
-                        continue
-                    alpha, _, _, _ = _pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
-                    if alpha == 0.0:
-                        continue
-                    next_trans = trans[p] * (_ONE - alpha)
-                    if next_trans < TRANSMITTANCE_MIN:
-                        done[p] = True
-                        row_active[lr] -= 1
-                        active -= 1
-                        continue
-                    trans[p] = next_trans
-                    counts[(row0 + lr) * width + col0 + lc] += 1
-            if active == 0:
-                break
-        for lr in range(rows):
-            for lc in range(cols):
-                t_final[row0 + lr, col0 + lc] = trans[lr * cols + lc]
-    return counts, t_final
-
-
-@njit(parallel=True, cache=True)
-def fill_blend_weights(
-    offsets, ids, rec, tile_order, width, height, tile_size, tiles_x, row_ptr
-):  # pragma: no cover - numba
-    """CSR columns (Gaussian ids) and values (alpha_i * T_i) of the pixel x Gaussian blend matrix."""
-    gaussian_ids = np.empty(row_ptr[-1], np.int64)
-    vals = np.empty(row_ptr[-1], np.float32)
-    for k in prange(tile_order.shape[0]):
-        row0, col0, rows, cols, cand, n_cand, coef = _tile_setup(offsets, rec, tile_order[k], width, height,
-                                                                 tile_size, tiles_x)
-        n_pix = rows * cols
-        trans = np.ones(n_pix, np.float32)
-        done = np.zeros(n_pix, np.bool_)
-        pos = np.empty(n_pix, np.int64)
-        for lr in range(rows):
-            for lc in range(cols):
-                pos[lr * cols + lc] = row_ptr[(row0 + lr) * width + col0 + lc]
+        pos = np.zeros(n_pix, np.int64)  # fill: the next free slot of each pixel's CSR row
+        if fill:
+            for lr in range(rows):
+                for lc in range(cols):
+                    pos[lr * cols + lc] = row_ptr[(row0 + lr) * width + col0 + lc]
         row_active = np.full(rows, cols, np.int64)
         active = n_pix
         for ci in range(n_cand):
@@ -532,12 +492,34 @@ def fill_blend_weights(
                         row_active[lr] -= 1
                         active -= 1
                         continue
-                    gaussian_ids[pos[p]] = ids[j]
-                    vals[pos[p]] = alpha * tr
-                    pos[p] += 1
+                    if fill:
+                        gaussian_ids[pos[p]] = ids[j]
+                        vals[pos[p]] = alpha * tr
+                        pos[p] += 1
+                    else:
+                        counts[(row0 + lr) * width + col0 + lc] += 1
                     trans[p] = next_trans
             if active == 0:
                 break
+        if not fill:
+            for lr in range(rows):
+                for lc in range(cols):
+                    t_final[row0 + lr, col0 + lc] = trans[lr * cols + lc]
+    return counts, t_final, gaussian_ids, vals
+
+
+def count_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x):
+    """Number of Gaussians that contribute to each pixel, [H * W] int64, and the final transmittance [H, W]."""
+    counts, t_final, _, _ = _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x,
+                                                np.zeros(1, np.int64), False)
+    return counts, t_final
+
+
+def fill_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x, row_ptr):
+    """CSR columns (Gaussian ids) and values (alpha_i * T_i) of the pixel x Gaussian blend matrix whose rows
+    ``row_ptr`` lays out (the prefix sums of ``count_blend_weights``)."""
+    _, _, gaussian_ids, vals = _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x,
+                                                   row_ptr, True)
     return gaussian_ids, vals
 
 
