@@ -75,13 +75,11 @@ class Evaluator:
         self.vgg = vgg
         self.width = width
         self.styles = [np.asarray(s, np.float32) for s in ([style] if isinstance(style, np.ndarray) else style)]
-        self.style = self.styles[0]
         self.weights = normalise_style_weights(weights, len(self.styles))
         self.targets = []
         for image in self.styles:
             height = max(1, round(image.shape[0] * width / image.shape[1]))
             self.targets.append(StyleTarget.from_image(vgg, to_bchw(resize_image(image, (width, height)))))
-        self.target = self.targets[0]
         self.palette = Palette.mixture([Palette.of(s) for s in self.styles], self.weights)
 
     @torch.no_grad()
@@ -114,7 +112,7 @@ class Evaluator:
                 pixels.append(img.reshape(-1, 3))
             content.append(float(content_loss(f, g)))
         covered = np.concatenate(pixels) if sum(len(p) for p in pixels) > 1 else np.zeros((2, 3))
-        colour = colour_stats_distance(covered, self.style if len(self.styles) == 1 else self.palette)
+        colour = colour_stats_distance(covered, self.styles[0] if len(self.styles) == 1 else self.palette)
         shares = np.asarray(self.weights)[:, None]
         out = {"nnfm": float((shares * per_style).sum(0).mean()),
                "nnfm_full": float((shares * per_style_full).sum(0).mean()),

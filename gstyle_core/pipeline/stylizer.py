@@ -164,7 +164,7 @@ class Stylizer:
         self._origin = None if mask is None else torch.arange(scene.count)
         self.region_coverage: list[torch.Tensor] = []  # the selected Gaussians' weight in each view (region runs)
         self._active_key: tuple[int, int] | None = None
-        self._active_ids: torch.Tensor | None = None
+        self._active_cache: tuple[torch.Tensor, torch.Tensor] | None = None  # region runs: see _refresh_active
         if mask is not None:
             self.decisions["region"] = region_note(settings.region, int(mask.sum()), scene.count)
         self.decisions["sh"] = self._sh_note(scene.sh_degree)
@@ -418,29 +418,30 @@ class Stylizer:
     def _active(self) -> torch.Tensor | None:
         """Indices of the Gaussians the run works on: the seen ones, and of those only the selected ones in a region
         run; None when that is all of them. These are pre-processed, split, refitted and optimised."""
-        ids = self._seen()
         if self._selected is None:
-            return ids
+            return self._seen()
+        return self._refresh_active()[0]
+
+    def _active_in_seen(self) -> torch.Tensor | None:
+        """Positions of ``_active()`` in the colour caches' columns (``_seen()`` order); None: the same set."""
+        return None if self._selected is None else self._refresh_active()[1]
+
+    def _refresh_active(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Region runs: (``_active()``, ``_active_in_seen()``), computed again only when the geometry changed."""
         key = (self.geometry_version, self.gaussian_count)
         if key != self._active_key:
+            ids = self._seen()
             mask = self._selected.clone()
+            pos = torch.arange(self.gaussian_count)
             if ids is not None:
                 seen = torch.zeros_like(mask)
                 seen[ids] = True
                 mask &= seen
-            self._active_key, self._active_ids = key, torch.nonzero(mask).flatten()
-        return self._active_ids
-
-    def _active_in_seen(self) -> torch.Tensor | None:
-        """Positions of ``_active()`` in the colour caches' columns (``_seen()`` order); None: the same set."""
-        ids, active = self._seen(), self._active()
-        if self._selected is None:
-            return None
-        if ids is None:
-            return active
-        pos = torch.full((self.gaussian_count,), -1, dtype=torch.long)
-        pos[ids] = torch.arange(len(ids))
-        return pos[active]
+                pos = torch.full((self.gaussian_count,), -1, dtype=torch.long)
+                pos[ids] = torch.arange(len(ids))
+            active = torch.nonzero(mask).flatten()
+            self._active_key, self._active_cache = key, (active, pos[active])
+        return self._active_cache
 
     def _in_seen(self, values: torch.Tensor) -> torch.Tensor:
         ids = self._seen()
@@ -545,7 +546,7 @@ class Stylizer:
     def _trainer_step(self):
         rep = self._trainer.step()
         ids = self._trainer_ids
-        frozen = getattr(self, "_frozen", None)
+        frozen = self._frozen
         with torch.no_grad():
             if frozen is not None:  # undo whatever the strategy (elongation clamps) did to the unselected rows
                 rows, values = frozen

@@ -304,11 +304,6 @@ class ClipStyleLoss(nn.Module):
         self.register_buffer("style_embeddings", embeddings, persistent=False)  # [K, 512]
         self.set_style_weights(style_weights)
 
-    @property
-    def style_embedding(self) -> torch.Tensor:
-        """The (first) painting's embedding [1, 512]."""
-        return self.style_embeddings[:1]
-
     def set_style_weights(self, weights: Sequence[float] | None) -> None:
         """Weights of the paintings (None: one painting, weight 1)."""
         self.style_weights = _checked_weights(weights, self.style_embeddings.shape[0])
@@ -350,11 +345,6 @@ class CoarseStyleLoss(nn.Module):
                 stats = self._statistics(_as_batch(style))
                 self.styles_stats.append({name: (m.detach(), s.detach()) for name, (m, s) in stats.items()})
         self.set_style_weights(style_weights)
-
-    @property
-    def style_stats(self) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
-        """The (first) painting's statistics per layer."""
-        return self.styles_stats[0]
 
     def set_style_weights(self, weights: Sequence[float] | None) -> None:
         """Weights of the paintings (None: one painting, weight 1)."""
