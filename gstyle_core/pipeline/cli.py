@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -53,26 +55,44 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
                    help="checkpoint interval (also at every phase end; 0: phase ends only); default 120")
 
 
-def _style_scale_arg(text: str) -> float:
-    """``--style-scale``: a finite number above 0 (argparse reports anything else in one line)."""
+def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """An argparse ``type`` from a parser that raises ``ValueError`` saying why: argparse then reports the reason in
+    one line (and exits with status 2) instead of a traceback."""
+    def checked(text: str) -> Any:
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    return checked
+
+
+def _style_scale(text: str) -> float:
+    """``--style-scale``: a finite number above 0."""
     from .settings import check_style_scale
 
-    try:
-        return check_style_scale(float(text))
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    return check_style_scale(float(text))
 
 
-def _style_weights_arg(text: str) -> tuple[float, ...]:
+def _style_weights(text: str) -> tuple[float, ...]:
     """``--style-weights``: numbers separated by commas, each finite and >= 0, not all 0."""
     from ..style.mix import normalise_style_weights, parse_style_weights
 
-    try:
-        values = parse_style_weights(text)
-        normalise_style_weights(values, len(values))
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    values = parse_style_weights(text)
+    normalise_style_weights(values, len(values))
     return tuple(values)
+
+
+def _region(text: str) -> tuple[float, ...]:
+    """``--region``: six comma-separated finite numbers, low corner first."""
+    from .region import parse_region
+
+    return parse_region(text)
+
+
+_style_scale_arg = argument_type(_style_scale)
+_style_weights_arg = argument_type(_style_weights)
+_region_arg = argument_type(_region)
 
 
 def style_paths(style: str | list[str] | tuple[str, ...] | None) -> list[str]:
@@ -82,16 +102,6 @@ def style_paths(style: str | list[str] | tuple[str, ...] | None) -> list[str]:
     if not style:
         return [str(DEFAULT_STYLE)]
     return [str(style)] if isinstance(style, (str, Path)) else [str(s) for s in style]
-
-
-def _region_arg(text: str) -> tuple[float, ...]:
-    """``--region``: six comma-separated finite numbers, low corner first (argparse reports anything else)."""
-    from .region import RegionError, parse_region
-
-    try:
-        return parse_region(text)
-    except RegionError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def region_summary(engine) -> dict | None:
