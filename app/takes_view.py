@@ -9,6 +9,7 @@ from pathlib import Path
 from gstyle_core.errors import GStyleError
 
 from .splat_data import scene_arrays
+from .worker import summary_path
 
 
 class TakesView:
@@ -49,13 +50,10 @@ class TakesView:
 
     def _shelve_exports(self, exported: list[str]) -> None:
         """New exports become takes (the Gaussian count from the export's JSON summary)."""
-        from gstyle_core.io.saver import format_of
-
         for written in exported:
             path = Path(written)
-            stem = path.name[: -len(".compressed.ply")] if format_of(path) == "compressed-ply" else path.stem
             try:
-                gaussians = int(json.loads(path.with_name(stem + ".json").read_text())["gaussians"])
+                gaussians = int(json.loads(summary_path(path).read_text())["gaussians"])
             except (OSError, ValueError, KeyError, TypeError):
                 gaussians = self.stylized.count
             self.takes.add(path, gaussians)

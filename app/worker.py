@@ -298,9 +298,17 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
                "decisions": getattr(engine, "decisions", None),
                "settings": engine.settings.to_dict() if hasattr(getattr(engine, "settings", None), "to_dict")
                else None}
-    stem = path.name[: -len(".compressed.ply")] if format_of(path) == "compressed-ply" else path.stem
-    atomic_write_text(path.with_name(stem + ".json"), json.dumps(summary, indent=2, default=str))
+    atomic_write_text(summary_path(path), json.dumps(summary, indent=2, default=str))
     return str(path)
+
+
+def summary_path(export: str | Path) -> Path:
+    """The JSON summary written beside an export: ``name.json`` for ``name.ply``, ``.spz`` or ``.compressed.ply``."""
+    from gstyle_core.io.saver import COMPRESSED_PLY_SUFFIX, format_of
+
+    path = Path(export)
+    stem = path.name[: -len(COMPRESSED_PLY_SUFFIX)] if format_of(path) == "compressed-ply" else path.stem
+    return path.with_name(stem + ".json")
 
 
 def style_entries(engine: Any, style: str | list[str] | None) -> list[dict[str, Any]]:
