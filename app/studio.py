@@ -121,6 +121,7 @@ class StudioApp(RegionTool, TakesView):
         self.region_box: tuple[float, ...] | None = None
         self.region_rect_mask: np.ndarray | None = None  # the last rectangle's selection (mode "rectangle")
         self._region_version = 0
+        self._box_mask_cache: tuple[tuple, np.ndarray] | None = None  # (scene and box, its selection)
         self._selection_shown: dict[str, Any] = {}
         self._rect_start: tuple[float, float] | None = None
         self._view_size: tuple[int, int] = (1, 1)
