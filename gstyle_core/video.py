@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import current_umask
+from .atomic import atomic_path, current_umask
 from .errors import GStyleError
 
 VIDEO_SUFFIXES = {".mp4": "mp4", ".gif": "gif"}
@@ -99,28 +99,13 @@ def write_frames(frames: Iterable[np.ndarray], out: str | os.PathLike, fps: floa
     return count
 
 
-def _temp_file(target: Path, suffix: str) -> Path:
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=target.parent)
-    os.close(fd)
-    return Path(tmp)
-
-
-def _finish_file(tmp: Path, target: Path, count: int) -> None:
-    if count == 0:
-        tmp.unlink(missing_ok=True)
-        return
-    os.chmod(tmp, 0o666 & ~current_umask())
-    os.replace(tmp, target)
-
-
 def _write_mp4(frames: Iterable[np.ndarray], target: Path, fps: float) -> int:
     try:
         import imageio.v2 as imageio
     except ImportError as exc:  # a dependency (pyproject.toml); reported rather than a traceback
         raise GStyleError(f"MP4 needs imageio and imageio-ffmpeg ({exc}); write .gif or a folder instead") from None
-    tmp = _temp_file(target, ".mp4")  # ffmpeg picks the container from the extension
     count = 0
-    try:
+    with atomic_path(target, ".mp4") as tmp:  # ffmpeg picks the container from the extension
         writer = imageio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=MP4_QUALITY,
                                     pixelformat="yuv420p", macro_block_size=1, ffmpeg_log_level="error")
         try:
@@ -129,10 +114,8 @@ def _write_mp4(frames: Iterable[np.ndarray], target: Path, fps: float) -> int:
                 count += 1
         finally:
             writer.close()
-        _finish_file(tmp, target, count)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+        if count == 0:
+            raise GStyleError("no frames to write")  # (nothing is renamed into place)
     return count
 
 
