@@ -31,7 +31,7 @@ import moderngl
 import numpy as np
 
 from gstyle_core.cameras.camera import Camera
-from gstyle_core.raster.sh import used_sh_degree
+from gstyle_core.scene import used_sh_degree
 
 from .shader_loader import program_sources, shader_source
 from .splat_data import (

@@ -27,6 +27,20 @@ def sh_degree_from_rest_count(k: int) -> int:
     raise ValueError(f"{k} higher SH coefficients per channel match no SH degree (0, 3, 8 or 15 expected)")
 
 
+def used_sh_degree(sh_rest) -> int:
+    """The lowest SH degree that keeps every non-zero coefficient of ``sh_rest`` [N, K, 3] (numpy or torch).
+
+    Higher bands that are all zero add exactly nothing to a colour, so evaluating them can be skipped.
+    """
+    rest = np.asarray(sh_rest)
+    degree = 0
+    for d in range(1, 4):
+        lo, hi = d * d - 1, (d + 1) ** 2 - 1
+        if rest.ndim == 3 and rest.shape[1] >= hi and np.any(rest[:, lo:hi] != 0):
+            degree = d
+    return degree
+
+
 def rgb_to_sh_dc(rgb: np.ndarray) -> np.ndarray:
     """Convert linear colour in [0, 1] to degree-0 SH coefficients."""
     return ((np.asarray(rgb, np.float32) - 0.5) / SH_C0).astype(np.float32)

@@ -21,8 +21,7 @@ from gstyle_core.pipeline.settings import resolve_settings
 from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.pipeline.visibility import seen_mask
 from gstyle_core.raster import rasterize
-from gstyle_core.raster.sh import used_sh_degree
-from gstyle_core.scene import GaussianScene, logit
+from gstyle_core.scene import GaussianScene, logit, used_sh_degree
 
 N_HIDDEN = 90
 

@@ -17,9 +17,8 @@ from gstyle_core.errors import SceneFormatError
 from gstyle_core.io import load_scene, save_scene
 from gstyle_core.io.ply_compressed import CHUNK
 from gstyle_core.io.ply_compressed_write import morton_order
-from gstyle_core.io.quantize import used_sh_degree
 from gstyle_core.io.spz_write import encode_spz, fractional_bits
-from gstyle_core.scene import GaussianScene, sigmoid
+from gstyle_core.scene import GaussianScene, sigmoid, used_sh_degree
 
 SPZ_SMALL_STEP = np.sqrt(0.5) / 511  # v3: one step of the three smaller quaternion components
 CPLY_ROT_STEP = np.sqrt(2.0) / 1023  # compressed PLY: one step of the three smaller components

@@ -15,9 +15,9 @@ from typing import IO
 
 import numpy as np
 
-from ..scene import SH_C0, GaussianScene, sigmoid
+from ..scene import SH_C0, GaussianScene, sigmoid, used_sh_degree
 from .ply_compressed import CHUNK, CHUNK_BASE, CHUNK_COLOUR, PACKED
-from .quantize import to_uint, unit_quats, used_sh_degree
+from .quantize import to_uint, unit_quats
 
 SCALE_LIMIT = 20.0
 MIN_RANGE = 1e-5  # a chunk range below this stores every value at the chunk minimum

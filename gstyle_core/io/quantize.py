@@ -5,15 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 
-def used_sh_degree(sh_rest: np.ndarray) -> int:
-    """The lowest SH degree (0-3) that keeps every non-zero higher coefficient of ``sh_rest`` [N, K, 3]."""
-    for degree in (3, 2, 1):
-        lo, hi = degree * degree - 1, (degree + 1) ** 2 - 1
-        if sh_rest.shape[1] >= hi and np.any(sh_rest[:, lo:hi] != 0):
-            return degree
-    return 0
-
-
 def unit_quats(quats: np.ndarray) -> np.ndarray:
     """(w, x, y, z) quaternions [N, 4] normalised in float64; zero-length ones become the identity."""
     q = np.asarray(quats, np.float64)

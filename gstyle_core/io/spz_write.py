@@ -19,8 +19,8 @@ from typing import IO
 import numpy as np
 
 from ..errors import SceneFormatError
-from ..scene import GaussianScene, sigmoid
-from .quantize import to_uint, unit_quats, used_sh_degree
+from ..scene import GaussianScene, sigmoid, used_sh_degree
+from .quantize import to_uint, unit_quats
 from .spz import COLOR_SCALE, MAGIC, SH_DIMS, SH_FLIP_RUB_RDF
 
 MAX_FIXED = (1 << 23) - 1

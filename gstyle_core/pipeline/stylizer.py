@@ -50,8 +50,7 @@ from ..fit.model import camera_tensors, params_from_scene, render_params, scene_
 from ..fit.strategy import Strategy
 from ..fit.trainer import FitConfig, Trainer
 from ..raster import ColourCache, ColourCacheStore
-from ..raster.sh import used_sh_degree
-from ..scene import GaussianScene, rgb_to_sh_dc, sh_dc_to_rgb
+from ..scene import GaussianScene, rgb_to_sh_dc, sh_dc_to_rgb, used_sh_degree
 from ..style.clip import CLIP_OFF, clip_status, clip_term_name
 from ..style.colour_match import Palette
 from ..style.mix import normalise_style_weights, weights_with_mix

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 import torch
 from torch import Tensor
 
@@ -68,17 +67,3 @@ def eval_sh_colors(coeffs: Tensor, means: Tensor, camera_position: Tensor, degre
     basis = sh_basis(dirs, degree)
     rgb = (basis[:, :, None] * coeffs[:, :needed]).sum(1) + 0.5
     return rgb.clamp_min(0.0)
-
-
-def used_sh_degree(sh_rest) -> int:
-    """The lowest SH degree that keeps every non-zero coefficient of ``sh_rest`` [N, K, 3] (numpy or torch).
-
-    Higher bands that are all zero add exactly nothing to a colour, so evaluating them can be skipped.
-    """
-    rest = np.asarray(sh_rest)
-    degree = 0
-    for d in range(1, 4):
-        lo, hi = d * d - 1, (d + 1) ** 2 - 1
-        if rest.ndim == 3 and rest.shape[1] >= hi and np.any(rest[:, lo:hi] != 0):
-            degree = d
-    return degree
