@@ -4,7 +4,7 @@
         --row "input=SCENE" --row "The Starry Night=out/mix/starry.ply" --row "mix 0.5=out/mix/mix.ply" ...
 
 Every row renders ``--views`` cameras of ``SCENE`` (spread around its camera list, as the gallery does) at ``--width``
-px each; the rows are cropped to the columns and rows that any of them covers and labelled on the left.
+px each; the rows are cropped to the columns and rows that the first row covers and labelled on the left.
 """
 
 from __future__ import annotations
@@ -23,26 +23,13 @@ LABEL_WIDTH = 150
 
 def render_rows(scene: str | None, cameras: str | None, rows: list[tuple[str, str]], views: int, width: int
                 ) -> np.ndarray:
-    """[H, W, 3] uint8: one labelled strip of ``views`` renders per (label, scene path) row."""
+    """[H, W, 3] uint8: one labelled strip of ``views`` renders per (label, scene path) row, cropped to the extent of
+    the first row's scene (``render_cli.scene_rows``)."""
     from gstyle_core.io import load_scene
-    from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image
+    from gstyle_core.render_cli import load_scene_and_cameras, scene_rows
 
     _base, _report, cams = load_scene_and_cameras(scene, cameras)
-    n = len(cams.cameras)
-    picks = sorted({int(i * n / min(views, n)) for i in range(min(views, n))})
-    chosen = [cams.cameras[i].resized_to_width(width) for i in picks]
-    strips, covered = [], None
-    for _label, path in rows:
-        row_scene, _ = load_scene(path)
-        images, alphas = zip(*(render_scene_image(row_scene, c, with_alpha=True) for c in chosen), strict=True)
-        strips.append(np.concatenate(images, axis=1))
-        cover = np.concatenate(alphas, axis=1) > 1.0 / 255.0
-        covered = cover if covered is None else covered | cover
-    rows_idx, cols_idx = np.flatnonzero(covered.any(axis=1)), np.flatnonzero(covered.any(axis=0))
-    if rows_idx.size and cols_idx.size:
-        r0, r1 = max(rows_idx[0] - 8, 0), min(rows_idx[-1] + 9, covered.shape[0])
-        c0, c1 = max(cols_idx[0] - 8, 0), min(cols_idx[-1] + 9, covered.shape[1])
-        strips = [s[r0:r1, c0:c1] for s in strips]
+    strips = scene_rows([load_scene(path)[0] for _label, path in rows], cams.cameras, views, width)
     return np.concatenate([_labelled(s, label) for s, (label, _) in zip(strips, rows, strict=True)], axis=0)
 
 

@@ -65,25 +65,31 @@ def render_scene_image(scene, camera, backend: str = "fast", sh_degree: int | No
     return out.image.numpy()
 
 
-def before_after_picture(before_scene, after_scene, cameras: list, n_views: int = 3, width: int = 512,
-                         margin: int = 8) -> np.ndarray:
-    """Input renders above stylized renders of ``n_views`` cameras spread around the list (not its two ends,
-    which on an orbit are neighbours), ``width`` px each, cropped to the rows and columns the scene covers."""
+def scene_rows(scenes: list, cameras: list, n_views: int = 3, width: int = 512, margin: int = 8) -> list[np.ndarray]:
+    """One strip per scene: renders of the same ``n_views`` cameras spread around the list (not its two ends, which on
+    an orbit are neighbours), ``width`` px each, side by side, all cropped to the rows and columns that the first
+    scene covers (empty margins of an object on black say nothing)."""
     n = len(cameras)
     if n == 0:
-        raise GStyleError("no cameras to render the before/after picture from")
+        raise GStyleError("no cameras to render the picture from")
     picks = sorted({int(i * n / min(n_views, n)) for i in range(min(n_views, n))})
     cams = [cameras[i].resized_to_width(width) for i in picks]
-    before, alpha = zip(*(render_scene_image(before_scene, c, with_alpha=True) for c in cams), strict=True)
-    after = [render_scene_image(after_scene, c) for c in cams]
-    top, bottom = np.concatenate(before, axis=1), np.concatenate(after, axis=1)
+    first, alpha = zip(*(render_scene_image(scenes[0], c, with_alpha=True) for c in cams), strict=True)
+    strips = [np.concatenate(first, axis=1)]
+    strips += [np.concatenate([render_scene_image(scene, c) for c in cams], axis=1) for scene in scenes[1:]]
     covered = np.concatenate(alpha, axis=1) > 1.0 / 255.0
     rows, cols = np.flatnonzero(covered.any(axis=1)), np.flatnonzero(covered.any(axis=0))
-    if rows.size and cols.size:  # crop to the scene (empty margins of an object on black say nothing)
-        r0, r1 = max(rows[0] - margin, 0), min(rows[-1] + margin + 1, top.shape[0])
-        c0, c1 = max(cols[0] - margin, 0), min(cols[-1] + margin + 1, top.shape[1])
-        top, bottom = top[r0:r1, c0:c1], bottom[r0:r1, c0:c1]
-    return np.concatenate([top, bottom], axis=0)
+    if rows.size and cols.size:
+        r0, r1 = max(rows[0] - margin, 0), min(rows[-1] + margin + 1, covered.shape[0])
+        c0, c1 = max(cols[0] - margin, 0), min(cols[-1] + margin + 1, covered.shape[1])
+        strips = [strip[r0:r1, c0:c1] for strip in strips]
+    return strips
+
+
+def before_after_picture(before_scene, after_scene, cameras: list, n_views: int = 3, width: int = 512,
+                         margin: int = 8) -> np.ndarray:
+    """Input renders above stylized renders of ``n_views`` cameras (``scene_rows``), cropped to the input's extent."""
+    return np.concatenate(scene_rows([before_scene, after_scene], cameras, n_views, width, margin), axis=0)
 
 
 def render_command(args: argparse.Namespace) -> int:
