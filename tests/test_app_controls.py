@@ -82,11 +82,7 @@ def test_coarse_substitute_is_named_so_on_slider_tooltip_and_plot(panel):
     assert [label for label, _ in loss_series([{"clip": 1.0, "nnfm": 2.0}], COARSE_NAME)] == [COARSE_NAME, "nnfm"]
 
 
-def test_studio_names_the_clip_term_by_the_weights_found(window, monkeypatch, tmp_path):
-    from gstyle_core.style import clip as clip_module
-
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
+def test_studio_names_the_clip_term_by_the_weights_found(window, no_clip_weights, tmp_path):
     app = StudioApp(window.ctx, loaded=LoadedScene("s", blob_scene(50), ring_cameras(4)), output_dir=tmp_path)
     try:
         assert app.panel.clip_name == COARSE_NAME

@@ -20,11 +20,10 @@ TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 2, "refit_iterations": 2, "p
 
 
 @pytest.fixture
-def tradeoff(tmp_path, monkeypatch):
+def tradeoff(tmp_path, monkeypatch, vgg, no_clip_weights):
     """The bench module on a 150-Gaussian scene, a 16 px style and a random VGG (no weights needed)."""
     from PIL import Image
 
-    from gstyle_core.style import clip as clip_module
     from gstyle_core.style import vgg as vgg_module
 
     spec = importlib.util.spec_from_file_location("tradeoff_bench", BENCH)
@@ -38,11 +37,7 @@ def tradeoff(tmp_path, monkeypatch):
     monkeypatch.setattr(module, "QUICK_SWEEP", [("w32", "preview", {**TINY, "working_width": 32}),
                                                 ("w48", "preview", {**TINY, "working_width": 48})])
     monkeypatch.setattr(module, "EVAL_WIDTH", 48)
-    torch.manual_seed(0)
-    random_vgg = vgg_module.VGGFeatures().eval()
-    monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: random_vgg)
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
+    monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: vgg)
     threads = torch.get_num_threads()
     yield module
     torch.set_num_threads(threads)  # main() sets the process' torch threads

@@ -184,16 +184,10 @@ def test_uneven_sizes_are_preprocessed_with_the_criterion_reported():
 
 # ====================================================================== loss terms of weight 0, CLIP without weights
 @pytest.fixture
-def random_vgg_objective(monkeypatch):
+def random_vgg_objective(vgg, no_clip_weights):
     """The real StyleObjective on a randomly initialised VGG, with no CLIP weights anywhere."""
     from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.style import clip as clip_module
-    from gstyle_core.style.vgg import VGGFeatures
 
-    monkeypatch.setattr(clip_module, "clip_search_paths", lambda: [])
-    monkeypatch.delenv(clip_module.CLIP_ENV, raising=False)
-    torch.manual_seed(0)
-    vgg = VGGFeatures().eval()
     return lambda style, settings: StyleObjective(style, settings, vgg=vgg)
 
 
