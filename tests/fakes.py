@@ -125,6 +125,15 @@ def make_small_stylizer(n: int = 150, **_ignored):
     return Stylizer(blob_scene(n, seed=5), ring_cameras(3), style, settings, objective_factory=MeanColourPull)
 
 
+BUILT: list = []  # engines made by keep_small_stylizer (and other test factories), newest last
+
+
+def keep_small_stylizer(**config):
+    """``make_small_stylizer``, kept in ``BUILT`` for the test to look at (thread mode: the same process)."""
+    BUILT.append(make_small_stylizer(**config))
+    return BUILT[-1]
+
+
 def random_torchvision_vgg_state() -> dict:
     """A torchvision-layout VGG-16 state (``features.N.weight/bias``) with random values."""
     import torch

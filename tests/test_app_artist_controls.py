@@ -7,7 +7,7 @@ import pytest
 pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
-from fakes import make_small_stylizer  # noqa: E402
+from fakes import BUILT, keep_small_stylizer  # noqa: E402
 from imgui_driver import paused_studio_driver  # noqa: E402
 from PIL import Image  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
@@ -17,13 +17,6 @@ from app.studio import LoadedScene, StudioApp  # noqa: E402
 from gstyle_core.pipeline.checkpoint import read_checkpoint  # noqa: E402
 
 W, H = 700, 1100  # tall enough for the whole panel
-BUILT: list = []
-
-
-def keep_small_stylizer(**config):
-    """``make_small_stylizer``, kept for the test to look at (thread mode: the same process)."""
-    BUILT.append(make_small_stylizer(**config))
-    return BUILT[-1]
 
 
 def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, monkeypatch, tmp_path):

@@ -5,7 +5,7 @@ import pytest
 pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
-from fakes import make_small_stylizer  # noqa: E402
+from fakes import BUILT, keep_small_stylizer  # noqa: E402
 from imgui_driver import PanelDriver, install, paused_studio_driver, studio_driver  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
@@ -106,13 +106,6 @@ def test_reset_goes_to_the_presets_values_of_a_360_scene(window, monkeypatch, tm
         app.close()
 
 
-BUILT: list = []
-
-
-def keep_small_stylizer(**config):
-    """``make_small_stylizer``, kept for the test to look at (thread mode: the same process)."""
-    BUILT.append(make_small_stylizer(**config))
-    return BUILT[-1]
 
 
 def test_strength_slider_reaches_the_engine(window, monkeypatch, tmp_path):
