@@ -6,6 +6,7 @@ colour-gradient splits; what differs is the ``Strategy`` and which parameters ar
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from collections.abc import Sequence
@@ -150,6 +151,23 @@ class Trainer:
         self.step_index += 1
         return FitReport(self.step_index, float(loss.detach()), float(l1.detach()), self.params["means"].shape[0],
                          time.perf_counter() - t0, changes)
+
+    def state_dict(self) -> dict:
+        """What a resumed fit needs besides the parameters: the step count, the view order (the shuffle's random
+        state and what is left of the current epoch) and every optimiser's moments (copies)."""
+        return {"step_index": self.step_index, "rng": self._rng.bit_generator.state,
+                "order": [int(i) for i in self._order],
+                "optimizers": {k: copy.deepcopy(o.state_dict()) for k, o in self.optimizers.items()}}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore ``state_dict()`` into a trainer built over parameters of the same shapes."""
+        if set(state["optimizers"]) != set(self.optimizers):
+            raise ValueError(f"the saved fit trained {sorted(state['optimizers'])}, this one {sorted(self.optimizers)}")
+        self.step_index = int(state["step_index"])
+        self._rng.bit_generator.state = state["rng"]
+        self._order = [int(i) for i in state["order"]]
+        for name, opt in self.optimizers.items():
+            opt.load_state_dict(state["optimizers"][name])
 
     @torch.no_grad()
     def evaluate(self, cameras: Sequence[Camera], images: Sequence[np.ndarray | torch.Tensor]) -> float:
