@@ -61,7 +61,7 @@ def run_variant(name: str, scene: str | None, style_path: str | None, preset: st
     cams = [engine.full_cameras[i].resized_to_width(256) for i in choose_views(engine.full_cameras, 3)]
     before, alpha = zip(*(render_scene_image(input_scene, c, with_alpha=True) for c in cams), strict=True)
     after = [render_scene_image(engine.stylized_scene(), c) for c in cams]
-    vgg = engine._objective.vgg
+    vgg = engine.objective.vgg
     lum_before = luminance_nnfm(vgg, style, list(before), list(alpha))
     lum_after = luminance_nnfm(vgg, style, after, list(alpha))
     covered = [np.asarray(a) > 0.5 for a in alpha]

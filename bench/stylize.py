@@ -89,8 +89,8 @@ def instrument(engine) -> PartTimer:
     """Time the parts of the stylize step: the colour cache (builds, render, its backward), the networks' forward
     passes and loss terms, the whole backward pass and the optimiser step."""
     timer = PartTimer()
-    objective = engine._objective_fn()
-    timer.wrap(engine, "_build_cache", "colour cache: builds")
+    objective = engine.build_objective()
+    timer.wrap(colour_cache.ColourCache, "__init__", "colour cache: builds")
     timer.wrap(colour_cache.ColourCache, "render", "colour cache: render")
     timer.wrap(colour_cache._SparseLinear, "backward", "colour cache: backward")
     timer.wrap(objective.loss.vgg, "forward", "VGG forward")
@@ -122,7 +122,7 @@ def network_sizes(engine) -> list[tuple[int, int]]:
     """(height, width) of what VGG sees in each training view: the view, or its scene box."""
     out = []
     for view, cam in enumerate(engine.cameras):
-        box = engine._objective.network_box(view, engine.objective_coverage(view))
+        box = engine.objective.network_box(view, engine.objective_coverage(view))
         out.append((cam.height, cam.width) if box is None else (box[0].stop - box[0].start, box[1].stop - box[1].start))
     return out
 
@@ -144,10 +144,8 @@ def main() -> None:
         timed = engine.phase == "stylize" and len(stylize_times) >= 5
         if timed and timer is None:
             timer = instrument(engine)
-        if timed and engine._stylize_step not in engine.split_steps:
-            s = engine.settings
-            step_views += [engine._stylize_view(engine._stylize_step * s.views_per_step + j)
-                           for j in range(s.views_per_step)]
+        if timed and engine.stylize.step_index not in engine.split_steps:
+            step_views += engine.stylize.views_of_step()
         with timer.on() if timed else _nothing():
             rep = engine.step()
         phase_times.setdefault(rep.phase, []).append(rep.seconds)
@@ -157,9 +155,9 @@ def main() -> None:
         timer.restore()
     cam = engine.cameras[0]
     sizes = network_sizes(engine)
-    floors = {size: floor_time(engine._objective, *size) for size in sorted(set(sizes))}
+    floors = {size: floor_time(engine.objective, *size) for size in sorted(set(sizes))}
     floor = statistics.mean(floors[size] for size in sizes)
-    full_floor = floors.get((cam.height, cam.width)) or floor_time(engine._objective, cam.height, cam.width)
+    full_floor = floors.get((cam.height, cam.width)) or floor_time(engine.objective, cam.height, cam.width)
     timed_steps = stylize_times[5:]
     step = statistics.mean(timed_steps) if timed_steps else float("nan")
     views_per_step = engine.settings.views_per_step
@@ -182,7 +180,7 @@ def main() -> None:
         for part in PARTS:
             secs = timer.seconds.get(part, 0.0)
             note = ""
-            if part == "CLIP / coarse substitute forward" and engine._objective.loss.clip_term is None:
+            if part == "CLIP / coarse substitute forward" and engine.objective.loss.clip_term is None:
                 note = "  (off: λ_CLIP = 0)"
             elif part == "content features (once per view)" and secs == 0.0:
                 note = "  (cached before the timed steps)"

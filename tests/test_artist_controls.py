@@ -66,7 +66,7 @@ def covered_luminance(engine: Stylizer, colours: torch.Tensor | None = None) -> 
     ``colours``), as the keep-colours colour match measures it."""
     ys = []
     for v in range(len(engine.cameras)):
-        image, alpha = engine._render_cs(v, None if colours is None else colours.float()), engine.coverage[v]
+        image, alpha = engine.render(v, None if colours is None else colours.float()), engine.coverage[v]
         ys.append((luminance(image[alpha > 0.5]) / alpha[alpha > 0.5]).numpy())
     return np.concatenate(ys)
 
@@ -98,8 +98,8 @@ def test_a_warm_scene_stylized_with_a_blue_painting_stays_warm_with_keep_colours
         assert engine.done
         results[keep] = engine.c_s.numpy()
         renders[keep] = covered_luminance(engine)
-    renders["input"] = covered_luminance(engine, engine._gt_rgb())
-    c_in = engine._gt_rgb().numpy()
+    renders["input"] = covered_luminance(engine, engine.gt_colours())
+    c_in = engine.gt_colours().numpy()
     iq_in, iq_paint = mean_chroma(c_in), mean_chroma(painting)
     iq_keep, iq_plain = mean_chroma(results[True]), mean_chroma(results[False])
     assert iq_in[0] > 0.15 and iq_paint[0] < -0.15  # the inputs are what they claim: warm scene, blue painting
@@ -125,12 +125,12 @@ def test_a_warm_scene_stylized_with_a_blue_painting_stays_warm_with_keep_colours
 def test_keep_colours_turned_on_mid_run_takes_effect_at_once(engine_for):
     engine = engine_for()
     engine.step()
-    objective = engine._objective_fn()
+    objective = engine.build_objective()
     colour_target, content_before = objective.target.matrix.clone(), engine.content_images[0].clone()
     version = engine.colour_version
     engine.set_params(keep_colours=1.0)
     assert engine.colour_version > version  # the studio's worker ships the restored hues without waiting for a step
-    c_gt = engine._gt_rgb().numpy()
+    c_gt = engine.gt_colours().numpy()
     inside = ((engine.c_s.numpy() > 0.01) & (engine.c_s.numpy() < 0.99)).all(axis=1)
     np.testing.assert_allclose(chroma(engine.c_s.numpy()[inside]), chroma(c_gt[inside]), atol=1e-5)
     assert objective.target.matrix.shape == colour_target.shape and not torch.equal(objective.target.matrix,
@@ -185,9 +185,9 @@ def test_style_scale_changes_the_result_and_mid_run_re_extracts(engine_for):
     assert (results[0.5] - results[2.0]).abs().max() > 1e-3
     engine = engine_for(style=style, style_scale=0.5, working_width=64)
     engine.step()
-    before = engine._objective.target.matrix.shape[1]
+    before = engine.objective.target.matrix.shape[1]
     engine.set_params(style_scale=2.0)
-    assert engine._objective.target.matrix.shape[1] == 16 * before  # 4× the side: 16× the vectors
+    assert engine.objective.target.matrix.shape[1] == 16 * before  # 4× the side: 16× the vectors
     assert "128×128 px" in engine.decisions["style_scale"]
     assert engine.step().losses["nnfm"] > 0
 
@@ -199,7 +199,7 @@ def test_a_resumed_engine_keeps_both_controls(engine_for):
     b = engine_for()
     b.load_state_dict(state)
     assert b.settings.keep_colours is True and b.settings.style_scale == 2.0
-    assert b._objective_fn().target.matrix.shape == a._objective.target.matrix.shape
+    assert b.build_objective().target.matrix.shape == a.objective.target.matrix.shape
     assert b.current_params()["keep_colours"] == 1.0
 
 

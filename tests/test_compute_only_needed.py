@@ -204,8 +204,8 @@ def test_zero_weight_terms_are_never_computed_and_change_nothing(random_vgg_obje
     steps = skipped.stylize_steps
     assert skipped.decisions["loss_terms"] == "computed: nnfm, tv; never computed (weight 0): clip, content"
     assert skipped.decisions["clip"] == "CLIP term off (λ_CLIP = 0)"
-    assert skipped._objective.calls == {"vgg": steps, "clip": 0}  # NNFM only: no content features, no CLIP
-    assert tiny._objective.calls == {"vgg": steps + len(tiny.cameras), "clip": 0}  # + one content pass per view
+    assert skipped.objective.calls == {"vgg": steps, "clip": 0}  # NNFM only: no content features, no CLIP
+    assert tiny.objective.calls == {"vgg": steps + len(tiny.cameras), "clip": 0}  # + one content pass per view
     torch.testing.assert_close(skipped.c_s, tiny.c_s, atol=1e-5, rtol=0)
     assert float((skipped.c_s - start).abs().max()) > 1e-3  # the runs did change the colours
 
@@ -217,11 +217,11 @@ def test_clip_without_weights_never_runs_and_weights_set_to_zero_stop_the_networ
         eng.step()
     eng.step()
     assert "not found" in eng.decisions["clip"] and "substitute" in eng.decisions["clip"]
-    assert eng._objective.calls == {"vgg": 2, "clip": 0}  # NNFM + the coarse-VGG substitute; the ViT never runs
+    assert eng.objective.calls == {"vgg": 2, "clip": 0}  # NNFM + the coarse-VGG substitute; the ViT never runs
     eng.set_params(lambda_clip=0.0, lambda_nnfm=0.0)
     assert eng.decisions["loss_terms"] == "computed: tv; never computed (weight 0): clip, nnfm, content"
     eng.step()
-    assert eng._objective.calls == {"vgg": 2, "clip": 0}
+    assert eng.objective.calls == {"vgg": 2, "clip": 0}
 
 
 # ====================================================================== view-dependent SH only where it shows
@@ -452,9 +452,9 @@ def test_decisions_section_draws_every_line_when_open_and_none_when_closed(monke
 def test_checkpoint_resume_with_culled_gaussians_matches_uninterrupted_run():
     scene = GaussianScene.concatenate([hidden_block(), blob_scene(150, seed=3)])
     a = engine(scene, preprocess_rounds=0, epochs=2, refit_iterations=1)
-    while a.phase != "stylize" or a._stylize_step < 2:  # inside stylization: Adam holds the seen colours only
+    while a.phase != "stylize" or a.stylize.step_index < 2:  # inside stylization: Adam holds the seen colours only
         a.step()
-    assert a._c_opt is not None and a._c_opt.shape[0] < a.gaussian_count
+    assert a.stylize.c_opt is not None and a.stylize.c_opt.shape[0] < a.gaussian_count
     b = engine(scene, preprocess_rounds=0, epochs=2, refit_iterations=1)
     b.load_state_dict(a.state_dict())
     a.run()

@@ -49,7 +49,7 @@ def test_cli_vgg_weights_are_the_ones_loaded(tiny_scene, fake_vgg_file):
     args = parser.parse_args([tiny_scene, "--vgg-weights", path, "--lambda-clip", "0", "--working-width", "32"])
     engine, *_ = build_stylizer(args)
     assert engine.settings.to_dict()["vgg_weights"] == path  # recorded in the summary's settings
-    assert_vgg_is(engine._objective_fn().vgg, state)
+    assert_vgg_is(engine.build_objective().vgg, state)
     assert engine.decisions["vgg"] == f"VGG-16 weights from {path}"
 
 
@@ -59,7 +59,7 @@ def test_studio_engine_factory_passes_vgg_weights(tiny_scene, fake_vgg_file):
     path, state = fake_vgg_file
     engine = make_stylizer(scene=tiny_scene, vgg_weights=path, lambda_clip=0.0, working_width=32)
     assert engine.settings.vgg_weights == path
-    assert_vgg_is(engine._objective_fn().vgg, state)
+    assert_vgg_is(engine.build_objective().vgg, state)
     with pytest.raises(ValueError, match="unknown engine options"):
         make_stylizer(scene=tiny_scene, vgg_weight=path)
 

@@ -119,10 +119,10 @@ def test_set_params_takes_effect_on_next_step():
         eng.step()
     eng.step()
     eng.set_params(lambda_nnfm=0.0, lr=0.5)
-    assert eng._objective.weights.nnfm == 0.0
+    assert eng.objective.weights.nnfm == 0.0
     r = eng.step()
     assert r.losses["nnfm"] == 0.0
-    assert eng._opt.param_groups[0]["lr"] <= 0.5
+    assert eng.stylize.optimiser.param_groups[0]["lr"] <= 0.5
     with pytest.raises(ValueError):
         eng.set_params(lambda_bogus=1.0)
     assert eng.current_params()["lambda_nnfm"] == 0.0 and eng.current_params()["lr"] == 0.5
@@ -176,25 +176,25 @@ def test_split_steps_count_optimiser_steps_with_several_views_per_step():
                                 views_per_step=4, split_at=(0.5,), grad_accumulate_from=0.25)
     eng = Stylizer(blob_scene(50, seed=1), ring_cameras(4), np.ones((8, 8, 3), np.float32), settings,
                    objective_factory=MeanColourObjective)
-    assert eng.stylize_steps == 8 and eng.split_steps == [4] and eng.accumulate_from == 2
+    assert eng.stylize_steps == 8 and eng.split_steps == [4] and eng.stylize.accumulate_from == 2
 
 
 def test_colour_split_takes_the_gaussians_with_the_largest_accumulated_gradient(monkeypatch):
     eng, _ = _engine(preprocess_rounds=0, split_rate=0.1)
-    while not (eng.phase == "stylize" and eng._stylize_step in eng.split_steps):
+    while not (eng.phase == "stylize" and eng.stylize.step_index in eng.split_steps):
         eng.step()
-    acc = eng._grad_acc.clone()
+    acc = eng.run_state.grad_acc.clone()
     assert acc.max() > 0
     seen = {}
-    real_split = eng._split
+    real_split = eng.run_state.split
 
     def spy(mask, *args, **kwargs):
         seen["mask"] = mask.clone()
         return real_split(mask, *args, **kwargs)
 
-    monkeypatch.setattr(eng, "_split", spy)
+    monkeypatch.setattr(eng.run_state, "split", spy)
     eng.step()
-    ids = eng._seen()
+    ids = eng.active.seen_ids()
     pool = acc if ids is None else acc[ids]
     k = int(0.1 * len(pool))
     chosen = acc[seen["mask"]]
@@ -226,10 +226,10 @@ def test_content_targets_are_what_the_colour_matched_gaussians_render():
     while eng.phase != "stylize":
         eng.step()
     A, b = eng.colour_transform
-    assert np.all((eng._gt_rgb().numpy() @ A.T + b >= 0) & (eng._gt_rgb().numpy() @ A.T + b <= 1))  # no clipping
+    assert np.all((eng.gt_colours().numpy() @ A.T + b >= 0) & (eng.gt_colours().numpy() @ A.T + b <= 1))  # no clipping
     for view, (target, alpha) in enumerate(zip(eng.content_images, eng.coverage, strict=True)):
         with torch.no_grad():
-            render = eng._render_cs(view, eng.c_s)
+            render = eng.render(view)
         assert float((render - target).abs().max()) < 1e-4
         assert bool((alpha < 1e-6).any())
         assert float(target[alpha < 1e-6].abs().max()) == 0.0  # uncovered background stays black
@@ -241,12 +241,12 @@ def test_raster_backend_setting_reaches_ground_truth_and_refits_with_the_same_re
     100-iteration Adam trajectory: Adam moves a parameter by about lr whatever its gradient's size, so gradients
     of 1e-11 whose sign depends on float32 summation order move the means apart differently on different CPUs.)"""
     import gstyle_core.fit.trainer as trainer_module
-    import gstyle_core.pipeline.stylizer as stylizer_module
+    import gstyle_core.pipeline.phases.ground_truth as ground_truth_module
     from gstyle_core.fit.model import params_from_scene, render_params
     from gstyle_core.fit.ssim import ssim
 
     used: list[str] = []
-    for module in (stylizer_module, trainer_module):
+    for module in (ground_truth_module, trainer_module):
         original = module.render_params
 
         def recording(*args, _original=original, **kw):

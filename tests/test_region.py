@@ -93,9 +93,9 @@ def test_outside_gaussians_come_out_of_the_export_untouched(finished, tmp_path):
     save_scene(finished.stylized_scene(), path)
     out = load_scene(path)[0]
     assert out.sh_rest.shape[1] == 15  # the outside Gaussians keep their SH bands
-    kept = ~finished._selected.numpy()
+    kept = ~finished.selection
     assert kept.sum() == outside.sum()
-    rows = finished._origin.numpy()[kept]
+    rows = finished.origin[kept]
     assert sorted(rows.tolist()) == np.flatnonzero(outside).tolist()
     for name in FIELDS:  # float-identical, every attribute
         assert np.array_equal(getattr(out, name)[kept], getattr(scene, name)[rows]), name
@@ -108,12 +108,12 @@ def test_outside_gaussians_come_out_of_the_export_untouched(finished, tmp_path):
 def test_only_the_selected_gaussians_are_split_refitted_and_stylized(finished):
     e = finished
     selected_at_start = int(box_mask(blob_scene(200, seed=5).means, HALF).sum())
-    assert e.gaussian_count > 200 and int(e._selected.sum()) > selected_at_start  # children inherit the selection
-    assert int((~e._selected).sum()) == 200 - selected_at_start  # no outside Gaussian was split
-    assert e.counters["optimised_colours"] <= int(e._selected.sum())
-    assert e.counters["refit_gaussians"] <= int(e._selected.sum())
-    sel = e._selected.numpy()
-    c_gt, c_s = e._gt_rgb().numpy(), e.c_s.numpy()
+    assert e.gaussian_count > 200 and int(e.selection.sum()) > selected_at_start  # children inherit the selection
+    assert int((~e.selection).sum()) == 200 - selected_at_start  # no outside Gaussian was split
+    assert e.counters["optimised_colours"] <= int(e.selection.sum())
+    assert e.counters["refit_gaussians"] <= int(e.selection.sum())
+    sel = e.selection
+    c_gt, c_s = e.gt_colours().numpy(), e.c_s.numpy()
     assert np.array_equal(c_s[~sel], c_gt[~sel])  # outside: their own colour
     assert np.abs(c_s[sel] - c_gt[sel]).mean() > 0.1  # inside: the painting's
     assert c_s[sel, 0].mean() > c_gt[sel, 0].mean() + 0.1  # redder (the style is red)
@@ -158,7 +158,7 @@ def test_the_selection_is_checkpointed_with_the_rest(finished):
     state = e.state_dict()
     other = make_engine()
     other.load_state_dict(state)
-    assert torch.equal(other._selected, e._selected) and torch.equal(other._origin, e._origin)
+    assert np.array_equal(other.selection, e.selection) and np.array_equal(other.origin, e.origin)
     other.run()
     e.run()
     assert np.array_equal(other.stylized_scene().sh_dc, e.stylized_scene().sh_dc)

@@ -60,10 +60,10 @@ def test_the_highest_priority_candidates_survive_the_cap():
     mask[10:30] = True  # 20 candidates
     priority = torch.zeros(100)
     priority[10:30] = torch.arange(20, dtype=torch.float32)  # 27, 28, 29 rank highest
-    assert eng._split(mask, 4, 8.0, priority=priority) == 3
+    assert eng.run_state.split(mask, 4, 8.0, priority=priority) == 3
     assert eng.gaussian_count == 109
     after = eng.params["means"].detach()
     survivors = {i for i in range(100) if (after == before[i]).all(dim=1).any()}
     assert set(range(100)) - survivors == {27, 28, 29}
     assert "split reduced from 20 to 3" in eng.decisions["reductions"][-1]
-    assert eng._split(mask & (torch.arange(100) < 27), 4, 8.0, priority=priority) == 0  # full: nothing splits
+    assert eng.run_state.split(mask & (torch.arange(100) < 27), 4, 8.0, priority=priority) == 0  # full: nothing splits

@@ -140,7 +140,7 @@ def test_sigkill_mid_stylization_then_resume_matches_an_uninterrupted_run(inputs
         while time.monotonic() < deadline and victim.poll() is None:
             if ckpt.is_file():
                 state, _meta = read_checkpoint(ckpt)
-                if state["phase"] == "stylize" and state["stylize_step"] >= 5:
+                if state["phase"] == "stylize" and state["phases"]["stylize"]["step_index"] >= 5:
                     saved = state
                     break
             time.sleep(0.2)

@@ -376,7 +376,7 @@ def test_long_stylization_run_stays_in_range_and_does_not_diverge():
                 colours = engine.c_s.detach()
                 assert torch.isfinite(colours).all() and colours.min() >= 0 and colours.max() <= 1
     assert len(totals) >= steps - 1
-    objective = engine._objective
+    objective = engine.objective
     assert objective.render_finite and objective.render_min >= 0.0 and objective.render_max <= 1.0 + 1e-5
     final = engine.c_s
     assert torch.isfinite(final).all() and final.min() >= 0 and final.max() <= 1

@@ -15,6 +15,7 @@ from fakes import engine_at_stylize, random_torchvision_vgg_state
 from synthetic import blob_scene
 
 from gstyle_core.errors import GStyleError
+from gstyle_core.pipeline.phases.colour_match import surface_pixels
 from gstyle_core.pipeline.settings import resolve_settings, ui_params
 from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.style import losses as losses_module
@@ -135,7 +136,8 @@ def test_the_engine_matches_colours_to_the_weighted_palette(engine_for):
     mixture = Palette.mixture([Palette.of(BLUE), Palette.of(RED)], (0.7, 0.3))
     A, b = engine.colour_transform
     expected = colour_transfer_matrix(np.zeros((1, 3)) + 0.5, mixture)  # same style side; content differs
-    gt = torch.cat([engine._surface(g, m) for g, m in zip(engine.gt_images, engine.coverage, strict=True)]).numpy()
+    keep = engine.settings.keep_colours
+    gt = torch.cat([surface_pixels(g, m, keep) for g, m in zip(engine.gt_images, engine.coverage, strict=True)]).numpy()
     mapped = apply_colour_transform(gt, A, b, clip=False).astype(np.float64)
     np.testing.assert_allclose(mapped.mean(0), mixture.mean, atol=1e-4)
     assert not np.allclose(A, expected[0])  # (a sanity check that the content side is the scene's)
@@ -154,7 +156,7 @@ def test_the_mix_moves_the_result_towards_the_heavier_painting(engine_for, vgg):
         engine = engine_for(style_weights=(1 - mix, mix), epochs=6, lambda_content=0.0)
         while not engine.done:
             engine.step()
-        renders = [engine._render_cs(v).numpy() for v in range(len(engine.cameras))]
+        renders = [engine.render(v).numpy() for v in range(len(engine.cameras))]
         distances[mix] = ev.measure(renders, renders)["nnfm_styles"]
     # more red weight: closer to the red painting, further from the blue one
     assert distances[0.9][1] < distances[0.1][1]
@@ -168,7 +170,7 @@ def test_the_mix_changes_mid_run_and_survives_a_resume(engine_for):
     engine.set_params(style_mix=0.9)
     assert engine.settings.style_weights == pytest.approx((0.1, 0.9))
     assert engine.current_params()["style_mix"] == pytest.approx(0.9)
-    assert engine._objective.target.weights == pytest.approx((0.1, 0.9))
+    assert engine.objective.target.weights == pytest.approx((0.1, 0.9))
     assert not torch.equal(engine.content_images[0], content_before)  # content targets re-matched to the palette
     assert "0.10 / 0.90" in engine.decisions["styles"] and "0.10 / 0.90" in engine.decisions["style_scale"]
     assert engine.step().losses["nnfm"] > 0
@@ -176,7 +178,7 @@ def test_the_mix_changes_mid_run_and_survives_a_resume(engine_for):
     resumed = engine_for(style_weights=(0.5, 0.5))
     resumed.load_state_dict(state)
     assert resumed.settings.style_weights == pytest.approx((0.1, 0.9))
-    assert resumed._objective_fn().target.weights == pytest.approx((0.1, 0.9))
+    assert resumed.build_objective().target.weights == pytest.approx((0.1, 0.9))
     with pytest.raises(ValueError, match="second style image"):
         engine_for(styles=(BLUE,)).set_params(style_mix=0.5)
 

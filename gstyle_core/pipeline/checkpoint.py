@@ -25,7 +25,8 @@ from ..atomic import atomic_write
 from ..errors import GStyleError
 from ..paths import cache_dir
 
-FORMAT = "gstyle-stylize-checkpoint/1"
+FORMAT = "gstyle-stylize-checkpoint/2"  # 2: the engine's state as its phases' states (pipeline/phases)
+_FORMAT_FAMILY = FORMAT.rsplit("/", 1)[0]
 SUFFIX = ".ckpt"
 _NDARRAY = "__ndarray__"
 
@@ -160,8 +161,12 @@ def read_checkpoint(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
     except Exception as exc:  # noqa: BLE001 - any failure to unpickle means the file cannot be used
         raise CheckpointError(f"checkpoint {path} is unreadable (truncated or corrupt: {type(exc).__name__}); "
                               "delete it or run without resuming") from None
-    if not isinstance(obj, dict) or obj.get("format") != FORMAT or not isinstance(obj.get("state"), dict):
-        found = obj.get("format") if isinstance(obj, dict) else type(obj).__name__
+    found = obj.get("format") if isinstance(obj, dict) else None
+    if isinstance(found, str) and found.startswith(_FORMAT_FAMILY + "/") and found != FORMAT:
+        raise CheckpointError(f"checkpoint {path} was written by another version of G-Style ({found}; this one "
+                              f"reads {FORMAT}); run without resuming (a new run replaces it)")
+    if not isinstance(obj, dict) or found != FORMAT or not isinstance(obj.get("state"), dict):
+        found = found if isinstance(obj, dict) else type(obj).__name__
         raise CheckpointError(f"{path} is not a G-Style checkpoint of format {FORMAT} (found {found!r})")
     return _from_storable(obj["state"]), _from_storable(obj.get("meta") or {})
 

@@ -109,9 +109,9 @@ def region_summary(engine) -> dict | None:
     mask = getattr(engine, "input_selection", None)
     if mask is None:
         return None
-    box = engine.settings.region
+    box, now = engine.settings.region, engine.selection
     return {"box": list(box) if box is not None else None, "selected": int(np.sum(mask)), "total": int(len(mask)),
-            "selected_after_splits": int(engine._selected.sum()) if engine._selected is not None else None}
+            "selected_after_splits": int(now.sum()) if now is not None else None}
 
 
 def build_stylizer(args: argparse.Namespace, **setting_overrides):
@@ -287,7 +287,7 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     from .stylizer import choose_views
 
     cams = [engine.full_cameras[i].resized_to_width(width) for i in choose_views(engine.full_cameras, n_views)]
-    vgg = engine._objective.vgg if engine._objective is not None else None
+    vgg = getattr(engine.objective, "vgg", None)  # the run's own network when its objective was built
     if vgg is None:
         from ..style.vgg import load_vgg
 

@@ -86,12 +86,26 @@ def clamp_elongation(log_scales: torch.Tensor, limit: float = 1.5) -> int:
     return int(mask.sum())
 
 
+def clamp_points(iterations: int) -> tuple[int, ...]:
+    """The refit iterations after which elongation is clamped: at 1/4, 1/2, 3/4 and the end of the refit."""
+    it = int(iterations)
+    return tuple(sorted({max(1, it // 4), max(1, it // 2), max(1, 3 * it // 4), it}))
+
+
 @dataclass
 class ElongationClampStrategy(Strategy):
-    """Refit strategy of the pre-processing: clamp elongation at a few fixed iterations of each refit round."""
+    """Refit strategy of the pre-processing: clamp elongation at a few fixed iterations of each refit round.
 
-    clamp_at: tuple[int, ...] = (250, 500, 750, 1000)
+    The clamp points follow from the refit's length (``clamp_points``), so a resumed refit clamps where a fresh one
+    does."""
+
+    iterations: int
     limit: float = 1.5
+
+    @property
+    def clamp_at(self) -> tuple[int, ...]:
+        """Iterations (counted from 1) after which the clamp runs."""
+        return clamp_points(self.iterations)
 
     def step_post_backward(self, params, optimizers, state, info: StepInfo) -> dict[str, int]:
         if info.step + 1 in self.clamp_at:

@@ -1,0 +1,81 @@
+"""The run's decisions in words (``engine.decisions``, printed by the CLI and written to OUT.json).
+
+Each function writes or returns one entry; none of them changes what a run does.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..style.clip import CLIP_OFF, clip_status, clip_term_name
+from .scene_box import SCENE_BOX_MARGIN_PX, box_fraction, scene_box
+from .settings import StylizeSettings
+
+Decisions = dict[str, Any]
+
+
+def sh_note(degree: int, from_photos: bool, used_degree: int, views: int) -> str:
+    """What happens to the scene's view-dependent colour (SH bands of ``degree``, ``used_degree`` non-zero)."""
+    if degree == 0:
+        return "no view-dependent SH in the scene: nothing to evaluate"
+    if from_photos:
+        return f"SH degree {degree} never evaluated: ground truth from photos, stylization uses diffuse colour"
+    kept = f"degree {used_degree}" if used_degree == degree else f"degree {used_degree} (higher bands are all zero)"
+    return (f"SH evaluated only for the {views} ground-truth renders at {kept}; stylization and refits use diffuse "
+            "colour only")
+
+
+def note_planned_clip(decisions: Decisions, s: StylizeSettings) -> None:
+    """Before the objective is built: what its CLIP term will be (weights found, or the coarse substitute)."""
+    decisions["clip"] = clip_status(s.clip_weights) if s.weights.clip > 0 else CLIP_OFF
+    if s.weights.clip == 0 and s.scene_kind == "360" and s.defaults == "calibrated" \
+            and clip_term_name(s.clip_weights) != "CLIP":
+        decisions["clip"] = ("off: no CLIP weights, and the calibrated 360° defaults leave the coarse "
+                             "substitute off (it cost style and structure; README); --lambda-clip turns it on")
+
+
+def note_networks(decisions: Decisions, objective: Any) -> None:
+    """The objective's word on its networks: where the VGG weights and the CLIP term (or substitute) came from."""
+    for key, attr in (("clip", "clip_status"), ("vgg", "vgg_status")):
+        status = getattr(objective, attr, None)
+        if status is not None:
+            decisions[key] = status
+
+
+def note_loss_terms(decisions: Decisions, s: StylizeSettings, objective: Any) -> None:
+    """Which loss terms are computed (weight above 0) and which never are."""
+    weights = getattr(getattr(objective, "loss", None), "weights", s.weights)
+    on = [k for k in ("clip", "nnfm", "content", "tv") if getattr(weights, k) > 0]
+    off = [k for k in ("clip", "nnfm", "content", "tv") if k not in on]
+    decisions["loss_terms"] = (f"computed: {', '.join(on) or 'none'}; never computed (weight 0): "
+                               f"{', '.join(off) or 'none'}")
+
+
+def note_style(decisions: Decisions, s: StylizeSettings, objective: Any, paintings: int) -> None:
+    """How the painting is matched (stroke size), whether the scene's colours are kept, and the mix of several."""
+    note = getattr(objective, "style_note", None)
+    decisions["style_scale"] = note or f"stroke size {s.style_scale:g} × the working width"
+    decisions["colours"] = (
+        "kept (keep colours): luminance-only colour match and networks, chroma of c_gt restored after every step"
+        if s.keep_colours else "the painting's (full colour match before and after stylization)")
+    if paintings > 1:
+        shares = " / ".join(f"{w:.2f}" for w in s.style_weights)
+        decisions["styles"] = (f"{paintings} paintings mixed {shares}: each style term is the weighted sum of its "
+                               f"terms against each painting, the colour matches map onto the weighted palette")
+
+
+def network_area_note(s: StylizeSettings, from_photos: bool, coverage: list, region_coverage: list) -> str:
+    """What the networks look at during stylization (see ``pipeline/scene_box.py``)."""
+    if from_photos and not region_coverage:
+        return "whole frames (photos: the scene fills every view)"
+    if not s.crop_to_scene:
+        return "whole frames (crop_to_scene = False)"
+    if region_coverage:
+        share = float(np.mean([box_fraction(scene_box(c), *c.shape) for c in region_coverage]))
+        return (f"the box of each view that the selected region covers (+{SCENE_BOX_MARGIN_PX} px): "
+                f"{100 * share:.0f} % of the frame's pixels on average; losses weighted by the region's coverage")
+    share = float(np.mean([box_fraction(scene_box(c), *c.shape) for c in coverage]))
+    return (f"the box of each view that the scene covers (+{SCENE_BOX_MARGIN_PX} px): {100 * share:.0f} % of the "
+            f"frame's pixels on average")

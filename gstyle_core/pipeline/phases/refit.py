@@ -1,0 +1,118 @@
+"""A refit: geometry and c_gt of the seen Gaussians fitted to the ground truth again, c_s held; one iteration a step.
+
+Used after each pre-processing split (with elongation clamps) and after each colour-gradient split (no strategy).
+When some Gaussians are unseen (or a region is selected), the refit trains a copy of the seen rows and writes it
+back after every iteration; in a region run the unselected rows render as they are but never move. A checkpoint
+holds the rows it works on, the trainer's Adam moments, its view order and step count, so a resumed refit goes on
+exactly where it stopped.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+
+from ...fit.strategy import Strategy
+from ...fit.trainer import FitConfig, Trainer
+from ..preprocess import ElongationClampStrategy
+from .base import Phase, StepReport
+
+GEOMETRY_AND_GT = ("means", "log_scales", "quats", "opacity_logits", "sh_dc")  # refit: all but c_s
+
+
+def row_mask_hook(free: torch.Tensor):
+    """A gradient hook that zeroes the rows not in ``free`` (bool [N]): Adam never moves them."""
+    def hook(grad: torch.Tensor) -> torch.Tensor:
+        return grad * free.reshape((-1,) + (1,) * (grad.ndim - 1)).to(grad.dtype)
+    return hook
+
+
+class Refit(Phase):
+    """``settings.refit_iterations`` refit iterations, one per step, with ``strategy``'s hooks."""
+
+    name = "refit"
+
+    def __init__(self, run, strategy: Strategy, name: str = "refit") -> None:
+        super().__init__(run)
+        self.name = name
+        self.strategy = strategy
+        self.iterations = int(run.settings.refit_iterations)
+        self.steps_done = 0
+        self.trainer: Trainer | None = None
+        self._ids: torch.Tensor | None = None  # rows of run.params the trainer's copy holds (None: it trains them)
+        self._frozen: tuple[torch.Tensor, dict[str, torch.Tensor]] | None = None  # region: rows that stay put
+
+    @classmethod
+    def after_split(cls, run) -> Refit:
+        """The refit after a colour-gradient split (reported as "refit")."""
+        return cls(run, Strategy(), "refit")
+
+    @classmethod
+    def preprocessing(cls, run) -> Refit:
+        """The refit of a pre-processing round: elongation clamped at points derived from its length."""
+        s = run.settings
+        return cls(run, ElongationClampStrategy(s.refit_iterations, s.elongation_limit), "preprocess")
+
+    @property
+    def finished(self) -> bool:
+        return self.started and self.steps_done >= self.iterations
+
+    def remaining_steps(self) -> int:
+        return self.iterations - self.steps_done
+
+    def start(self) -> None:
+        super().start()
+        run = self.run
+        self._build(run.active.refit_ids(), seed=run.settings.seed + run.global_step)
+
+    def _build(self, ids: torch.Tensor | None, seed: int) -> None:
+        """The trainer over ``ids``' rows (a copy) or over the run's parameters themselves (None)."""
+        run = self.run
+        cfg = FitConfig(iterations=self.iterations, sh_degree=0, sh_increase_every=10**9, trainable=GEOMETRY_AND_GT,
+                        seed=seed, backend=run.settings.raster_backend)
+        params = run.params if ids is None else torch.nn.ParameterDict(
+            {k: torch.nn.Parameter(v.detach()[ids].clone()) for k, v in run.params.items()})
+        self._ids, self._frozen = ids, None
+        selected = run.active.selected
+        if selected is not None:  # region: the unselected Gaussians render as they are but never move
+            free = selected[ids]
+            self._frozen = (torch.nonzero(~free).flatten(), {k: v.detach()[~free].clone() for k, v in params.items()})
+            for p in params.values():
+                if p.requires_grad and p.ndim >= 1:
+                    p.register_hook(row_mask_hook(free))
+            run.counters["refit_gaussians"] = int(free.sum())
+        else:
+            run.counters["refit_gaussians"] = int(params["means"].shape[0])
+        self.trainer = Trainer(params, run.cameras, run.gt_images, cfg, self.strategy, strategy_state={"extras": {}})
+
+    def step(self) -> StepReport:
+        rep = self.trainer.step()
+        with torch.no_grad():
+            if self._frozen is not None:  # undo whatever the strategy (elongation clamps) did to unselected rows
+                rows, values = self._frozen
+                for k, v in self.trainer.params.items():
+                    v[rows] = values[k]
+            if self._ids is not None:
+                for k, v in self.trainer.params.items():
+                    self.run.params[k][self._ids] = v.detach()
+        self.steps_done += 1
+        if self.finished:
+            self.trainer = self._frozen = None
+        return self.report(losses={"refit": rep.loss}, geometry_changed=True)
+
+    def state_dict(self) -> dict[str, Any]:
+        running = self.trainer is not None
+        return {**super().state_dict(), "steps_done": self.steps_done, "iterations": self.iterations,
+                "ids": None if self._ids is None else self._ids.clone(),
+                "trainer": self.trainer.state_dict() if running else None}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        super().load_state_dict(state)
+        if int(state["iterations"]) != self.iterations:
+            raise ValueError(f"the saved refit runs {state['iterations']} iterations, this run's {self.iterations}")
+        self.steps_done = int(state["steps_done"])
+        self.trainer = self._frozen = None
+        if state["trainer"] is not None:  # interrupted: the same rows, moments, view order and step count
+            self._build(state["ids"], seed=0)
+            self.trainer.load_state_dict(state["trainer"])

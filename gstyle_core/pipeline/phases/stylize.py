@@ -1,0 +1,176 @@
+"""Stylization: one optimiser step of c_s per step, with colour-gradient splits and their refits in between.
+
+A step renders c_s at the working resolution for ``views_per_step`` training views (the colour-only cached path),
+takes the objective's mean loss and one Adam step on c_s with an exponentially decaying learning rate. From
+``grad_accumulate_from`` on, ‖∂L/∂c_s‖ is accumulated; at the scheduled steps (``split_at``, fractions of the
+stylization counted in optimiser steps, so every preset performs them) a ``ColourSplit`` runs, then a ``Refit``.
+Only the active Gaussians are optimised (``active.py``): the unseen ones get no gradient and keep their colour. With
+``optimizer="visible_adam"`` only the Gaussians in the step's views move (``visible_adam.py``). Keep colours: after
+every optimiser step c_s takes the chroma of c_gt back.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+import torch
+
+from ..notes import network_area_note
+from .base import Phase, StepReport
+from .colour_split import ColourSplit
+from .refit import Refit
+
+
+class Stylize(Phase):
+    """The stylization's optimiser steps, splits and refits."""
+
+    name = "stylize"
+
+    def __init__(self, run) -> None:
+        super().__init__(run)
+        s, n = run.settings, len(run.cameras)
+        # epochs and min_steps count views; a step takes views_per_step of them
+        views_total = max(int(round(s.epochs * n)), s.min_steps)
+        self.steps = max(1, int(math.ceil(views_total / max(1, s.views_per_step))))
+        planned = {int(round(f * self.steps)) for f in s.split_at}
+        self.split_steps = sorted(k for k in planned if 0 < k < self.steps)  # a split leaves the list once done
+        self.accumulate_from = int(round(s.grad_accumulate_from * self.steps))
+        self.step_index = 0  # optimiser steps taken
+        self.splits_done = 0
+        self.optimiser: Any = None
+        self.c_opt: torch.Tensor | None = None  # the optimised copy of the active rows of c_s
+        self.refit: Refit | None = None
+
+    @property
+    def current(self) -> str:
+        return "refit" if self.refit is not None else "stylize"
+
+    def start(self) -> None:
+        super().start()
+        run = self.run
+        run.grad_acc = torch.zeros(run.gaussian_count)
+        run.decisions["network_area"] = network_area_note(run.settings, run.photos is not None, run.coverage,
+                                                          run.region_coverage)
+
+    @property
+    def finished(self) -> bool:
+        return self.step_index >= self.steps and self.refit is None
+
+    def remaining_steps(self) -> int:
+        s = self.run.settings
+        pending = len(self.split_steps) if s.split_rate > 0 else 0
+        left = self.steps - self.step_index + pending * (1 + s.refit_iterations)
+        return left + (self.refit.remaining_steps() if self.refit is not None else 0)
+
+    def lr(self) -> float:
+        """The learning rate of the next optimiser step (exponential decay from lr_start to lr_end)."""
+        s = self.run.settings
+        t = min(1.0, self.step_index / max(1, self.steps))
+        return float(math.exp((1 - t) * math.log(s.lr_start) + t * math.log(s.lr_end)))
+
+    def view_of(self, k: int) -> int:
+        """The training view of stylization view ``k``: camera order (``orbit``) or, as the reference does, a new
+        random permutation of the views every epoch (``random``; drawn from the seed and the epoch, so a resumed
+        run sees the same order)."""
+        n, s = len(self.run.cameras), self.run.settings
+        if s.view_order == "orbit":
+            return k % n
+        epoch = torch.Generator().manual_seed(s.seed * 1_000_003 + k // n)
+        return int(torch.randperm(n, generator=epoch)[k % n])
+
+    def views_of_step(self, index: int | None = None) -> list[int]:
+        """The training views of optimiser step ``index`` (default: the next one)."""
+        index = self.step_index if index is None else index
+        per = self.run.settings.views_per_step
+        return [self.view_of(index * per + j) for j in range(per)]
+
+    def step(self) -> StepReport:
+        if self.refit is not None:
+            rep = self.refit.step()
+            if self.refit.finished:
+                self.refit = None
+            return rep
+        if self.step_index in self.split_steps and self.run.settings.split_rate > 0:
+            return self._split()
+        return self._optimise()
+
+    def _split(self) -> StepReport:
+        self.split_steps.remove(self.step_index)
+        self.splits_done += 1
+        self.optimiser, self.c_opt = None, None  # new rows: a new optimiser after the refit
+        rep = ColourSplit(self.run).step()
+        if self.run.settings.refit_iterations > 0:
+            self.refit = Refit.after_split(self.run)
+            self.refit.start()
+        return rep
+
+    def _optimise(self) -> StepReport:
+        run, s = self.run, self.run.settings
+        if self.optimiser is None:
+            self._start_optimiser()
+        for g in self.optimiser.param_groups:
+            g["lr"] = self.lr()
+        views = self.views_of_step()
+        self.optimiser.zero_grad(set_to_none=True)
+        total, terms = 0.0, {}
+        for view in views:  # the mean loss over this step's views: gradients add up before one optimiser step
+            image = run.render_seen(view, run.active.place_in_seen(run.c_s, self.c_opt))
+            loss, view_terms = run.objective_fn()(image, run.content_images[view], view,
+                                                  coverage=run.objective_coverage(view))
+            (loss / len(views)).backward()
+            total += float(loss.detach()) / len(views)
+            for k, v in view_terms.items():
+                terms[k] = terms.get(k, 0.0) + v / len(views)
+        if self.step_index >= self.accumulate_from and self.c_opt.grad is not None:
+            run.active.scatter_add(run.grad_acc, self.c_opt.grad.detach().norm(dim=-1))
+        self.optimiser.step()
+        with torch.no_grad():
+            self.c_opt.clamp_(0.0, 1.0)
+            run.active.scatter(run.c_s, self.c_opt)
+        if s.keep_colours:
+            self.restore_chroma()
+        self.step_index += 1
+        if self.step_index >= self.steps:
+            self.optimiser, self.c_opt = None, None
+        return self.report(losses={"total": total, **terms}, colours_changed=True,
+                           message=f"stylize view{'s' if len(views) > 1 else ''} {', '.join(map(str, views))}")
+
+    def _start_optimiser(self) -> None:
+        """Adam on a copy of the active rows of c_s (the others get no gradient and keep their colour)."""
+        from ..visible_adam import VisibleAdam
+
+        run = self.run
+        run.c_s = run.c_s.detach()
+        self.c_opt = run.active.gather(run.c_s).clone().requires_grad_(True)
+        run.counters["optimised_colours"] = int(self.c_opt.shape[0])
+        if run.settings.optimizer == "visible_adam":
+            self.optimiser = VisibleAdam(self.c_opt, lr=self.lr())
+        else:
+            self.optimiser = torch.optim.Adam([self.c_opt], lr=self.lr())
+
+    @torch.no_grad()
+    def restore_chroma(self) -> None:
+        """Keep colours: c_s (and the optimised copy) take the chroma of c_gt back."""
+        self.run.restore_chroma()
+        if self.c_opt is not None:
+            self.c_opt.copy_(self.run.active.gather(self.run.c_s))
+
+    def state_dict(self) -> dict[str, Any]:
+        return {**super().state_dict(), "step_index": self.step_index, "split_steps": list(self.split_steps),
+                "splits_done": self.splits_done,
+                "adam": None if self.optimiser is None else copy.deepcopy(self.optimiser.state_dict()),
+                "refit": None if self.refit is None else self.refit.state_dict()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        super().load_state_dict(state)
+        self.step_index, self.splits_done = int(state["step_index"]), int(state["splits_done"])
+        self.split_steps = [int(k) for k in state["split_steps"]]
+        self.optimiser, self.c_opt, self.refit = None, None, None
+        if state["adam"] is not None:
+            self._start_optimiser()
+            self.optimiser.load_state_dict(state["adam"])
+        if state["refit"] is not None:  # built as a fresh one is, then its saved state
+            self.refit = Refit.after_split(self.run)
+            self.refit.load_state_dict(state["refit"])
