@@ -137,7 +137,7 @@ def loop(window, args: argparse.Namespace) -> int:
     headless = window.headless
     engine_on = (not headless) if args.engine is None else args.engine
     frames = args.frames if args.frames is not None else (HEADLESS_FRAMES if headless else None)
-    from gstyle_core.render_cli import DEFAULT_STYLE
+    from gstyle_core.assets import DEFAULT_STYLE
 
     loaded = load_scene_with_cameras(args.scene, args.cameras)
     styles = args.style or ([str(DEFAULT_STYLE)] if Path(DEFAULT_STYLE).is_file() else [None])

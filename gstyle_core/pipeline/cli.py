@@ -97,7 +97,7 @@ _region_arg = argument_type(_region)
 
 def style_paths(style: str | list[str] | tuple[str, ...] | None) -> list[str]:
     """The style image paths of ``--style`` (one path, several, or None: the bundled painting)."""
-    from ..render_cli import DEFAULT_STYLE
+    from ..assets import DEFAULT_STYLE
 
     if not style:
         return [str(DEFAULT_STYLE)]
