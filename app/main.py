@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from gstyle_core.errors import GStyleError
+from gstyle_core.pipeline.arg_types import region_arg
 
 DEFAULT_SIZE = (1280, 800)
 FALLBACK_SCREENSHOT = Path("out") / "gstyle-studio-headless.png"
@@ -26,12 +27,6 @@ def parse_size(text: str) -> tuple[int, int]:
     if not (16 <= w <= 8192 and 16 <= h <= 8192):
         raise argparse.ArgumentTypeError(f"size must be between 16 and 8192 pixels per side, got {text!r}")
     return w, h
-
-
-def _region_arg(text: str) -> tuple[float, ...]:
-    from gstyle_core.pipeline.cli import _region_arg as parse
-
-    return parse(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -63,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-pacing", dest="pacing", action="store_false",
                    help="draw every changed frame at full resolution at once (default: reduced resolution while the "
                         "camera moves, full resolution built progressively when it stops; see app/scene_view.py)")
-    p.add_argument("--region", type=_region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
+    p.add_argument("--region", type=region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
                    help="start with the selection tool on this box (stylize only the Gaussians centred in it; "
                         "write --region=-1,... when x0 is negative)")
     p.add_argument("--output-dir", default="out", help="where exports and screenshots go")
