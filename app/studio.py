@@ -24,11 +24,12 @@ from .panels import Command, PanelState, draw_panel
 from .region_tool import RegionTool
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
 from .scene_view import SceneView, ViewPass
+from .snapshot import has_scene, scene_from_snapshot
 from .splat_data import scene_arrays
 from .takes import TakeShelf
 from .takes_view import TakesView
 from .video_job import VideoJob, turntable_path
-from .worker import GEOMETRY_FIELDS, ThreadWorkerBridge, WorkerBridge
+from .worker import ThreadWorkerBridge, WorkerBridge
 
 SCENE_SUFFIXES = (".ply", ".splat", ".spz")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
@@ -569,11 +570,8 @@ class StudioApp(RegionTool, TakesView):
     def current_scene(self) -> GaussianScene | None:
         """The stylized scene as the engine last sent it (diffuse colours), else the loaded scene (with its SH)."""
         snap = self.bridge.state.snapshot if self.bridge is not None else {}
-        if all(k in snap for k in GEOMETRY_FIELDS) and len(snap.get("colors", ())) == len(snap["means"]):
-            from gstyle_core.scene import rgb_to_sh_dc
-
-            arrays = [np.asarray(snap[k], np.float32) for k in GEOMETRY_FIELDS]
-            return GaussianScene(*arrays, rgb_to_sh_dc(np.asarray(snap["colors"], np.float32)))
+        if has_scene(snap):
+            return scene_from_snapshot(snap)
         return self.loaded.scene if self.loaded is not None else None
 
     def start_turntable(self, frames: int, fmt: str = "mp4", path: str | Path | None = None) -> Path | None:

@@ -385,11 +385,12 @@ def test_studio_uploads_only_what_changed_and_shows_decisions(ctx, tmp_path):
 
 # ====================================================================== decisions reach the app
 def test_engine_decisions_are_forwarded_by_the_worker_and_listed_by_the_panel():
+    from app.engine_host import EngineHost
     from app.panels import decision_lines
-    from app.worker import WorkerBridge, _EngineHost
+    from app.worker import WorkerBridge
 
     events: queue.Queue = queue.Queue()
-    host = _EngineHost(make_small_stylizer, {"n": 150}, events, multiprocessing.Semaphore(2), None)
+    host = EngineHost(make_small_stylizer, {"n": 150}, events, multiprocessing.Semaphore(2), None)
     host.build()
     for _ in range(4):
         host.step()
