@@ -423,7 +423,8 @@ def test_decisions_section_draws_every_line_when_open_and_none_when_closed(monke
     from imgui_bundle import imgui
     from imgui_driver import install
 
-    from app.panels import PanelState, _decisions_section, decision_lines
+    from app.panels import PanelState, decision_lines
+    from app.panels.run_sections import decisions_section
     from app.window import DisplayUnavailableError, open_window
 
     try:
@@ -438,7 +439,7 @@ def test_decisions_section_draws_every_line_when_open_and_none_when_closed(monke
             win.begin_frame()
             imgui.begin("test")
             imgui.set_next_item_open(is_open)
-            _decisions_section(state)
+            decisions_section(state)
             imgui.end()
             win.end_frame(swap=False)
             drawn[is_open] = list(recorder.texts)
