@@ -151,7 +151,8 @@ def open_studio(window, args: argparse.Namespace):
     from gstyle_core.assets import DEFAULT_STYLE
 
     from .engine_factory import make_stylizer
-    from .studio import StudioApp, load_scene_with_cameras
+    from .open_files import load_scene_with_cameras
+    from .studio import StudioApp
 
     engine_on = (not window.headless) if args.engine is None else args.engine
     loaded = load_scene_with_cameras(args.scene, args.cameras)
