@@ -5,24 +5,21 @@ from __future__ import annotations
 from imgui_bundle import imgui
 
 from .state import MAX_TURNTABLE_FRAMES, TURNTABLE_FORMATS, Command, PanelState
-from .widgets import button, tooltip
+from .widgets import button, button_row, tooltip
 
 
 def output_section(state: PanelState, out: list[Command]) -> None:
     """Export buttons (.ply, .spz, .compressed.ply), screenshot and the turntable video row."""
     imgui.separator()
-    if button("Export .ply (Ctrl+S)", "Save the stylized scene as .ply with a .json summary in the output folder."):
-        out.append(Command("export"))
-    imgui.same_line()
-    if button("Screenshot (F12)", "Save the current view as PNG in the output folder."):
-        out.append(Command("screenshot"))
-    if button("Export .spz", "Save the stylized scene for web viewers as Niantic .spz (about 10x smaller than .ply) "
-                             "with a .json summary in the output folder."):
-        out.append(Command("export", {"format": "spz"}))
-    imgui.same_line()
-    if button("Export .compressed.ply", "Save the stylized scene for web viewers as PlayCanvas / SuperSplat "
-                                        "compressed PLY with a .json summary in the output folder."):
-        out.append(Command("export", {"format": "compressed-ply"}))
+    button_row(out, ("Export .ply (Ctrl+S)", "Save the stylized scene as .ply with a .json summary in the output "
+                                             "folder.", Command("export")),
+               ("Screenshot (F12)", "Save the current view as PNG in the output folder.", Command("screenshot")))
+    button_row(out, ("Export .spz", "Save the stylized scene for web viewers as Niantic .spz (about 10x smaller than "
+                                    ".ply) with a .json summary in the output folder.",
+                     Command("export", {"format": "spz"})),
+               ("Export .compressed.ply", "Save the stylized scene for web viewers as PlayCanvas / SuperSplat "
+                                          "compressed PLY with a .json summary in the output folder.",
+                Command("export", {"format": "compressed-ply"})))
     video_row(state, out)
 
 

@@ -11,7 +11,7 @@ from imgui_bundle import imgui
 
 from .params import STYLE_MIX_TOOLTIP
 from .state import Command, PanelState
-from .widgets import button, thumbnail, tooltip
+from .widgets import button, button_row, thumbnail, tooltip
 
 
 def files_section(state: PanelState, out: list[Command]) -> None:
@@ -56,17 +56,11 @@ def progress_section(state: PanelState, out: list[Command]) -> None:
     fraction = state.step / state.total_steps if state.total_steps else 0.0
     imgui.progress_bar(min(max(fraction, 0.0), 1.0), imgui.ImVec2(-1, 0),
                        f"{state.step}/{state.total_steps}  ETA {format_eta(state.eta_seconds)}")
-    if state.paused:
-        if button("Resume###pause", "Continue stepping the engine (Space)."):
-            out.append(Command("resume"))
-    elif button("Pause###pause", "Stop stepping after the current step; the view stays live (Space)."):
-        out.append(Command("pause"))
-    imgui.same_line()
-    if button("Step", "Run exactly one engine step (useful while paused)."):
-        out.append(Command("step"))
-    imgui.same_line()
-    if button("Restart", "Start the stylization again from the input scene with the current settings."):
-        out.append(Command("restart"))
+    pause = (("Resume###pause", "Continue stepping the engine (Space).", Command("resume")) if state.paused else
+             ("Pause###pause", "Stop stepping after the current step; the view stays live (Space).", Command("pause")))
+    button_row(out, pause, ("Step", "Run exactly one engine step (useful while paused).", Command("step")),
+               ("Restart", "Start the stylization again from the input scene with the current settings.",
+                Command("restart")))
     if state.resume_available and button(
             "Resume last session", "Continue the stylization saved when the studio last closed with this scene and "
             "style."):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from imgui_bundle import imgui
 
 
@@ -21,6 +23,15 @@ def button(label: str, tip: str, small: bool = False) -> bool:
     clicked = imgui.small_button(label) if small else imgui.button(label)
     tooltip(tip)
     return clicked
+
+
+def button_row(out: list, *buttons: tuple[str, str, Any]) -> None:
+    """Buttons side by side, each (label, tooltip, command): a clicked one's command is appended to ``out``."""
+    for i, (label, tip, command) in enumerate(buttons):
+        if i:
+            imgui.same_line()
+        if button(label, tip):
+            out.append(command)
 
 
 def thumbnail(texture: int | None, size: tuple[int, int], side: float = 120.0) -> None:
