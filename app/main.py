@@ -1,7 +1,8 @@
 """``gstyle-studio [SCENE] [--style IMAGE] [--cameras PATH] [--resume] [--headless] [--frames N] [--screenshot PNG]``.
 
-Closing the window saves the running stylization in the cache folder (keyed by scene and style); ``--resume`` or
-the panel's "Resume last session" continues it."""
+Closing the window, or Ctrl+C in the terminal that runs it (exit status 130, one line saying where), saves the
+running stylization in the cache folder (keyed by scene and style); ``--resume`` or the panel's "Resume last
+session" continues it."""
 
 from __future__ import annotations
 
