@@ -2,26 +2,26 @@
 
 from __future__ import annotations
 
-import argparse
 from typing import Any
 
-# ``gstyle stylize`` options the studio may set (engine_config keys); None keeps the preset's value.
-ENGINE_OPTIONS = ("defaults", "lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
-                  "style_scale", "keep_colours", "working_width", "clip_weights", "vgg_weights", "max_gaussians",
-                  "style_weights",
-                  "region", "selection")  # region: a box; selection: a bool mask (the studio's rectangle)
+from gstyle_core.pipeline.build import SETTING_OPTIONS
+
+# What the studio's engine config may set besides scene/style/cameras/preset/scene_kind (None keeps the preset's
+# value): the 360° defaults, the settings ``gstyle stylize`` takes, and ``selection``, a bool mask over the scene's
+# Gaussians (the studio's rectangle; ``region`` is its box).
+ENGINE_OPTIONS = ("defaults", *SETTING_OPTIONS, "selection")
 
 
 def make_stylizer(scene: str | None = None, style: str | list[str] | None = None, cameras: str | None = None,
-                  preset: str = "preview", scene_kind: str = "auto", **overrides: Any):
+                  preset: str = "preview", scene_kind: str = "auto", **options: Any):
     """``gstyle_core.pipeline.Stylizer`` for a scene/style/cameras, as ``gstyle stylize`` builds it (``style``: one
     image path, or a list of paintings to mix with ``style_weights``)."""
-    from gstyle_core.pipeline.cli import build_stylizer
+    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
 
-    unknown = set(overrides) - set(ENGINE_OPTIONS)
+    unknown = set(options) - set(ENGINE_OPTIONS)
     if unknown:
         raise ValueError(f"unknown engine options: {', '.join(sorted(unknown))}")
-    args = argparse.Namespace(scene=scene, style=style, cameras=cameras, preset=preset, scene_kind=scene_kind,
-                              threads=1, **{k: overrides.get(k) for k in ENGINE_OPTIONS})
-    engine, *_ = build_stylizer(args)
-    return engine
+    request = BuildRequest(scene=scene, style=style, cameras=cameras, preset=preset, scene_kind=scene_kind,
+                           defaults=options.get("defaults"), selection=options.get("selection"),
+                           overrides={name: options.get(name) for name in SETTING_OPTIONS})
+    return build_stylizer(request).engine

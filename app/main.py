@@ -1,7 +1,8 @@
 """``gstyle-studio [SCENE] [--style IMAGE] [--cameras PATH] [--resume] [--headless] [--frames N] [--screenshot PNG]``.
 
-Closing the window saves the running stylization in the cache folder (keyed by scene and style); ``--resume`` or
-the panel's "Resume last session" continues it."""
+Closing the window, or Ctrl+C in the terminal that runs it (exit status 130, one line saying where), saves the
+running stylization in the cache folder (keyed by scene and style); ``--resume`` or the panel's "Resume last
+session" continues it."""
 
 from __future__ import annotations
 
@@ -11,10 +12,13 @@ import time
 from pathlib import Path
 
 from gstyle_core.errors import GStyleError
+from gstyle_core.pipeline.arg_types import region_arg
 
 DEFAULT_SIZE = (1280, 800)
 FALLBACK_SCREENSHOT = Path("out") / "gstyle-studio-headless.png"
 HEADLESS_FRAMES = 3
+INTERRUPTED = 130  # exit status after Ctrl+C (128 + SIGINT, as shells report it)
+NOT_SAVED = "the engine did not stop in time and was killed; the session was not saved"
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -26,12 +30,6 @@ def parse_size(text: str) -> tuple[int, int]:
     if not (16 <= w <= 8192 and 16 <= h <= 8192):
         raise argparse.ArgumentTypeError(f"size must be between 16 and 8192 pixels per side, got {text!r}")
     return w, h
-
-
-def _region_arg(text: str) -> tuple[float, ...]:
-    from gstyle_core.pipeline.cli import _region_arg as parse
-
-    return parse(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -63,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-pacing", dest="pacing", action="store_false",
                    help="draw every changed frame at full resolution at once (default: reduced resolution while the "
                         "camera moves, full resolution built progressively when it stops; see app/scene_view.py)")
-    p.add_argument("--region", type=_region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
+    p.add_argument("--region", type=region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
                    help="start with the selection tool on this box (stylize only the Gaussians centred in it; "
                         "write --region=-1,... when x0 is negative)")
     p.add_argument("--output-dir", default="out", help="where exports and screenshots go")
@@ -89,29 +87,37 @@ def main(argv: list[str] | None = None) -> int:
     except GStyleError as exc:
         print(f"gstyle-studio: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl+C a second time while the studio was closing
+        print("gstyle-studio: interrupted", file=sys.stderr)
+        return INTERRUPTED
 
 
 def run(args: argparse.Namespace) -> int:
-    """Open the window (or fall back to headless) and run the frame loop."""
+    """Open the window (or, without a display, stylize headless first) and run the frame loop. Ctrl+C in the terminal
+    (or SIGTERM) ends the loop as the window's close button does; a second one interrupts at once."""
+    from gstyle_core.pipeline.checkpoint import deferred_interrupts
+
     from .window import DisplayUnavailableError, open_window
 
-    try:
-        window = open_window(*args.size, headless=args.headless)
-    except DisplayUnavailableError as exc:
-        if args.headless:
-            raise
-        return _without_display(args, exc)
-    try:
-        return loop(window, args)
-    finally:
-        window.close()
+    with deferred_interrupts() as stop:
+        try:
+            window = open_window(*args.size, headless=args.headless)
+        except DisplayUnavailableError as exc:
+            if args.headless:
+                raise
+            _stylize_without_display(args, exc)
+            window = open_window(*args.size, headless=True)
+        try:
+            return loop(window, args, stop)
+        finally:
+            window.close()
 
 
-def _without_display(args: argparse.Namespace, reason: Exception) -> int:
+def _stylize_without_display(args: argparse.Namespace, reason: Exception) -> None:
     """No window can open: show the product's job anyway. Stylize the scene headless (preview unless another preset
-    was asked for), write before/after renders, then a headless studio screenshot of the stylized result."""
+    was asked for) and write before/after renders; ``args`` then ask for a headless studio screenshot of the
+    stylized result."""
     from .headless_demo import stylize_without_display
-    from .window import open_window
 
     print(f"gstyle-studio: cannot open a window ({reason}); stylizing headless instead ({args.preset} preset)")
     stylized, picture = stylize_without_display(args)
@@ -120,25 +126,36 @@ def _without_display(args: argparse.Namespace, reason: Exception) -> int:
     args.scene = str(stylized)
     args.headless, args.screenshot, args.engine = True, str(shot), False
     args.frames = args.frames or HEADLESS_FRAMES
-    window = open_window(*args.size, headless=True)
+
+
+def loop(window, args: argparse.Namespace, stop: dict[str, bool] | None = None) -> int:
+    """Open the studio in ``window`` and run its frames until the window closes, ``--frames`` are drawn or
+    ``stop["stop"]`` turns True (Ctrl+C); then close it as the close button does (the engine saves the session).
+    Returns 0, or 130 when stopped by Ctrl+C (one line on stderr says what was saved)."""
+    stop = stop if stop is not None else {"stop": False}
+    app = open_studio(window, args)
     try:
-        return loop(window, args)
+        _run_frames(window, app, args, stop)
     finally:
-        window.close()
+        clean = app.close()
+        if stop["stop"]:
+            print(interrupted_line(app, clean), file=sys.stderr)
+        elif not clean:
+            print(f"gstyle-studio: {NOT_SAVED}", file=sys.stderr)
+    return INTERRUPTED if stop["stop"] else 0
 
 
-def loop(window, args: argparse.Namespace) -> int:
-    """The frame loop: poll, UI, render, cap the frame rate; screenshot at the end when asked."""
+def open_studio(window, args: argparse.Namespace):
+    """The ``StudioApp`` the command line asks for, its engine started (or resumed)."""
     import glfw
 
+    from gstyle_core.assets import DEFAULT_STYLE
+
     from .engine_factory import make_stylizer
-    from .studio import StudioApp, load_scene_with_cameras
+    from .open_files import load_scene_with_cameras
+    from .studio import StudioApp
 
-    headless = window.headless
-    engine_on = (not headless) if args.engine is None else args.engine
-    frames = args.frames if args.frames is not None else (HEADLESS_FRAMES if headless else None)
-    from gstyle_core.render_cli import DEFAULT_STYLE
-
+    engine_on = (not window.headless) if args.engine is None else args.engine
     loaded = load_scene_with_cameras(args.scene, args.cameras)
     styles = args.style or ([str(DEFAULT_STYLE)] if Path(DEFAULT_STYLE).is_file() else [None])
     app = StudioApp(window.ctx, loaded=loaded, style_path=styles[0],
@@ -159,38 +176,50 @@ def loop(window, args: argparse.Namespace) -> int:
     if not app.start_engine(resume=args.resume) and args.resume:
         print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",
               file=sys.stderr)
-    cap = 0.0 if headless else args.fps
+    return app
+
+
+def _run_frames(window, app, args: argparse.Namespace, stop: dict[str, bool]) -> None:
+    """Poll, UI, render, cap the frame rate; screenshot at the end when asked."""
+    import glfw
+
+    frames = args.frames if args.frames is not None else (HEADLESS_FRAMES if window.headless else None)
+    cap = 0.0 if window.headless else args.fps
     period = 1.0 / cap if cap and cap > 0 else 0.0
     deadline = time.perf_counter()
     count = 0
-    try:
-        while not window.should_close():
-            window.begin_frame()
-            screen = window.ctx.screen
-            screen.viewport = (0, 0, *window.framebuffer_size)  # follows window resizes
-            screen.use()
-            last = frames is not None and count + 1 >= frames
-            app.progressive = args.pacing and not last  # the last frame of a --frames run: exact, full resolution
-            app.frame(screen)
-            count += 1
-            window.end_frame(swap=False)
-            for path in app.screenshot_requests:
-                app.panel.status = f"screenshot {app.save_png(path, app.capture(screen))}"
-            app.screenshot_requests.clear()
-            if last and args.screenshot:
-                saved = app.save_png(args.screenshot, app.capture(screen))
-                print(f"gstyle-studio: wrote {saved}")
-            glfw.swap_buffers(window.handle)
-            if last:
-                break
-            if period:
-                deadline = max(deadline + period, time.perf_counter() - period)
-                time.sleep(max(0.0, deadline - time.perf_counter()))
-    finally:
-        if not app.close():
-            print("gstyle-studio: the engine did not stop in time and was killed; the session was not saved",
-                  file=sys.stderr)
-    return 0
+    while not (window.should_close() or stop["stop"]):
+        window.begin_frame()
+        screen = window.ctx.screen
+        screen.viewport = (0, 0, *window.framebuffer_size)  # follows window resizes
+        screen.use()
+        last = frames is not None and count + 1 >= frames
+        app.progressive = args.pacing and not last  # the last frame of a --frames run: exact, full resolution
+        app.frame(screen)
+        count += 1
+        window.end_frame(swap=False)
+        for path in app.screenshot_requests:
+            app.panel.status = f"screenshot {app.save_png(path, app.capture(screen))}"
+        app.screenshot_requests.clear()
+        if last and args.screenshot:
+            saved = app.save_png(args.screenshot, app.capture(screen))
+            print(f"gstyle-studio: wrote {saved}")
+        glfw.swap_buffers(window.handle)
+        if last:
+            break
+        if period:
+            deadline = max(deadline + period, time.perf_counter() - period)
+            time.sleep(max(0.0, deadline - time.perf_counter()))
+
+
+def interrupted_line(app, clean: bool) -> str:
+    """The one line Ctrl+C ends the studio with: where the session was saved, or why it was not."""
+    saved = app.bridge.state.checkpoint if app.bridge is not None else None
+    if not clean:
+        return f"gstyle-studio: interrupted; {NOT_SAVED}"
+    if saved:
+        return f"gstyle-studio: interrupted; session saved to {saved} (gstyle-studio --resume continues it)"
+    return "gstyle-studio: interrupted"
 
 
 if __name__ == "__main__":

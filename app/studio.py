@@ -1,64 +1,41 @@
-"""The studio: scene + engine state, view modes, input handling and command execution around the renderers."""
+"""The studio: scene, style and engine state around the renderers, and one frame of it (``StudioApp.frame``).
+
+Its other concerns are mixins in their own modules: opening files (``open_files``), input (``studio_input``),
+panel commands, exports and videos (``studio_commands``), per-frame engine and panel updates (``studio_sync``), the
+region tool (``region_tool``) and the takes (``takes_view``)."""
 
 from __future__ import annotations
 
 import io
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import moderngl
 import numpy as np
-from imgui_bundle import imgui
 
 from gstyle_core.atomic import atomic_write_bytes
 from gstyle_core.cameras.camera import Camera
-from gstyle_core.errors import GStyleError
-from gstyle_core.scene import GaussianScene
 from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
+from .open_files import LoadedScene, OpenFiles
 from .panels import Command, PanelState, draw_panel
 from .region_tool import RegionTool
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
 from .scene_view import SceneView, ViewPass
 from .splat_data import scene_arrays
+from .studio_commands import StudioCommands
+from .studio_input import StudioInput
+from .studio_sync import StudioSync
 from .takes import TakeShelf
 from .takes_view import TakesView
-from .video_job import VideoJob, turntable_path
-from .worker import GEOMETRY_FIELDS, ThreadWorkerBridge, WorkerBridge
+from .video_job import VideoJob
+from .worker import ThreadWorkerBridge, WorkerBridge
 
-SCENE_SUFFIXES = (".ply", ".splat", ".spz")
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
-BOX_WHEEL_STEP = 1.1  # Alt + one wheel notch resizes the region box by this factor
-DIVIDER_GRAB_PIXELS = 6
 DIVIDER_COLOUR = (1.0, 1.0, 1.0)
 BACKGROUND = (0.0, 0.0, 0.0)
-EXPORT_SUFFIXES = {"ply": ".ply", "spz": ".spz", "compressed-ply": ".compressed.ply"}
-TURNTABLE_WIDTH = 640
-
-
-@dataclass
-class LoadedScene:
-    """The scene being stylized, with the cameras that came with it (or were generated)."""
-
-    path: str
-    scene: GaussianScene
-    cameras: list[Camera]
-
-
-def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) -> LoadedScene:
-    """Load a scene file (default: the bundled demo) and its cameras (given, else generated)."""
-    from gstyle_core.render_cli import DEMO_SCENE, load_scene_and_cameras
-
-    path = Path(scene_path) if scene_path else DEMO_SCENE
-    if not path.exists():
-        what = "scene file" if scene_path else "bundled demo scene"
-        raise GStyleError(f"{what} not found: {path}")
-    scene, _report, cams = load_scene_and_cameras(scene_path, cameras_path)
-    return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras))
 
 
 def encode_png(rgb: np.ndarray) -> bytes:
@@ -70,7 +47,7 @@ def encode_png(rgb: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-class StudioApp(RegionTool, TakesView):
+class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, StudioSync):
     """Owns the renderers and the worker bridge; ``frame()`` draws one frame into the current framebuffer."""
 
     def __init__(self, ctx: moderngl.Context, *, loaded: LoadedScene | None = None, style_path: str | None = None,
@@ -349,320 +326,6 @@ class StudioApp(RegionTool, TakesView):
     def _take_layer(self) -> str:
         return SH_LAYER if SH_LAYER in self.take_view.layers else DIFFUSE_LAYER
 
-    def _apply_engine_updates(self) -> None:
-        if self.bridge is None:
-            return
-        self.bridge.poll()
-        st = self.bridge.state
-        if st.snapshots_received == self._snapshots_seen or not st.snapshot:
-            return
-        self._snapshots_seen = st.snapshots_received
-        snap = st.snapshot
-        try:  # upload only what changed: geometry by its version, colours by theirs (c_gt changes with geometry)
-            new_geometry = snap.get("geometry_version") != self._geometry_version and "means" in snap
-            if new_geometry:
-                self.stylized.update_geometry(snap)
-                self._geometry_version = snap.get("geometry_version")
-            colour_key = (snap.get("colour_version"), self._geometry_version)
-            new_colours = colour_key != self._colour_key or colour_key[0] is None
-            if new_colours and "colors" in snap and len(snap["colors"]) == self.stylized.count:
-                self.stylized.update_colors(snap["colors"], DIFFUSE_LAYER)
-                self._colour_key = colour_key
-            gt_stale = new_geometry or "gt" not in self.stylized.layers or self._geometry_version is None
-            if gt_stale and "colors_gt" in snap and len(snap["colors_gt"]) == self.stylized.count:
-                self.stylized.update_colors(snap["colors_gt"], "gt")
-        except ValueError as exc:
-            self.panel.status = f"snapshot ignored: {exc}"
-
-    def _fill_panel(self) -> None:
-        p = self.panel
-        p.fps = len(self._frame_times) / max(sum(self._frame_times), 1e-6)
-        p.view_mode = self.view_mode
-        p.fov_deg = self.control.pose.fov_y_deg
-        p.has_ground_truth = "gt" in self.stylized.layers
-        p.gaussians = self.stylized.count
-        p.viewer_notes = self.viewer_notes()
-        p.resume_available = self.resume_available()
-        p.take_names = [t.name for t in self.takes.takes]
-        p.take_labels = [t.label for t in self.takes.takes]
-        shown = [i for i, t in enumerate(self.takes.takes) if t.path == self.take_shown]
-        p.take_shown = shown[0] if shown else -1
-        p.compare_with_take = self.compare_with_take and p.take_shown >= 0
-        p.divider = float(self.divider)
-        p.region_enabled = self.region_enabled
-        mask = self.region_mask()
-        p.region_mode = "rectangle" if self.region_rect_mask is not None else "box"
-        if self.region_box is not None:
-            p.region_box = tuple(self.region_box)
-        p.region_selected = int(mask.sum()) if mask is not None else 0
-        p.region_total = self.loaded.scene.count if self.loaded is not None else 0
-        p.region_in_engine = self.engine_region if self.bridge is not None else ""
-        width, height = self._view_size
-        p.region_outline = self._region_outline(width, height)
-        self._poll_video()
-        if self.bridge is None:
-            p.running, p.paused = False, False
-            return
-        st = self.bridge.state
-        p.running, p.paused, p.error = st.alive, st.paused, st.error
-        p.decisions = st.decisions
-        p.loss_history = st.loss_history[-500:]
-        if st.params:
-            p.params.update(st.params)
-        rep = st.last_report
-        if rep:
-            p.phase = "done" if st.done else str(rep.get("phase", "-"))
-            p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
-            p.eta_seconds = (st.step_seconds / max(st.reports_received, 1) * max(p.total_steps - p.step, 0)
-                             if st.reports_received and not st.done else None)
-        if st.resumed is not None and st.resumed is not self._resume_seen:
-            self._resume_seen = st.resumed
-            p.status = f"resumed the last session at step {st.resumed.get('step')}"
-        exports = (id(st.exported), len(st.exported))  # a restarted worker starts a new list
-        if st.exported and exports != self._exports_seen:  # once per export: later messages stay visible
-            new = st.exported[self._exports_seen[1]:] if exports[0] == self._exports_seen[0] else st.exported[-1:]
-            self._exports_seen = exports
-            self._shelve_exports(new)
-            p.status = f"exported {st.exported[-1]} (kept as {self.takes.takes[0].name})"
-
-    def viewer_notes(self) -> list[str]:
-        """What the viewer evaluates and skips (panel "Decisions"): view-dependent SH, sorts, uploads."""
-        renderers = (self.original, self.stylized)
-        if SH_LAYER in self.original.layers:
-            sh = (f"viewer SH: evaluated for the original scene only, when the camera position changes "
-                  f"({self.original.sh_evaluations} evaluations so far); the stylized scene is diffuse")
-        else:
-            sh = "viewer SH: none evaluated (the scene has no view-dependent SH)"
-        sorts = sum(r.sort_count for r in renderers)
-        colours = sum(r.uploads["colors"] for r in renderers)
-        geometry = sum(r.uploads["geometry"] for r in renderers)
-        return [sh, f"viewer work: {sorts} depth sorts (view changes only), {colours} colour and {geometry} "
-                    "geometry uploads (changes only)"]
-
-    # ----------------------------------------------------------------- input
-    def _handle_input(self, size: tuple[int, int], dt: float) -> None:
-        io_ = imgui.get_io()
-        width, height = size
-        mouse = (io_.mouse_pos.x, io_.mouse_pos.y)
-        scale = io_.display_framebuffer_scale
-        fb_mouse = (mouse[0] * (scale.x or 1.0), mouse[1] * (scale.y or 1.0))
-        if self._dragging == "select" and not imgui.is_mouse_down(0):  # released: select what the rectangle holds
-            start, self._rect_start = self._rect_start, None
-            self.panel.region_drag = None
-            if start is not None and abs(fb_mouse[0] - start[0]) >= 2 and abs(fb_mouse[1] - start[1]) >= 2:
-                self.select_rectangle((*start, *fb_mouse), width, height)
-        if not io_.want_capture_mouse:
-            divider_x = self.divider * width
-            if imgui.is_mouse_clicked(0) and io_.key_shift and self.loaded is not None:
-                self._dragging, self._rect_start = "select", fb_mouse
-                self.region_enabled = True
-            elif imgui.is_mouse_clicked(0) and io_.key_alt and self._box_tool_on():
-                self._dragging = "box"  # Alt + drag: place the region box in the view
-            elif imgui.is_mouse_clicked(0):
-                near_divider = self.view_mode == "compare" and abs(mouse[0] - divider_x) <= DIVIDER_GRAB_PIXELS
-                self._dragging = "divider" if near_divider else "orbit"
-            elif imgui.is_mouse_clicked(1):
-                self._dragging = "pan"
-            if io_.mouse_wheel and io_.key_alt and self._box_tool_on():  # Alt + wheel: resize the box
-                self.scale_region_box(BOX_WHEEL_STEP ** io_.mouse_wheel)
-            elif io_.mouse_wheel:
-                self.control.zoom(io_.mouse_wheel)
-        if not (imgui.is_mouse_down(0) or imgui.is_mouse_down(1)):
-            self._dragging = None
-        if self._dragging and self._last_mouse is not None:
-            dx, dy = mouse[0] - self._last_mouse[0], mouse[1] - self._last_mouse[1]
-            if self._dragging == "divider":
-                self.divider = float(np.clip(mouse[0] / max(width, 1), 0.0, 1.0))
-            elif self._dragging == "orbit" and (dx or dy):
-                self.control.orbit(dx, dy)
-            elif self._dragging == "pan" and (dx or dy):
-                self.control.pan(dx, dy, height)
-            elif self._dragging == "box" and (dx or dy):
-                self.move_region_box(dx * (scale.x or 1.0), dy * (scale.y or 1.0), width, height)
-            elif self._dragging == "select" and self._rect_start is not None:
-                sx, sy = scale.x or 1.0, scale.y or 1.0
-                self.panel.region_drag = (self._rect_start[0] / sx, self._rect_start[1] / sy, *mouse)
-        self._last_mouse = mouse
-        if not io_.want_capture_keyboard and not io_.key_ctrl:
-            down = imgui.is_key_down
-            forward = float(down(imgui.Key.w)) - float(down(imgui.Key.s))
-            right = float(down(imgui.Key.d)) - float(down(imgui.Key.a))
-            up = float(down(imgui.Key.e)) - float(down(imgui.Key.q))
-            self.control.fly(forward, right, up, min(dt, 0.1))
-
-    # ----------------------------------------------------------------- commands
-    def execute(self, cmd: Command) -> None:
-        """Carry out one panel command."""
-        name, args = cmd.name, cmd.args
-        bridge = self.bridge
-        if name in ("pause", "resume", "step") and bridge is not None:
-            {"pause": bridge.pause, "resume": bridge.resume, "step": bridge.step_once}[name]()
-        elif name == "restart":
-            self.start_engine()
-        elif name == "resume_session":
-            self.start_engine(resume=True)
-        elif name == "set_params":
-            self.panel.params.update(args)
-            if "style_mix" in args and self.panel.style2_path:  # a restarted engine keeps the mix
-                self._update_style_config()
-            if bridge is not None:
-                bridge.set_params(**args)
-        elif name == "remove_style2":
-            self.remove_second_style()
-            self.panel.status = "back to one painting"
-            if bridge is not None:
-                self.start_engine()
-        elif name == "view_mode":
-            self.view_mode = args["mode"]
-        elif name == "fov":
-            self.control.set_fov(args["degrees"])
-        elif name == "reset_camera":
-            self.control.reset()
-        elif name == "snap_camera" and args["index"] < len(self.cameras):
-            cam = self.cameras[args["index"]]
-            self.control.snap_to(cam)
-            self.panel.camera_index = args["index"]
-            self.panel.status = f"camera {args['index'] + 1}: {cam.name}"
-        elif name == "region_enable":
-            self.region_enabled = bool(args.get("on", True))
-            self._region_version += 1
-        elif name == "region_box":
-            self.set_region_box(args["box"])
-        elif name == "region_fit":
-            self.set_region_box(self.scene_box())
-        elif name == "toggle_help":
-            self.panel.show_help = not self.panel.show_help
-        elif name == "screenshot":
-            self.screenshot_requests.append(self.output_dir / f"screenshot_{time.strftime('%Y%m%d_%H%M%S')}.png")
-        elif name == "export":
-            self.export(fmt=args.get("format", "ply"))
-        elif name == "turntable":
-            self.start_turntable(args.get("frames", self.panel.turntable_frames),
-                                 args.get("format", self.panel.turntable_format))
-        elif name == "turntable_settings":
-            self.panel.turntable_frames = int(args.get("frames", self.panel.turntable_frames))
-            self.panel.turntable_format = str(args.get("format", self.panel.turntable_format))
-        elif name == "cancel_video" and self.video_job is not None:
-            self.video_job.cancel()
-        elif name == "show_take":
-            self.show_take(int(args["index"]), compare=bool(args.get("compare", True)))
-        elif name == "compare_original":
-            self.compare_with_original()
-        elif name == "rename_take":
-            self.takes.rename(int(args["index"]), str(args["name"]))
-        elif name == "forget_take":
-            self.forget_take(int(args["index"]))
-        elif name in ("open_scene", "open_style", "open_style2"):
-            self._open_dialog(name)
-
-    def export(self, path: str | Path | None = None, fmt: str = "ply") -> None:
-        """Export the stylized scene (``fmt`` "ply", "spz" or "compressed-ply", + .json) through the worker."""
-        if self.bridge is None or not self.bridge.alive:
-            self.panel.status = "export: no engine is running"
-            return
-        suffix = EXPORT_SUFFIXES[fmt]
-        path = Path(path) if path else self.output_dir / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}{suffix}"
-        self.bridge.export(path)
-        self.panel.status = f"exporting {path} ..."
-
-    def current_scene(self) -> GaussianScene | None:
-        """The stylized scene as the engine last sent it (diffuse colours), else the loaded scene (with its SH)."""
-        snap = self.bridge.state.snapshot if self.bridge is not None else {}
-        if all(k in snap for k in GEOMETRY_FIELDS) and len(snap.get("colors", ())) == len(snap["means"]):
-            from gstyle_core.scene import rgb_to_sh_dc
-
-            arrays = [np.asarray(snap[k], np.float32) for k in GEOMETRY_FIELDS]
-            return GaussianScene(*arrays, rgb_to_sh_dc(np.asarray(snap["colors"], np.float32)))
-        return self.loaded.scene if self.loaded is not None else None
-
-    def start_turntable(self, frames: int, fmt: str = "mp4", path: str | Path | None = None) -> Path | None:
-        """Render a turntable of the current scene into the output folder in the background (``VideoJob``);
-        the panel shows its progress. Returns where it will be written (None when it cannot start)."""
-        from gstyle_core.render_video import cameras_up, turntable_cameras
-
-        scene = self.current_scene()
-        if scene is None or scene.count == 0:
-            self.panel.status = "turntable: no scene"
-            return None
-        if self.video_job is not None and self.video_job.running:
-            self.panel.status = "turntable: a video is already rendering"
-            return None
-        size = (TURNTABLE_WIDTH, TURNTABLE_WIDTH * 3 // 4)
-        if self.cameras:  # the scene cameras' aspect and the way they stand
-            first = self.cameras[0].resized_to_width(TURNTABLE_WIDTH)
-            size = (first.width, first.height)
-        up = cameras_up(self.cameras) if self.cameras else "-y"
-        try:
-            cams = turntable_cameras(scene, int(frames), *size, up=up)
-        except GStyleError as exc:
-            self.panel.status = f"turntable: {exc}"
-            return None
-        out = Path(path) if path else turntable_path(self.output_dir, fmt, time.strftime("%Y%m%d_%H%M%S"))
-        self.video_job = VideoJob(scene, cams, out, in_thread=self.worker_mode == "thread")
-        self.panel.status = f"rendering {out.name} ({len(cams)} frames) ..."
-        return out
-
-    def _poll_video(self) -> None:
-        p, job = self.panel, self.video_job
-        if job is None:
-            p.video_running = False
-            return
-        progress = job.poll()
-        p.video_running = job.running
-        p.video_fraction = progress.fraction
-        p.video_label = f"video {progress.done}/{progress.total}"
-        if not job.running:
-            p.status = progress.message
-            self.video_job = None
-
-    def on_drop(self, paths) -> None:
-        """glfw drop callback: open the first dropped file (a scene or a style image); more files are ignored."""
-        paths = list(paths)
-        if paths:
-            self.open_path(paths[0])
-            if len(paths) > 1:
-                self.panel.status += f" ({len(paths) - 1} more dropped file(s) ignored)"
-
-    def open_path(self, path: str, style_slot: int = 0) -> None:
-        """Open a dropped or chosen file: a scene (.ply/.splat/.spz) or a style image (``style_slot`` 1: as the second
-        painting of a mix)."""
-        suffix = Path(path).suffix.lower()
-        try:
-            if suffix in SCENE_SUFFIXES and style_slot == 0:
-                self.set_scene(load_scene_with_cameras(path, None))
-            elif suffix in IMAGE_SUFFIXES:
-                self.set_style(path, style_slot)
-            else:
-                self.panel.status = f"not a scene or image: {Path(path).name}"
-                return
-        except GStyleError as exc:
-            self.panel.status = f"could not open {Path(path).name}: {exc}"
-            return
-        self.panel.status = f"opened {Path(path).name}"
-        if self.bridge is not None:
-            self.start_engine()
-
-    def _open_dialog(self, kind: str) -> None:
-        try:
-            from imgui_bundle import portable_file_dialogs as pfd
-        except ImportError:
-            self.panel.status = "file dialogs unavailable; drop a file on the window"
-            return
-        if kind == "open_scene":
-            dialog = pfd.open_file("Open scene", "", ["Gaussian scenes", "*.ply *.splat *.spz"])
-        else:
-            title = "Open second style image" if kind == "open_style2" else "Open style image"
-            dialog = pfd.open_file(title, "", ["Images", "*.png *.jpg *.jpeg *.webp *.bmp"])
-        self._dialog = (kind, dialog)
-
-    def _poll_dialog(self) -> None:
-        if self._dialog is None or not self._dialog[1].ready(0):
-            return
-        kind, dialog = self._dialog
-        self._dialog = None
-        for path in dialog.result()[:1]:
-            self.open_path(path, style_slot=1 if kind == "open_style2" else 0)
-
     # ----------------------------------------------------------------- output
     def save_png(self, path: str | Path, rgb: np.ndarray) -> Path:
         """Write uint8 [H, W, 3] as PNG atomically."""
@@ -674,4 +337,3 @@ class StudioApp(RegionTool, TakesView):
         rgb = read_rgb(fbo)
         _ = self.ctx.error
         return rgb
-

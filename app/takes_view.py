@@ -8,8 +8,8 @@ from pathlib import Path
 
 from gstyle_core.errors import GStyleError
 
+from .export import summary_path
 from .splat_data import scene_arrays
-from .worker import summary_path
 
 
 class TakesView:

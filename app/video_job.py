@@ -18,7 +18,7 @@ from typing import Any
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.scene import GaussianScene
 
-from .worker import WORKER_NICE, _lower_priority, _single_torch_thread, one_line_error
+from .child_process import WORKER_NICE, interrupts_ignored, lower_priority, one_line_error, single_compute_thread
 
 TURNTABLE_SUFFIXES = {"mp4": ".mp4", "gif": ".gif", "png frames": ""}
 
@@ -30,9 +30,9 @@ def video_main(scene: GaussianScene, cameras: list[Camera], out: str, fps: float
     from gstyle_core.render_video import render_video
     from gstyle_core.video import Cancelled
 
-    _single_torch_thread(in_thread)
+    single_compute_thread(in_thread)
     if not in_thread:
-        _lower_priority(WORKER_NICE)
+        lower_priority(WORKER_NICE)
     try:
         render_video(scene, cameras, out, fps, progress=lambda done, total: events.put(("progress", (done, total))),
                      cancelled=cancel.is_set)
@@ -77,7 +77,8 @@ class VideoJob:
         self._runner = runner(target=video_main, name="gstyle-video", daemon=True,
                               args=(scene, cameras, self.out, fps, self._events, self._cancel),
                               kwargs={"in_thread": in_thread})
-        self._runner.start()
+        with interrupts_ignored():  # Ctrl+C stops the studio, which cancels the job
+            self._runner.start()
 
     @property
     def running(self) -> bool:

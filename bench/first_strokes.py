@@ -22,7 +22,8 @@ sys.path.insert(0, str(ROOT))
 
 from app.engine_factory import make_stylizer  # noqa: E402
 from app.main import parse_size  # noqa: E402
-from app.studio import StudioApp, load_scene_with_cameras  # noqa: E402
+from app.open_files import load_scene_with_cameras  # noqa: E402
+from app.studio import StudioApp  # noqa: E402
 from app.window import open_window  # noqa: E402
 
 

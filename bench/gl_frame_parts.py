@@ -28,8 +28,8 @@ from app.main import parse_size  # noqa: E402
 from app.renderer import PROJECTED_STRIDE, SplatRenderer  # noqa: E402
 from app.splat_data import back_to_front_order  # noqa: E402
 from app.studio import scene_arrays  # noqa: E402
+from gstyle_core.assets import DEMO_SCENE  # noqa: E402
 from gstyle_core.io import load_scene  # noqa: E402
-from gstyle_core.render_cli import DEMO_SCENE  # noqa: E402
 
 
 def quad_pixels(renderer: SplatRenderer) -> float:

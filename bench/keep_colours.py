@@ -40,18 +40,16 @@ def luminance_nnfm(vgg, style: np.ndarray, renders: list[np.ndarray], alphas: li
 
 def run_variant(name: str, scene: str | None, style_path: str | None, preset: str) -> dict:
     """One stylization and its measurements."""
-    from gstyle_core.pipeline.cli import build_stylizer, evaluate_run
+    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
+    from gstyle_core.pipeline.cli import evaluate_run
     from gstyle_core.pipeline.objective import StyleObjective
     from gstyle_core.render_cli import render_scene_image
     from gstyle_core.style.keep_colours import chroma
 
     StyleObjective.luminance_networks = name != "restore"
-    args = argparse.Namespace(scene=scene, style=style_path, cameras=None, preset=preset, scene_kind="auto",
-                              lambda_clip=None, lambda_nnfm=None, lambda_content=None, lambda_tv=None,
-                              split_rate=None, working_width=None, clip_weights=None, vgg_weights=None,
-                              keep_colours=name != "plain")
+    request = BuildRequest(scene=scene, style=style_path, preset=preset, overrides={"keep_colours": name != "plain"})
     t0 = time.perf_counter()
-    engine, input_scene, _report, _cams, style = build_stylizer(args)
+    engine, input_scene, _report, _cams, style = build_stylizer(request)
     engine.run()
     seconds = time.perf_counter() - t0
     q = evaluate_run(engine, input_scene, style)

@@ -64,16 +64,14 @@ def run_point(job: tuple) -> dict:
 
     torch.set_num_threads(threads)
     sys.path.insert(0, str(HERE.parent))
-    from gstyle_core.pipeline.cli import build_stylizer, evaluate_run
+    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
+    from gstyle_core.pipeline.cli import evaluate_run
 
     o = dict(overrides)
-    args = argparse.Namespace(scene=scene, style=style, cameras=None, preset=o.pop("preset", "preview"),
-                              scene_kind=o.pop("scene_kind", "auto"), lambda_clip=o.pop("lambda_clip", None),
-                              lambda_nnfm=o.pop("lambda_nnfm", None), lambda_content=o.pop("lambda_content", None),
-                              lambda_tv=o.pop("lambda_tv", None), split_rate=o.pop("split_rate", None),
-                              working_width=o.pop("working_width", None), clip_weights=None, vgg_weights=None)
+    request = BuildRequest(scene=scene, style=style, preset=o.pop("preset", "preview"),
+                           scene_kind=o.pop("scene_kind", "auto"), overrides=o)
     t0 = time.perf_counter()
-    engine, input_scene, _report, _cams, style_img = build_stylizer(args, **o)
+    engine, input_scene, _report, _cams, style_img = build_stylizer(request)
     engine.run()
     seconds = time.perf_counter() - t0
     q = evaluate_run(engine, input_scene, style_img)

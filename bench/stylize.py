@@ -24,7 +24,8 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_stylizer  # noqa: E402
+from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
+from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.raster import colour_cache  # noqa: E402
 from gstyle_core.style import losses  # noqa: E402
@@ -135,7 +136,9 @@ def main() -> None:
     args = p.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
-    engine, scene, _, cams, _ = build_stylizer(args, crop_to_scene=not args.whole_frames)
+    request = build_request(args)
+    request.overrides["crop_to_scene"] = not args.whole_frames
+    engine, scene, _, cams, _ = build_stylizer(request)
     phase_times: dict[str, list[float]] = {}
     stylize_times: list[float] = []
     timer: PartTimer | None = None

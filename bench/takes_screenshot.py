@@ -19,8 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from app.engine_factory import make_stylizer  # noqa: E402
+from app.open_files import load_scene_with_cameras  # noqa: E402
 from app.panels import Command  # noqa: E402
-from app.studio import StudioApp, load_scene_with_cameras  # noqa: E402
+from app.studio import StudioApp  # noqa: E402
 from app.window import open_window  # noqa: E402
 
 STYLES = ROOT.parent / "shared" / "data" / "styles"

@@ -45,7 +45,7 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gstyle_core.pipeline.cli import build_stylizer  # noqa: E402
+from gstyle_core.pipeline.build import BuildRequest, build_stylizer  # noqa: E402
 from gstyle_core.pipeline.consistency import nearby_camera, view_consistency  # noqa: E402
 from gstyle_core.pipeline.stylizer import choose_views  # noqa: E402
 
@@ -97,13 +97,6 @@ def median_depth(scene, camera) -> float:
     return float(np.median(z)) if z.size else 1.0
 
 
-def make_args(scene: str | None, style: Path, preset: str, cameras: str | None = None) -> argparse.Namespace:
-    return argparse.Namespace(scene=scene, style=str(style), cameras=cameras, preset=preset, scene_kind="auto",
-                              lambda_clip=None, lambda_nnfm=None, lambda_content=None, lambda_tv=None,
-                              split_rate=None, working_width=None, clip_weights=None, vgg_weights=None,
-                              max_gaussians=None)
-
-
 def psnr(engine) -> float:
     """PSNR of the current geometry with c_gt against the ground truth, over the training views."""
     from gstyle_core.fit.model import render_params
@@ -128,7 +121,8 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
     else:
         paper = False
     t0 = time.perf_counter()
-    engine, scene_in, _, _, style_img = build_stylizer(make_args(scene, style, preset, cameras), **kw)
+    engine, scene_in, _, _, style_img = build_stylizer(
+        BuildRequest(scene=scene, style=str(style), cameras=cameras, preset=preset, overrides=kw))
     if paper:
         engine.settings.preprocess_rounds = 5 if engine.settings.scene_kind == "forward" else 10
     build_s = time.perf_counter() - t0

@@ -7,13 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .assets import DEMO_SCENE
 from .errors import GStyleError
 
-_CHECKOUT_ASSETS = Path(__file__).resolve().parents[1] / "assets"  # the repository's assets/ (editable install)
-# A regular install carries assets/ inside the package as gstyle_core.bundled (pyproject.toml).
-ASSETS = _CHECKOUT_ASSETS if _CHECKOUT_ASSETS.is_dir() else Path(__file__).resolve().parent / "bundled"
-DEMO_SCENE = ASSETS / "demo" / "fountain.splat"
-DEFAULT_STYLE = ASSETS / "styles" / "starry_night.jpg"
 DEFAULT_PNG_OUT = "out/render.png"
 
 

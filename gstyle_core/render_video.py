@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .assets import DEMO_SCENE
 from .cameras.camera import Camera
 from .errors import GStyleError
 from .scene import GaussianScene
@@ -121,7 +122,6 @@ def video_command(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .io import load_scene
-    from .render_cli import DEMO_SCENE
 
     out = args.out or DEFAULT_VIDEO_OUT
     if args.camera is not None:

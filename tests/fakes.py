@@ -94,6 +94,29 @@ def make_fake_engine(scene=None, style=None, cameras=None, preset=None, **config
     return FakeEngine(**config)
 
 
+class MarkingEngine(FakeEngine):
+    """A ``FakeEngine`` that creates the file ``marker`` (if given) after its ``mark_after``-th step: another process
+    can then see that the engine has stepped."""
+
+    def __init__(self, marker: str | None = None, mark_after: int = 5, **config) -> None:
+        super().__init__(**config)
+        self.marker, self.mark_after = marker, mark_after
+
+    def step(self) -> FakeReport:
+        report = super().step()
+        if self.marker and self.steps == self.mark_after:
+            open(self.marker, "w").close()
+        return report
+
+
+def make_command_line_engine(**_app_config) -> MarkingEngine:
+    """Stands in for ``app.engine_factory.make_stylizer`` in a studio run from its command line (ignores the engine
+    config); the file named by ``$GSTYLE_TEST_STEPPED`` appears after five steps."""
+    import os
+
+    return MarkingEngine(os.environ.get("GSTYLE_TEST_STEPPED"), n=64, step_seconds=0.01)
+
+
 class MeanColourPull:
     """Cheap stand-in style objective: pulls the render's mean colour to the style's (no networks)."""
 

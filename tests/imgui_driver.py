@@ -3,6 +3,7 @@ click widgets by their path with injected mouse events."""
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -29,7 +30,7 @@ class Widget:
 
 
 class Recorder:
-    """Stands in for the ``imgui`` module of ``app.panels``: calls the real one and records what was drawn."""
+    """Stands in for the ``imgui`` module of ``app.panels``' modules: calls the real one and records what was drawn."""
 
     def __init__(self) -> None:
         self.widgets: list[Widget] = []
@@ -67,7 +68,7 @@ class Recorder:
         imgui.text_wrapped(text)
 
     def mark_tooltip(self, text: str) -> None:
-        """``app.panels.tooltip`` was called for the last widget."""
+        """``app.panels.widgets.tooltip`` was called for the last widget."""
         if self.widgets:
             self.widgets[-1].tooltip = text
 
@@ -78,18 +79,24 @@ class Recorder:
 
 
 def install(monkeypatch) -> Recorder:
-    """Route ``app.panels``' ImGui calls (and its tooltip helper) through a new ``Recorder``."""
-    import app.panels as panels
+    """Route the ImGui calls of every module of ``app.panels`` (and their tooltip helper) through a new
+    ``Recorder``."""
+    import app.panels
+    from app.panels import widgets
 
     recorder = Recorder()
-    original_tooltip = panels.tooltip
+    original_tooltip = widgets.tooltip
 
     def tooltip(text: str) -> None:
         recorder.mark_tooltip(text)
         original_tooltip(text)
 
-    monkeypatch.setattr(panels, "imgui", recorder)
-    monkeypatch.setattr(panels, "tooltip", tooltip)
+    modules = [m for name, m in sys.modules.items() if name.startswith(f"{app.panels.__name__}.")]
+    for module in modules:
+        if getattr(module, "imgui", None) is imgui:
+            monkeypatch.setattr(module, "imgui", recorder)
+        if getattr(module, "tooltip", None) is original_tooltip:
+            monkeypatch.setattr(module, "tooltip", tooltip)
     return recorder
 
 

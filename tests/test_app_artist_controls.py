@@ -70,7 +70,7 @@ def mix_stylizer(style=None, style_weights=None, **_ignored):
     from fakes import MeanColourPull
 
     from gstyle_core.images import load_style_image
-    from gstyle_core.pipeline.cli import style_paths
+    from gstyle_core.pipeline.build import style_paths
     from gstyle_core.pipeline.settings import resolve_settings
     from gstyle_core.pipeline.stylizer import Stylizer
 

@@ -10,7 +10,7 @@ pytest.importorskip("moderngl")
 
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
-import app.studio as studio  # noqa: E402
+import app.open_files as open_files  # noqa: E402
 from app.main import main, parse_size  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -21,8 +21,8 @@ def synthetic_loader(monkeypatch):
     """Serve a small synthetic scene instead of reading a file (the loader is another module's job)."""
     scene = blob_scene(1500, sh_degree=1, spread=0.4, scale=0.05)
     cams = ring_cameras(4, width=320, height=240)
-    monkeypatch.setattr(studio, "load_scene_with_cameras",
-                        lambda path, cameras: studio.LoadedScene(path or "synthetic", scene, cams))
+    monkeypatch.setattr(open_files, "load_scene_with_cameras",
+                        lambda path, cameras: open_files.LoadedScene(path or "synthetic", scene, cams))
 
 
 def read_png(path):

@@ -6,7 +6,9 @@ import time
 import pytest
 from fakes import FakeReport, make_fake_engine
 
-from app.worker import ThreadWorkerBridge, WorkerBridge, one_line_error, report_to_dict
+from app.child_process import one_line_error
+from app.engine_host import report_to_dict
+from app.worker import ThreadWorkerBridge, WorkerBridge
 
 
 @pytest.fixture

@@ -206,6 +206,7 @@ def test_a_resumed_engine_keeps_both_controls(engine_for):
 # ====================================================================== command line and OUT.json
 def test_cli_takes_both_controls_and_records_them(tmp_path, no_clip_weights):
     from gstyle_core.pipeline import cli
+    from gstyle_core.pipeline.build import build_stylizer
 
     scene_path, style_path = tmp_path / "warm.ply", tmp_path / "blue.png"
     save_scene(warm_scene(120), scene_path)
@@ -224,5 +225,5 @@ def test_cli_takes_both_controls_and_records_them(tmp_path, no_clip_weights):
     summary = json.loads(out.with_suffix(".json").read_text())
     assert summary["settings"]["keep_colours"] is True and summary["settings"]["style_scale"] == 1.5
     assert "kept" in summary["decisions"]["colours"] and "stroke size 1.5" in summary["decisions"]["style_scale"]
-    plain = cli.build_stylizer(parser.parse_args([str(scene_path), "--out", str(out)]))[0].settings
+    plain = build_stylizer(cli.build_request(parser.parse_args([str(scene_path), "--out", str(out)])))[0].settings
     assert plain.keep_colours is False and plain.style_scale == 1.0

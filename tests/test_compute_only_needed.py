@@ -385,11 +385,12 @@ def test_studio_uploads_only_what_changed_and_shows_decisions(ctx, tmp_path):
 
 # ====================================================================== decisions reach the app
 def test_engine_decisions_are_forwarded_by_the_worker_and_listed_by_the_panel():
+    from app.engine_host import EngineHost
     from app.panels import decision_lines
-    from app.worker import WorkerBridge, _EngineHost
+    from app.worker import WorkerBridge
 
     events: queue.Queue = queue.Queue()
-    host = _EngineHost(make_small_stylizer, {"n": 150}, events, multiprocessing.Semaphore(2), None)
+    host = EngineHost(make_small_stylizer, {"n": 150}, events, multiprocessing.Semaphore(2), None)
     host.build()
     for _ in range(4):
         host.step()
@@ -422,7 +423,8 @@ def test_decisions_section_draws_every_line_when_open_and_none_when_closed(monke
     from imgui_bundle import imgui
     from imgui_driver import install
 
-    from app.panels import PanelState, _decisions_section, decision_lines
+    from app.panels import PanelState, decision_lines
+    from app.panels.run_sections import decisions_section
     from app.window import DisplayUnavailableError, open_window
 
     try:
@@ -437,7 +439,7 @@ def test_decisions_section_draws_every_line_when_open_and_none_when_closed(monke
             win.begin_frame()
             imgui.begin("test")
             imgui.set_next_item_open(is_open)
-            _decisions_section(state)
+            decisions_section(state)
             imgui.end()
             win.end_frame(swap=False)
             drawn[is_open] = list(recorder.texts)

@@ -41,13 +41,14 @@ def assert_vgg_is(vgg, state: dict[str, torch.Tensor]) -> None:
 
 # ====================================================================== --vgg-weights
 def test_cli_vgg_weights_are_the_ones_loaded(tiny_scene, fake_vgg_file):
-    from gstyle_core.pipeline.cli import add_stylize_arguments, build_stylizer
+    from gstyle_core.pipeline.build import build_stylizer
+    from gstyle_core.pipeline.cli import add_stylize_arguments, build_request
 
     path, state = fake_vgg_file
     parser = argparse.ArgumentParser()
     add_stylize_arguments(parser)
     args = parser.parse_args([tiny_scene, "--vgg-weights", path, "--lambda-clip", "0", "--working-width", "32"])
-    engine, *_ = build_stylizer(args)
+    engine, *_ = build_stylizer(build_request(args))
     assert engine.settings.to_dict()["vgg_weights"] == path  # recorded in the summary's settings
     assert_vgg_is(engine.build_objective().vgg, state)
     assert engine.decisions["vgg"] == f"VGG-16 weights from {path}"

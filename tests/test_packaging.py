@@ -25,7 +25,7 @@ def test_wheel_carries_shaders_and_demo_assets(tmp_path):
     assert "gstyle_core/bundled/styles/starry_night.jpg" in names
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
-    probe = ("import app.shader_loader as s, gstyle_core.render_cli as r\n"
+    probe = ("import app.shader_loader as s, gstyle_core.assets as r\n"
              "from gstyle_core.io import load_scene\n"
              "assert s.SHADER_DIR.parent.parent.resolve() == site, s.SHADER_DIR\n"
              "assert 'transform feedback' in s.shader_source('splat_project.vert')\n"

@@ -65,14 +65,9 @@ def test_resume_refuses_corrupt_missing_and_mismatched_checkpoints(inputs, tmp_p
     assert "no checkpoint to resume" in err and "\n" not in err
 
     # a checkpoint made for the same inputs (the CLI's own engine builder), then each input changed in turn
-    from argparse import Namespace
+    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
 
-    from gstyle_core.pipeline.cli import build_stylizer
-
-    ns = Namespace(scene=str(scene), style=str(style), cameras=None, preset="preview", scene_kind="auto",
-                   lambda_clip=None, lambda_nnfm=None, lambda_content=None, lambda_tv=None, split_rate=None,
-                   working_width=48, clip_weights=None, max_gaussians=None)
-    engine = build_stylizer(ns)[0]
+    engine = build_stylizer(BuildRequest(scene=str(scene), style=str(style), overrides={"working_width": 48})).engine
     for _ in range(3):
         engine.step()
     path = stylize_checkpoint_path(out)

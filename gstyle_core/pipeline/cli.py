@@ -5,14 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
 
 from ..errors import GStyleError
+from .arg_types import region_arg, style_scale_arg, style_weights_arg
+from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, style_paths
 
 
 def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
@@ -20,7 +20,7 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", nargs="?", default=None, help="scene file (.ply/.splat/.spz); default: the bundled demo")
     p.add_argument("--style", action="append", default=None, metavar="IMAGE",
                    help="style image (default: the bundled painting); give it twice or more to mix paintings")
-    p.add_argument("--style-weights", type=_style_weights_arg, default=None, metavar="W1,W2",
+    p.add_argument("--style-weights", type=style_weights_arg, default=None, metavar="W1,W2",
                    help="weights of the --style images, e.g. 0.7,0.3 (normalised to sum 1; default: equal)")
     p.add_argument("--cameras", help="cameras.json, COLMAP or LLFF folder, .npz (default: generated around the scene)")
     p.add_argument("--preset", choices=["preview", "balanced", "final"], default="preview")
@@ -32,12 +32,12 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
         p.add_argument(f"--lambda-{term}", type=float, default=None, help=f"weight of the {help_text}")
     p.add_argument("--strength", type=float, default=None,
                    help="style strength: scales the style terms (CLIP, NNFM) against content; default 1")
-    p.add_argument("--style-scale", type=_style_scale_arg, default=None, metavar="S",
+    p.add_argument("--style-scale", type=style_scale_arg, default=None, metavar="S",
                    help="stroke size: the painting is matched at S × the working width (2: at twice that size, "
                         "0.5: half; subtle at the preview's 256 px, README); default 1")
     p.add_argument("--keep-colours", action="store_true", default=None,
                    help="keep the scene's hues and take only the painting's luminance pattern")
-    p.add_argument("--region", type=_region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
+    p.add_argument("--region", type=region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
                    help="stylize only the Gaussians centred in this axis-aligned box (scene coordinates); the others "
                         "are exported untouched, SH included (write --region=-1,... when x0 is negative)")
     p.add_argument("--split-rate", type=float, default=None, help="fraction of Gaussians split by colour gradient")
@@ -55,53 +55,11 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
                    help="checkpoint interval (also at every phase end; 0: phase ends only); default 120")
 
 
-def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
-    """An argparse ``type`` from a parser that raises ``ValueError`` saying why: argparse then reports the reason in
-    one line (and exits with status 2) instead of a traceback."""
-    def checked(text: str) -> Any:
-        try:
-            return parse(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-
-    return checked
-
-
-def _style_scale(text: str) -> float:
-    """``--style-scale``: a finite number above 0."""
-    from .settings import check_style_scale
-
-    return check_style_scale(float(text))
-
-
-def _style_weights(text: str) -> tuple[float, ...]:
-    """``--style-weights``: numbers separated by commas, each finite and >= 0, not all 0."""
-    from ..style.mix import normalise_style_weights, parse_style_weights
-
-    values = parse_style_weights(text)
-    normalise_style_weights(values, len(values))
-    return tuple(values)
-
-
-def _region(text: str) -> tuple[float, ...]:
-    """``--region``: six comma-separated finite numbers, low corner first."""
-    from .region import parse_region
-
-    return parse_region(text)
-
-
-_style_scale_arg = argument_type(_style_scale)
-_style_weights_arg = argument_type(_style_weights)
-_region_arg = argument_type(_region)
-
-
-def style_paths(style: str | list[str] | tuple[str, ...] | None) -> list[str]:
-    """The style image paths of ``--style`` (one path, several, or None: the bundled painting)."""
-    from ..render_cli import DEFAULT_STYLE
-
-    if not style:
-        return [str(DEFAULT_STYLE)]
-    return [str(style)] if isinstance(style, (str, Path)) else [str(s) for s in style]
+def build_request(args: argparse.Namespace) -> BuildRequest:
+    """The engine ``gstyle stylize``'s arguments ask for."""
+    return BuildRequest(scene=args.scene, style=args.style, cameras=args.cameras, preset=args.preset,
+                        scene_kind=args.scene_kind, defaults=getattr(args, "defaults", None),
+                        overrides={name: getattr(args, name, None) for name in SETTING_OPTIONS})
 
 
 def region_summary(engine) -> dict | None:
@@ -114,71 +72,20 @@ def region_summary(engine) -> dict | None:
             "selected_after_splits": int(now.sum()) if now is not None else None}
 
 
-def build_stylizer(args: argparse.Namespace, **setting_overrides):
-    """Load scene, cameras, photos and style, resolve settings and build the engine (shared with the app worker
-    and bench/tradeoff.py, which passes further ``StylizeSettings`` fields as ``setting_overrides``). Returns
-    (engine, scene, load report, cameras, style): the painting, or the list of paintings of a mix."""
-    from ..cameras import classify_scene_kind
-    from ..images import load_style_image
-    from ..render_cli import load_scene_and_cameras
-    from ..style.mix import normalise_style_weights
-    from .settings import resolve_settings
-    from .stylizer import Stylizer
-
-    paths = style_paths(args.style)
-    weights = getattr(args, "style_weights", None)
-    try:  # before anything loads: a wrong count of weights is the caller's mistake
-        normalise_style_weights(weights, len(paths))
-    except ValueError as exc:
-        raise GStyleError(f"--style/--style-weights: {exc}") from None
-    scene, report, cams = load_scene_and_cameras(args.scene, args.cameras)
-    styles = [load_style_image(path) for path in paths]
-    kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams)
-    overrides = dict(
-        lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
-        lambda_tv=args.lambda_tv, strength=getattr(args, "strength", None), split_rate=args.split_rate,
-        style_scale=getattr(args, "style_scale", None), keep_colours=getattr(args, "keep_colours", None),
-        working_width=args.working_width,
-        clip_weights=args.clip_weights, vgg_weights=getattr(args, "vgg_weights", None),
-        max_gaussians=getattr(args, "max_gaussians", None), style_weights=weights,
-        region=getattr(args, "region", None),
-    )
-    overrides.update(setting_overrides)
-    defaults = overrides.pop("defaults", None) or getattr(args, "defaults", None)
-    settings = resolve_settings(args.preset, kind, len(cams.cameras), defaults=defaults, **overrides)
-    photos = None
-    if cams.has_images:
-        photos = cams.load_images(max_width=max(settings.working_width * 2, 256))
-    engine = Stylizer(scene, cams.cameras, styles[0] if len(styles) == 1 else styles, settings, photos=photos,
-                      selection=getattr(args, "selection", None))  # the studio's rectangle selection
-    return engine, scene, report, cams, engine.style_input()
-
-
 def stylize_command(args: argparse.Namespace) -> int:
     """Run ``gstyle stylize``."""
-    from ..atomic import atomic_write_text, refuse_overwrite
-    from ..io import save_scene
-    from ..render_cli import save_png
     from .checkpoint import RunCheckpointer, deferred_interrupts, engine_fingerprint, stylize_checkpoint_path
 
-    out = Path(args.out)
-    if out.suffix.lower() != ".ply":
-        raise GStyleError(f"--out must end in .ply, got {out}")
-    refuse_overwrite(out, args.force, inputs=[args.scene] if args.scene else [])
-    if getattr(args, "max_gaussians", None) is not None and args.max_gaussians < 1:
-        raise GStyleError(f"--max-gaussians must be at least 1, got {args.max_gaussians}")
-    every = getattr(args, "checkpoint_every", 120.0)
-    if not every >= 0:
-        raise GStyleError(f"--checkpoint-every must be 0 or more seconds, got {every}")
+    out, every = _checked_output(args)
     ckpt_path = stylize_checkpoint_path(out)
     saved = _read_resume_checkpoint(ckpt_path) if getattr(args, "resume", False) else None
     if args.threads:
         torch.set_num_threads(args.threads)
     t0 = time.perf_counter()
-    engine, scene, report, cams, style = build_stylizer(args)
-    s = engine.settings
-    print(f"stylize: {scene.count} Gaussians, {len(engine.cameras)} views ({cams.source}), scene kind {s.scene_kind}, "
-          f"preset {s.preset} ({s.working_width} px wide)")
+    built = build_stylizer(build_request(args))
+    engine, s = built.engine, built.engine.settings
+    print(f"stylize: {built.scene.count} Gaussians, {len(engine.cameras)} views ({built.cameras.source}), scene kind "
+          f"{s.scene_kind}, preset {s.preset} ({s.working_width} px wide)")
     print(f"CLIP term: {engine.clip_name} ({engine.decisions['clip']})")
     fingerprint = engine_fingerprint(engine)
     resumed = _resume(engine, ckpt_path, saved, fingerprint) if saved else None
@@ -194,7 +101,44 @@ def stylize_command(args: argparse.Namespace) -> int:
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
-    quality = evaluate_run(engine, scene, style)
+    quality = evaluate_run(engine, built.scene, built.style)
+    run = {"resumed": resumed, "checkpoints_written": checkpointer.saved}
+    summary = _write_outputs(args, out, built, stylized, quality, t0, run)
+    checkpointer.remove()
+    q, stem = quality, out.with_suffix("")
+    print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
+          f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
+    print(f"structure kept (edge correlation before/after over the scene): {q['structure']:.2f}")
+    print(f"wrote {out}, {stem}.json, {stem}_before.png, {stem}_after.png ({summary['seconds_total']:.0f} s)")
+    return 0
+
+
+def _checked_output(args: argparse.Namespace) -> tuple[Path, float]:
+    """``--out`` (a .ply it may write) and ``--checkpoint-every``, checked before anything loads."""
+    from ..atomic import refuse_overwrite
+
+    out = Path(args.out)
+    if out.suffix.lower() != ".ply":
+        raise GStyleError(f"--out must end in .ply, got {out}")
+    refuse_overwrite(out, args.force, inputs=[args.scene] if args.scene else [])
+    if getattr(args, "max_gaussians", None) is not None and args.max_gaussians < 1:
+        raise GStyleError(f"--max-gaussians must be at least 1, got {args.max_gaussians}")
+    every = getattr(args, "checkpoint_every", 120.0)
+    if not every >= 0:
+        raise GStyleError(f"--checkpoint-every must be 0 or more seconds, got {every}")
+    return out, every
+
+
+def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, stylized, quality: dict, t0: float,
+                   run: dict) -> dict:
+    """OUT_before.png and OUT_after.png (``quality``'s images, popped), OUT.json (the summary, returned) and, last,
+    OUT.ply: an existing OUT.ply means the run is complete."""
+    from ..atomic import atomic_write_text
+    from ..io import save_scene
+    from ..render_cli import save_png
+
+    engine, scene, cams = built.engine, built.scene, built.cameras
+    s = engine.settings
     before, after = quality.pop("images")
     stem = out.with_suffix("")
     save_png(f"{stem}_before.png", before)
@@ -209,18 +153,11 @@ def stylize_command(args: argparse.Namespace) -> int:
         "seconds_per_phase": {k: round(v, 2) for k, v in engine.timings.items()},
         "seconds_total": round(time.perf_counter() - t0, 1),
         "gaussians_before": scene.count, "gaussians_after": stylized.count, "quality": quality,
-        "region": region_summary(engine),
-        "resumed": resumed, "checkpoints_written": checkpointer.saved,
+        "region": region_summary(engine), **run,
     }
     atomic_write_text(stem.with_suffix(".json"), json.dumps(summary, indent=2, default=_json_default))
-    save_scene(stylized, out)  # last: an existing OUT.ply means the run is complete
-    checkpointer.remove()
-    q = quality
-    print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
-          f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
-    print(f"structure kept (edge correlation before/after over the scene): {q['structure']:.2f}")
-    print(f"wrote {out}, {stem}.json, {stem}_before.png, {stem}_after.png ({summary['seconds_total']:.0f} s)")
-    return 0
+    save_scene(stylized, out)
+    return summary
 
 
 def _run_with_progress(engine, checkpointer, stop: dict) -> None:

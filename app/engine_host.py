@@ -1,0 +1,263 @@
+"""The engine worker's side: a spawned process (or, in thread mode, a thread of the UI process) that owns the
+engine, executes the UI's commands and sends reports and snapshots back (``app/worker.py`` is the UI's side).
+
+The engine protocol (``gstyle_core.pipeline.Stylizer`` implements it): ``engine = factory(**config)`` built in the
+worker, ``engine.step()`` -> report (.phase .step .total_steps .losses .seconds .gaussians .colours_changed
+.geometry_changed .done), ``engine.set_params(**kw)``, ``engine.snapshot()`` -> dict of numpy arrays,
+``engine.state_dict()`` / ``load_state_dict``.
+
+Snapshots carry colours after every step and the geometry only when ``geometry_version`` changed. A credit
+semaphore bounds the snapshots in flight, so a fast engine never floods a slow UI: when no credit is free the
+snapshot is sent later (the newest one). Errors are sent as one line of text and the worker stays alive so
+``restart`` can rebuild the engine.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import multiprocessing as mp
+import queue
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from .child_process import lower_priority, one_line_error, single_compute_thread, worker_nice
+from .export import export_engine
+from .snapshot import FOLLOW_GEOMETRY
+
+IDLE_POLL_SECONDS = 0.05
+REPORT_FIELDS = ("phase", "step", "total_steps", "losses", "seconds", "gaussians", "colours_changed",
+                 "geometry_changed", "done", "message")
+PAINTING_PARAMS = ("style_mix",)  # engine params that belong to the config's paintings, not carried to a new one
+
+
+def report_to_dict(report: Any) -> dict[str, Any]:
+    """Plain dict of a step report (dataclass or any object with the protocol's attributes)."""
+    if dataclasses.is_dataclass(report):
+        out = dataclasses.asdict(report)
+    else:
+        out = {k: getattr(report, k) for k in REPORT_FIELDS if hasattr(report, k)}
+    out["losses"] = {str(k): float(v) for k, v in dict(out.get("losses") or {}).items()}
+    return out
+
+
+class EngineHost:
+    """Lives in the child: owns the engine, executes commands, sends reports and snapshots."""
+
+    def __init__(self, factory: Callable[..., Any], config: dict[str, Any], events: Any, credits: Any,
+                 checkpoint_path: str | None) -> None:
+        self.factory, self.config, self.events, self.credits = factory, config, events, credits
+        self.checkpoint_path = checkpoint_path
+        self.fingerprint: dict[str, str] = {}  # what the engine was built from (checked before resuming)
+        self.engine: Any = None
+        self.paused = False
+        self.done = False
+        self.failed = False
+        self.sent_geometry_version: Any = object()
+        self.snapshot_pending = False
+        self.last_report: dict[str, Any] | None = None
+        self.params: dict[str, float] = {}
+        self.sent_decisions: dict[str, Any] | None = None
+        self.in_thread = False  # a worker thread of the UI process (ThreadWorkerBridge), not a spawned process
+
+    def send(self, kind: str, payload: Any = None) -> None:
+        self.events.put((kind, payload))
+
+    def fail(self, exc: BaseException, during: str) -> None:
+        traceback.print_exc()
+        self.failed = True
+        self.paused = True
+        self.snapshot_pending = False  # never ship the state of a failed step: the UI keeps the last good one
+        self.send("error", f"{during}: {one_line_error(exc)}")
+
+    def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
+        if config is not None:
+            self.config = config
+            for key in PAINTING_PARAMS:  # a new config's paintings come with their own mix (its style_weights)
+                self.params.pop(key, None)
+        self.engine, self.done, self.failed = None, False, False
+        self.sent_geometry_version = object()
+        self.sent_decisions = None
+        try:
+            self.engine = self.factory(**self.config)
+            single_compute_thread(self.in_thread)
+            if self.params:
+                self.engine.set_params(**self.params)
+            current = getattr(self.engine, "current_params", None)
+            if current is not None:  # the resolved settings (e.g. λ_NNFM 10 for a 360° scene) reach the sliders
+                self.params.update(current())
+            from gstyle_core.pipeline.checkpoint import engine_fingerprint
+
+            self.fingerprint = engine_fingerprint(self.engine)
+        except Exception as exc:  # noqa: BLE001 - any engine error is reported, never fatal
+            self.fail(exc, "building the engine")
+            return
+        self.send("ready", {"paused": self.paused})
+        if resume_from:
+            self.load_checkpoint(resume_from)
+        if self.params:
+            self.send("params", dict(self.params))
+        self.send_decisions()
+        self.snapshot_pending = True
+        self.flush_snapshot()
+
+    def step(self) -> None:
+        try:
+            report = report_to_dict(self.engine.step())
+        except Exception as exc:  # noqa: BLE001
+            self.fail(exc, "step")
+            return
+        self.last_report = report
+        self.done = bool(report.get("done"))
+        self.send("report", report)
+        self.send_decisions()
+        self.snapshot_pending = True
+        self.flush_snapshot()
+
+    def send_decisions(self) -> None:
+        """Forward the engine's ``decisions`` dict (if it has one) whenever it changed."""
+        decisions = getattr(self.engine, "decisions", None)
+        if isinstance(decisions, dict) and decisions != self.sent_decisions:
+            self.sent_decisions = copy.deepcopy(decisions)
+            self.send("decisions", copy.deepcopy(decisions))
+
+    def flush_snapshot(self, force: bool = False) -> None:
+        """Send the engine's current snapshot if one is owed and a credit is free (``force``: even without)."""
+        if not self.snapshot_pending or self.engine is None:
+            return
+        credit = bool(self.credits.acquire(False))  # positional: mp and threading semaphores both take it
+        if not credit and not force:
+            return
+        try:
+            snap = dict(self.engine.snapshot())
+        except Exception as exc:  # noqa: BLE001
+            if credit:
+                self.credits.release()
+            self.fail(exc, "snapshot")
+            return
+        if snap.get("geometry_version") == self.sent_geometry_version:
+            for key in FOLLOW_GEOMETRY:
+                snap.pop(key, None)
+        else:
+            self.sent_geometry_version = snap.get("geometry_version")
+        self.snapshot_pending = False
+        self.send("snapshot", (credit, snap))
+
+    def handle(self, command: str, arg: Any) -> bool:
+        """Execute one command; False means quit."""
+        if command == "pause":
+            self.paused = True
+            self.flush_snapshot(force=True)  # the last step's colours arrive before the acknowledgement
+            self.send("paused", True)
+        elif command == "resume":
+            self.paused = False
+            self.send("paused", False)
+        elif command == "step":
+            if self.engine is not None and not self.done:
+                self.step()
+        elif command in ("restart", "restart_from"):
+            self.paused = False
+            self.send("paused", False)
+            self.build(*(arg if command == "restart_from" else (arg,)))
+        elif command == "checkpoint_path":
+            self.checkpoint_path = arg
+        elif command == "set_params":
+            self.set_params(arg)
+        elif command == "export":
+            self.export(arg)
+        elif command == "quit":
+            self.checkpoint()
+            self.send("bye", None)
+            return False
+        return True
+
+    def set_params(self, params: dict[str, float]) -> None:
+        self.params.update(params)
+        if self.engine is None:
+            self.send("params", dict(self.params))
+            return
+        colours = getattr(self.engine, "colour_version", None)
+        try:
+            self.engine.set_params(**params)
+        except Exception as exc:  # noqa: BLE001
+            self.fail(exc, "set_params")
+            return
+        self.send("params", dict(self.params))
+        if getattr(self.engine, "colour_version", None) != colours:  # e.g. keep colours restored the hues at once:
+            self.snapshot_pending = True  # shown without waiting for a step (paused, or done)
+            self.flush_snapshot()
+
+    def export(self, path: str) -> None:
+        if self.engine is None:
+            self.send("error", "export: no engine is running")
+            return
+        try:
+            written = export_engine(self.engine, Path(path), self.last_report, self.params, self.config.get("style"))
+        except Exception as exc:  # noqa: BLE001
+            self.send("error", f"export: {one_line_error(exc)}")
+            return
+        self.send("exported", written)
+
+    def checkpoint(self) -> None:
+        """Save the engine's state, the fingerprint of its inputs and the slider values (cache folder)."""
+        if self.engine is None or not self.checkpoint_path:
+            return
+        try:
+            from gstyle_core.pipeline.checkpoint import save_checkpoint
+
+            meta = {"kind": "studio", "scene": self.config.get("scene"), "style": self.config.get("style"),
+                    "fingerprint": self.fingerprint, "params": dict(self.params)}
+            save_checkpoint(self.checkpoint_path, self.engine.state_dict(), meta)
+            self.send("checkpoint", str(self.checkpoint_path))
+        except Exception as exc:  # noqa: BLE001
+            self.send("error", f"checkpoint: {one_line_error(exc)}")
+
+    def load_checkpoint(self, path: str) -> None:
+        """Continue from a checkpoint made for the same inputs; otherwise say why in one line and start fresh."""
+        try:
+            from gstyle_core.pipeline.checkpoint import load_checkpoint
+
+            state, meta = load_checkpoint(path, self.fingerprint)
+            self.engine.load_state_dict(state)
+        except Exception as exc:  # noqa: BLE001 - a bad checkpoint is reported; the fresh engine carries on
+            traceback.print_exc()
+            self.send("error", f"resume: {one_line_error(exc)}; starting afresh")
+            return
+        step = getattr(self.engine, "global_step", state.get("global_step", state.get("steps")))
+        self.send("resumed", {"checkpoint": str(path), "step": step})
+        if meta.get("params"):
+            self.set_params(dict(meta["params"]))
+
+    def should_step(self) -> bool:
+        return self.engine is not None and not (self.paused or self.done or self.failed)
+
+
+def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: Any, events: Any, credits: Any,
+                checkpoint_path: str | None, start_paused: bool, resume_from: str | None = None,
+                in_thread: bool = False) -> None:
+    """Entry point of the spawned process (or, with ``in_thread``, of the UI process's worker thread: no nice,
+    which would apply to the whole process)."""
+    single_compute_thread(in_thread)
+    if not in_thread:
+        lower_priority(worker_nice())
+    host = EngineHost(factory, config, events, credits, checkpoint_path)
+    host.in_thread = in_thread
+    host.paused = start_paused
+    host.build(resume_from=resume_from)
+    parent = None if in_thread else mp.parent_process()
+    running = True
+    while running:
+        try:
+            timeout = 0 if host.should_step() else IDLE_POLL_SECONDS
+            command, arg = commands.get(timeout=timeout) if timeout else commands.get_nowait()
+            running = host.handle(command, arg)
+            continue  # drain all pending commands before the next step
+        except queue.Empty:
+            pass
+        if parent is not None and not parent.is_alive():
+            break
+        host.flush_snapshot()
+        if host.should_step():
+            host.step()

@@ -1,0 +1,12 @@
+"""ImGui control panel: reads a ``PanelState``, returns a list of ``Command``s. No GL or rendering code here.
+
+``draw.py`` lays the window out from its sections (``run_sections``, ``view``, ``sliders``, ``region``, ``output``),
+which share ``widgets``; ``params.py`` is the table of engine parameters the sliders show."""
+
+from .draw import PANEL_WIDTH, draw_panel, shortcut_commands
+from .params import PARAMS, Param
+from .run_sections import decision_lines, format_eta, loss_series
+from .state import Command, PanelState
+
+__all__ = ["PANEL_WIDTH", "PARAMS", "Command", "PanelState", "Param", "decision_lines", "draw_panel", "format_eta",
+           "loss_series", "shortcut_commands"]

@@ -1,0 +1,71 @@
+"""The control panel window: its sections in order, the overlays, and the keyboard shortcuts."""
+
+from __future__ import annotations
+
+from imgui_bundle import imgui
+
+from .output import output_section, takes_section
+from .region import region_overlay, region_section
+from .run_sections import decisions_section, files_section, progress_section
+from .sliders import params_section
+from .state import Command, PanelState
+from .view import compare_labels, help_overlay, view_section
+
+PANEL_WIDTH = 420.0  # wide enough for a λ row with the substitute's name and its reset button
+
+
+def shortcut_commands(state: PanelState) -> list[Command]:
+    """Keyboard shortcuts (ignored while a text field has focus)."""
+    io = imgui.get_io()
+    if io.want_text_input:
+        return []
+    out: list[Command] = []
+    pressed = imgui.is_key_pressed
+    if pressed(imgui.Key.space, False):
+        out.append(Command("resume" if state.paused else "pause"))
+    if pressed(imgui.Key.c, False) and not io.key_ctrl:
+        out.append(Command("view_mode", {"mode": "stylized" if state.view_mode == "compare" else "compare"}))
+    if pressed(imgui.Key.s, False) and io.key_ctrl:
+        out.append(Command("export"))
+    if pressed(imgui.Key.f12, False):
+        out.append(Command("screenshot"))
+    if pressed(imgui.Key.h, False):
+        out.append(Command("toggle_help"))
+    if pressed(imgui.Key.b, False) and not io.key_ctrl:
+        out.append(Command("region_enable", {"on": not state.region_enabled}))
+    if pressed(imgui.Key.r, False) and not io.key_ctrl:
+        out.append(Command("reset_camera"))
+    if pressed(imgui.Key.t, False) and state.take_names:  # compare with the next take (newest first)
+        following = state.take_shown + 1 if state.compare_with_take else 0
+        out.append(Command("show_take", {"index": following % len(state.take_names), "compare": True}))
+    for digit in range(1, 10):
+        if pressed(getattr(imgui.Key, f"_{digit}"), False) and digit <= state.camera_count:
+            out.append(Command("snap_camera", {"index": digit - 1}))
+    return out
+
+
+def draw_panel(state: PanelState) -> list[Command]:
+    """Draw the control panel window and return the commands the user issued this frame."""
+    out = shortcut_commands(state)
+    imgui.set_next_window_pos(imgui.ImVec2(10, 10), imgui.Cond_.first_use_ever)
+    # As tall as its content (sections come and go: a second style, takes, a video's progress) but never taller
+    # than the window: beyond that it scrolls.
+    viewport = imgui.get_main_viewport()
+    imgui.set_next_window_size_constraints(imgui.ImVec2(PANEL_WIDTH, 0),
+                                           imgui.ImVec2(PANEL_WIDTH, max(100.0, viewport.size.y - 20)))
+    imgui.begin("G-Style Studio", None, imgui.WindowFlags_.always_auto_resize)
+    files_section(state, out)
+    progress_section(state, out)
+    decisions_section(state)
+    view_section(state, out)
+    params_section(state, out)
+    region_section(state, out)
+    output_section(state, out)
+    takes_section(state, out)
+    imgui.end()
+    if state.view_mode == "compare":
+        compare_labels(state)
+    region_overlay(state)
+    if state.show_help:
+        help_overlay()
+    return out

@@ -1,0 +1,75 @@
+"""The panel's parameter sliders (one row per ``PARAMS`` entry: on/off for a loss term, log slider, reset), the
+keep-colours checkbox and "Reset all"."""
+
+from __future__ import annotations
+
+from imgui_bundle import imgui
+
+from .params import COARSE_CLIP_TOOLTIP, KEEP_COLOURS_TOOLTIP, PARAMS, Param
+from .state import Command, PanelState
+from .widgets import button, log_slider, tooltip
+
+
+def default_value(state: PanelState, p: Param) -> float:
+    """What "reset" restores: the value of the preset the scene resolved to (else the parameter's own default)."""
+    return float(state.defaults.get(p.key, p.default))
+
+
+def param_label(state: PanelState, p: Param) -> str:
+    """The slider's label (the CLIP term by what it is)."""
+    return f"lambda {state.clip_name}" if p.key == "lambda_clip" else p.label
+
+
+def param_tooltip(state: PanelState, p: Param) -> str:
+    """The slider's tooltip (the coarse substitute's own when there are no CLIP weights)."""
+    return COARSE_CLIP_TOOLTIP if p.key == "lambda_clip" and state.clip_name != "CLIP" else p.tooltip
+
+
+def switch_command(state: PanelState, p: Param, on: bool) -> Command:
+    """Turn a term off (weight 0, remembering its λ) or on again (the remembered λ, else the preset's)."""
+    if not on:
+        state.switched_off[p.key] = float(state.params.get(p.key, default_value(state, p)))
+        return Command("set_params", {p.key: 0.0})
+    value = state.switched_off.pop(p.key, 0.0) or default_value(state, p) or p.default
+    return Command("set_params", {p.key: float(value)})
+
+
+def params_section(state: PanelState, out: list[Command]) -> None:
+    """One slider row per parameter, the keep-colours checkbox and "Reset all"."""
+    imgui.separator()
+    for p in PARAMS:
+        imgui.push_id(p.key)
+        param_row(state, p, out)
+        imgui.pop_id()
+    keep = bool(state.params.get("keep_colours", 0.0))
+    changed, keep = imgui.checkbox("keep colours", keep)
+    tooltip(KEEP_COLOURS_TOOLTIP)
+    if changed:
+        out.append(Command("set_params", {"keep_colours": float(keep)}))
+    if button("Reset all", "Every parameter back to the preset's value for this scene (keep colours too)."):
+        values = {p.key: default_value(state, p) for p in PARAMS}
+        values["keep_colours"] = float(state.defaults.get("keep_colours", 0.0))
+        out.append(Command("set_params", values))
+
+
+def param_row(state: PanelState, p: Param, out: list[Command]) -> None:
+    """[on/off] slider [reset] of one parameter."""
+    value = float(state.params.get(p.key, p.default))
+    off = p.is_term and value <= 0
+    if p.is_term:
+        changed, on = imgui.checkbox("##on", not off)
+        tooltip(f"Turn the {param_label(state, p)[len('lambda '):]} term on or off (off: weight 0, never computed).")
+        if changed:
+            out.append(switch_command(state, p, on))
+        imgui.same_line()
+    imgui.begin_disabled(off)
+    imgui.set_next_item_width(96)  # room for the longest label, its reset button and the panel's scrollbar
+    shown = state.switched_off.get(p.key, default_value(state, p)) if off else value
+    changed, new = log_slider(param_label(state, p), shown, p.low, p.high)
+    tooltip(param_tooltip(state, p))
+    if changed and not off:
+        out.append(Command("set_params", {p.key: float(new)}))
+    imgui.end_disabled()
+    imgui.same_line()
+    if button("reset", f"Back to the preset's value ({default_value(state, p):.3g}).", small=True):
+        out.append(Command("set_params", {p.key: default_value(state, p)}))

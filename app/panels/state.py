@@ -1,0 +1,76 @@
+"""What the panel shows (``PanelState``, filled by the app each frame) and what it asks for (``Command``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from .params import PARAMS
+
+VIEW_MODES = ("stylized", "original", "compare", "ground truth", "take")
+TURNTABLE_FORMATS = ("mp4", "gif", "png frames")
+MAX_TURNTABLE_FRAMES = 3600
+
+
+@dataclass
+class Command:
+    """Something the user asked for; the app (not the panel) carries it out."""
+
+    name: str
+    args: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class PanelState:
+    """Everything the panel displays; the app fills it each frame."""
+
+    scene_path: str = ""
+    style_path: str = ""
+    style_texture: int | None = None  # GL texture id of the style thumbnail
+    style_size: tuple[int, int] = (1, 1)
+    style2_path: str = ""  # a second painting mixed in (empty: one painting)
+    style2_texture: int | None = None
+    style2_size: tuple[int, int] = (1, 1)
+    phase: str = "-"
+    step: int = 0
+    total_steps: int = 0
+    eta_seconds: float | None = None
+    gaussians: int = 0
+    fps: float = 0.0
+    paused: bool = False
+    running: bool = False
+    error: str | None = None
+    status: str = ""
+    loss_history: list[dict[str, float]] = field(default_factory=list)
+    params: dict[str, float] = field(default_factory=lambda: {p.key: p.default for p in PARAMS})
+    view_mode: str = "stylized"
+    has_ground_truth: bool = False
+    camera_count: int = 0
+    fov_deg: float = 50.0
+    show_help: bool = False
+    resume_available: bool = False  # a saved session of this scene + style exists (cache folder)
+    decisions: dict[str, Any] = field(default_factory=dict)  # the engine's, as forwarded by the worker
+    defaults: dict[str, float] = field(default_factory=dict)  # "reset" values: the preset the scene resolved to
+    switched_off: dict[str, float] = field(default_factory=dict)  # λ of terms turned off, restored when turned on
+    clip_name: str = "CLIP"  # what the CLIP term is: "CLIP" or "coarse (CLIP substitute)" without CLIP weights
+    camera_names: list[str] = field(default_factory=list)
+    camera_index: int = -1  # the scene camera last snapped to (-1: none)
+    viewer_notes: list[str] = field(default_factory=list)  # what the viewer skips (SH, sorts, uploads)
+    turntable_frames: int = 60
+    turntable_format: str = "mp4"  # one of TURNTABLE_FORMATS
+    video_running: bool = False  # a turntable video is being rendered in the background
+    video_fraction: float = 0.0
+    video_label: str = ""
+    take_names: list[str] = field(default_factory=list)  # the last exports kept as takes, newest first
+    take_labels: list[str] = field(default_factory=list)
+    take_shown: int = -1  # the take loaded in the take view (-1: none)
+    compare_with_take: bool = False  # the compare view's right side is that take (else the original)
+    divider: float = 0.5  # the compare view's split, fraction of the width
+    region_enabled: bool = False  # the selection tool is on: its selection is highlighted and used at (re)start
+    region_mode: str = "box"  # "box" (the 3D box below) or "rectangle" (the last Shift + drag in the view)
+    region_box: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # x0,y0,z0,x1,y1,z1 in scene coordinates
+    region_selected: int = 0  # Gaussians of the input scene in the selection
+    region_total: int = 0
+    region_in_engine: str = ""  # what the running engine was started with ("" : the whole scene)
+    region_outline: list[tuple[float, float, float, float]] = field(default_factory=list)  # box edges on screen
+    region_drag: tuple[float, float, float, float] | None = None  # the rectangle being dragged (screen pixels)

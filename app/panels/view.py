@@ -1,0 +1,94 @@
+"""The panel's view section (view modes, field of view, scene cameras) and what it draws over the view: the compare
+view's labels and the help overlay."""
+
+from __future__ import annotations
+
+from imgui_bundle import imgui
+
+from .state import VIEW_MODES, Command, PanelState
+from .widgets import button, tooltip
+
+VIEW_TOOLTIPS = {
+    "stylized": "The stylized scene as the engine has it now.",
+    "original": "The input scene, with its view-dependent colour (SH) when it has any.",
+    "compare": "Stylized left, original right; drag the white divider (C toggles).",
+    "ground truth": "The colours the stylization is compared against (available once the engine sent them).",
+    "take": "The take chosen under Takes (an earlier export), alone.",
+}
+
+HELP_TEXT = """Mouse: left drag orbit, right drag pan, wheel zoom. W/A/S/D/Q/E fly.
+B region tool (Alt + drag / wheel: move / resize its box; Shift + drag: select by rectangle)
+T compare with the next take (your exports)
+Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view
+Ctrl+S export .ply   F12 screenshot   H this help"""
+
+
+def view_section(state: PanelState, out: list[Command]) -> None:
+    """View modes, field of view, reset view and the scene cameras."""
+    imgui.separator()
+    for mode in VIEW_MODES:
+        disabled = (mode == "ground truth" and not state.has_ground_truth) or (mode == "take" and state.take_shown < 0)
+        imgui.begin_disabled(disabled)
+        if imgui.radio_button(mode, state.view_mode == mode) and state.view_mode != mode and not disabled:
+            out.append(Command("view_mode", {"mode": mode}))
+        tooltip(VIEW_TOOLTIPS[mode])
+        imgui.end_disabled()
+        if mode not in (VIEW_MODES[-1], "compare"):  # two rows: the panel is narrower than five radio buttons
+            imgui.same_line()
+    changed, fov = imgui.slider_float("fov", state.fov_deg, 10.0, 120.0, "%.0f deg")
+    tooltip("Vertical field of view of the viewer's camera.")
+    if changed:
+        out.append(Command("fov", {"degrees": fov}))
+    if button("Reset view", "Back to the first scene camera's view (R)."):
+        out.append(Command("reset_camera"))
+    camera_list(state, out)
+
+
+def camera_label(index: int, names: list[str]) -> str:
+    """``"3: name"`` (1-based, as the number keys count) for a scene camera."""
+    name = names[index] if 0 <= index < len(names) else ""
+    return f"{index + 1}: {name}" if name else f"{index + 1}"
+
+
+def camera_list(state: PanelState, out: list[Command]) -> None:
+    """A combo of every scene camera (the number keys reach only the first nine)."""
+    names = state.camera_names or [""] * state.camera_count
+    if not names:
+        return
+    imgui.same_line()
+    imgui.set_next_item_width(150)
+    current = camera_label(state.camera_index, names) if 0 <= state.camera_index < len(names) else "scene cameras"
+    if not imgui.begin_combo("##cameras", current, imgui.ComboFlags_.height_large):
+        tooltip(f"Jump to one of the scene's {len(names)} cameras (keys 1-9: the first nine).")
+        return
+    for i in range(len(names)):
+        if imgui.selectable(camera_label(i, names), i == state.camera_index)[0]:
+            out.append(Command("snap_camera", {"index": i}))
+    imgui.end_combo()
+
+
+def compare_labels(state: PanelState) -> None:
+    """Names of the two sides of the compare view, at the top beside the divider."""
+    viewport = imgui.get_main_viewport()
+    x = viewport.pos.x + viewport.size.x * min(max(state.divider, 0.0), 1.0)
+    right = (state.take_names[state.take_shown] if state.compare_with_take and 0 <= state.take_shown
+             < len(state.take_names) else "original")
+    draw = imgui.get_foreground_draw_list()
+    colour = imgui.get_color_u32(imgui.ImVec4(1.0, 1.0, 1.0, 0.9))
+    left = "now"
+    y = viewport.pos.y + viewport.size.y - 28
+    draw.add_text(imgui.ImVec2(x - 10 - imgui.calc_text_size(left).x, y), colour, left)
+    draw.add_text(imgui.ImVec2(x + 10, y), colour, right)
+
+
+def help_overlay() -> None:
+    """The keys and mouse actions, centred over the view."""
+    viewport = imgui.get_main_viewport()
+    imgui.set_next_window_pos(imgui.ImVec2(viewport.size.x * 0.5, viewport.size.y * 0.5), imgui.Cond_.always,
+                              imgui.ImVec2(0.5, 0.5))
+    imgui.set_next_window_bg_alpha(0.85)
+    flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.always_auto_resize
+             | imgui.WindowFlags_.no_inputs)
+    imgui.begin("help", None, flags)
+    imgui.text(HELP_TEXT)
+    imgui.end()

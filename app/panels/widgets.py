@@ -1,0 +1,42 @@
+"""Small ImGui helpers the panel's sections share: tooltips, buttons, a log-scale slider, a thumbnail."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from imgui_bundle import imgui
+
+
+def log_slider(label: str, value: float, low: float, high: float) -> tuple[bool, float]:
+    """A float slider on a logarithmic scale (ImGui's logarithmic flag)."""
+    return imgui.slider_float(label, float(value), low, high, "%.3g", imgui.SliderFlags_.logarithmic)
+
+
+def tooltip(text: str) -> None:
+    """Tooltip of the last item, shown on hover even when the item is disabled."""
+    if imgui.is_item_hovered(imgui.HoveredFlags_.for_tooltip | imgui.HoveredFlags_.allow_when_disabled):
+        imgui.set_tooltip(text)
+
+
+def button(label: str, tip: str, small: bool = False) -> bool:
+    """A button with its tooltip; True when clicked."""
+    clicked = imgui.small_button(label) if small else imgui.button(label)
+    tooltip(tip)
+    return clicked
+
+
+def button_row(out: list, *buttons: tuple[str, str, Any]) -> None:
+    """Buttons side by side, each (label, tooltip, command): a clicked one's command is appended to ``out``."""
+    for i, (label, tip, command) in enumerate(buttons):
+        if i:
+            imgui.same_line()
+        if button(label, tip):
+            out.append(command)
+
+
+def thumbnail(texture: int | None, size: tuple[int, int], side: float = 120.0) -> None:
+    """A GL texture drawn with its longer side ``side`` pixels long (nothing when None)."""
+    if texture is not None:
+        w, h = size
+        scale = side / max(w, h, 1)
+        imgui.image(imgui.ImTextureRef(texture), imgui.ImVec2(w * scale, h * scale))

@@ -1,0 +1,172 @@
+"""The studio's panel commands, and the outputs it starts: exports (written by the engine worker) and turntable
+videos (a background job). ``StudioCommands`` is a mixin of ``StudioApp``."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from gstyle_core.errors import GStyleError
+from gstyle_core.scene import GaussianScene
+
+from .panels import Command
+from .snapshot import has_scene, scene_from_snapshot
+from .video_job import VideoJob, turntable_path
+
+EXPORT_SUFFIXES = {"ply": ".ply", "spz": ".spz", "compressed-ply": ".compressed.ply"}
+TURNTABLE_WIDTH = 640
+
+
+class StudioCommands:
+    """``StudioApp``'s command execution (``execute``), exports and turntable videos."""
+
+    def execute(self, cmd: Command) -> None:
+        """Carry out one panel command."""
+        for group in (self._engine_command, self._view_command, self._output_command, self._take_command):
+            if group(cmd.name, cmd.args):
+                return
+        if cmd.name in ("open_scene", "open_style", "open_style2"):
+            self._open_dialog(cmd.name)
+
+    def _engine_command(self, name: str, args: dict[str, Any]) -> bool:
+        """Pause, resume, step, restart, resume the session, set parameters, drop the second painting."""
+        bridge = self.bridge
+        if name in ("pause", "resume", "step"):
+            if bridge is not None:
+                {"pause": bridge.pause, "resume": bridge.resume, "step": bridge.step_once}[name]()
+        elif name == "restart":
+            self.start_engine()
+        elif name == "resume_session":
+            self.start_engine(resume=True)
+        elif name == "set_params":
+            self.panel.params.update(args)
+            if "style_mix" in args and self.panel.style2_path:  # a restarted engine keeps the mix
+                self._update_style_config()
+            if bridge is not None:
+                bridge.set_params(**args)
+        elif name == "remove_style2":
+            self.remove_second_style()
+            self.panel.status = "back to one painting"
+            if bridge is not None:
+                self.start_engine()
+        else:
+            return False
+        return True
+
+    def _view_command(self, name: str, args: dict[str, Any]) -> bool:
+        """View mode, field of view, camera, help, and the region tool."""
+        if name == "view_mode":
+            self.view_mode = args["mode"]
+        elif name == "fov":
+            self.control.set_fov(args["degrees"])
+        elif name == "reset_camera":
+            self.control.reset()
+        elif name == "snap_camera":
+            if args["index"] < len(self.cameras):
+                cam = self.cameras[args["index"]]
+                self.control.snap_to(cam)
+                self.panel.camera_index = args["index"]
+                self.panel.status = f"camera {args['index'] + 1}: {cam.name}"
+        elif name == "region_enable":
+            self.region_enabled = bool(args.get("on", True))
+            self._region_version += 1
+        elif name == "region_box":
+            self.set_region_box(args["box"])
+        elif name == "region_fit":
+            self.set_region_box(self.scene_box())
+        elif name == "toggle_help":
+            self.panel.show_help = not self.panel.show_help
+        else:
+            return False
+        return True
+
+    def _output_command(self, name: str, args: dict[str, Any]) -> bool:
+        """Screenshot, export, turntable video (start, settings, cancel)."""
+        if name == "screenshot":
+            self.screenshot_requests.append(self.output_dir / f"screenshot_{time.strftime('%Y%m%d_%H%M%S')}.png")
+        elif name == "export":
+            self.export(fmt=args.get("format", "ply"))
+        elif name == "turntable":
+            self.start_turntable(args.get("frames", self.panel.turntable_frames),
+                                 args.get("format", self.panel.turntable_format))
+        elif name == "turntable_settings":
+            self.panel.turntable_frames = int(args.get("frames", self.panel.turntable_frames))
+            self.panel.turntable_format = str(args.get("format", self.panel.turntable_format))
+        elif name == "cancel_video":
+            if self.video_job is not None:
+                self.video_job.cancel()
+        else:
+            return False
+        return True
+
+    def _take_command(self, name: str, args: dict[str, Any]) -> bool:
+        """Show, compare, rename or forget a take."""
+        if name == "show_take":
+            self.show_take(int(args["index"]), compare=bool(args.get("compare", True)))
+        elif name == "compare_original":
+            self.compare_with_original()
+        elif name == "rename_take":
+            self.takes.rename(int(args["index"]), str(args["name"]))
+        elif name == "forget_take":
+            self.forget_take(int(args["index"]))
+        else:
+            return False
+        return True
+
+    def export(self, path: str | Path | None = None, fmt: str = "ply") -> None:
+        """Export the stylized scene (``fmt`` "ply", "spz" or "compressed-ply", + .json) through the worker."""
+        if self.bridge is None or not self.bridge.alive:
+            self.panel.status = "export: no engine is running"
+            return
+        suffix = EXPORT_SUFFIXES[fmt]
+        path = Path(path) if path else self.output_dir / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}{suffix}"
+        self.bridge.export(path)
+        self.panel.status = f"exporting {path} ..."
+
+    def current_scene(self) -> GaussianScene | None:
+        """The stylized scene as the engine last sent it (diffuse colours), else the loaded scene (with its SH)."""
+        snap = self.bridge.state.snapshot if self.bridge is not None else {}
+        if has_scene(snap):
+            return scene_from_snapshot(snap)
+        return self.loaded.scene if self.loaded is not None else None
+
+    def start_turntable(self, frames: int, fmt: str = "mp4", path: str | Path | None = None) -> Path | None:
+        """Render a turntable of the current scene into the output folder in the background (``VideoJob``);
+        the panel shows its progress. Returns where it will be written (None when it cannot start)."""
+        from gstyle_core.render_video import cameras_up, turntable_cameras
+
+        scene = self.current_scene()
+        if scene is None or scene.count == 0:
+            self.panel.status = "turntable: no scene"
+            return None
+        if self.video_job is not None and self.video_job.running:
+            self.panel.status = "turntable: a video is already rendering"
+            return None
+        size = (TURNTABLE_WIDTH, TURNTABLE_WIDTH * 3 // 4)
+        if self.cameras:  # the scene cameras' aspect and the way they stand
+            first = self.cameras[0].resized_to_width(TURNTABLE_WIDTH)
+            size = (first.width, first.height)
+        up = cameras_up(self.cameras) if self.cameras else "-y"
+        try:
+            cams = turntable_cameras(scene, int(frames), *size, up=up)
+        except GStyleError as exc:
+            self.panel.status = f"turntable: {exc}"
+            return None
+        out = Path(path) if path else turntable_path(self.output_dir, fmt, time.strftime("%Y%m%d_%H%M%S"))
+        self.video_job = VideoJob(scene, cams, out, in_thread=self.worker_mode == "thread")
+        self.panel.status = f"rendering {out.name} ({len(cams)} frames) ..."
+        return out
+
+    def _poll_video(self) -> None:
+        p, job = self.panel, self.video_job
+        if job is None:
+            p.video_running = False
+            return
+        progress = job.poll()
+        p.video_running = job.running
+        p.video_fraction = progress.fraction
+        p.video_label = f"video {progress.done}/{progress.total}"
+        if not job.running:
+            p.status = progress.message
+            self.video_job = None

@@ -1,0 +1,65 @@
+"""Mouse and keyboard in the studio's view: orbit, pan, zoom, fly, the compare divider, and the region tool's box
+and rectangle. ``StudioInput`` is a mixin of ``StudioApp``."""
+
+from __future__ import annotations
+
+import numpy as np
+from imgui_bundle import imgui
+
+BOX_WHEEL_STEP = 1.1  # Alt + one wheel notch resizes the region box by this factor
+DIVIDER_GRAB_PIXELS = 6
+
+
+class StudioInput:
+    """``StudioApp``'s input handling; the drag state lives on the app (``_dragging``, ``_last_mouse``,
+    ``_rect_start``)."""
+
+    def _handle_input(self, size: tuple[int, int], dt: float) -> None:
+        io_ = imgui.get_io()
+        width, height = size
+        mouse = (io_.mouse_pos.x, io_.mouse_pos.y)
+        scale = io_.display_framebuffer_scale
+        fb_mouse = (mouse[0] * (scale.x or 1.0), mouse[1] * (scale.y or 1.0))
+        if self._dragging == "select" and not imgui.is_mouse_down(0):  # released: select what the rectangle holds
+            start, self._rect_start = self._rect_start, None
+            self.panel.region_drag = None
+            if start is not None and abs(fb_mouse[0] - start[0]) >= 2 and abs(fb_mouse[1] - start[1]) >= 2:
+                self.select_rectangle((*start, *fb_mouse), width, height)
+        if not io_.want_capture_mouse:
+            divider_x = self.divider * width
+            if imgui.is_mouse_clicked(0) and io_.key_shift and self.loaded is not None:
+                self._dragging, self._rect_start = "select", fb_mouse
+                self.region_enabled = True
+            elif imgui.is_mouse_clicked(0) and io_.key_alt and self._box_tool_on():
+                self._dragging = "box"  # Alt + drag: place the region box in the view
+            elif imgui.is_mouse_clicked(0):
+                near_divider = self.view_mode == "compare" and abs(mouse[0] - divider_x) <= DIVIDER_GRAB_PIXELS
+                self._dragging = "divider" if near_divider else "orbit"
+            elif imgui.is_mouse_clicked(1):
+                self._dragging = "pan"
+            if io_.mouse_wheel and io_.key_alt and self._box_tool_on():  # Alt + wheel: resize the box
+                self.scale_region_box(BOX_WHEEL_STEP ** io_.mouse_wheel)
+            elif io_.mouse_wheel:
+                self.control.zoom(io_.mouse_wheel)
+        if not (imgui.is_mouse_down(0) or imgui.is_mouse_down(1)):
+            self._dragging = None
+        if self._dragging and self._last_mouse is not None:
+            dx, dy = mouse[0] - self._last_mouse[0], mouse[1] - self._last_mouse[1]
+            if self._dragging == "divider":
+                self.divider = float(np.clip(mouse[0] / max(width, 1), 0.0, 1.0))
+            elif self._dragging == "orbit" and (dx or dy):
+                self.control.orbit(dx, dy)
+            elif self._dragging == "pan" and (dx or dy):
+                self.control.pan(dx, dy, height)
+            elif self._dragging == "box" and (dx or dy):
+                self.move_region_box(dx * (scale.x or 1.0), dy * (scale.y or 1.0), width, height)
+            elif self._dragging == "select" and self._rect_start is not None:
+                sx, sy = scale.x or 1.0, scale.y or 1.0
+                self.panel.region_drag = (self._rect_start[0] / sx, self._rect_start[1] / sy, *mouse)
+        self._last_mouse = mouse
+        if not io_.want_capture_keyboard and not io_.key_ctrl:
+            down = imgui.is_key_down
+            forward = float(down(imgui.Key.w)) - float(down(imgui.Key.s))
+            right = float(down(imgui.Key.d)) - float(down(imgui.Key.a))
+            up = float(down(imgui.Key.e)) - float(down(imgui.Key.q))
+            self.control.fly(forward, right, up, min(dt, 0.1))

@@ -1,0 +1,100 @@
+"""Each frame, the engine worker's news reach the renderer (new geometry and colours, uploaded only when they
+changed) and everything reaches the panel. ``StudioSync`` is a mixin of ``StudioApp``."""
+
+from __future__ import annotations
+
+from .renderer import DIFFUSE_LAYER, SH_LAYER
+
+
+class StudioSync:
+    """``StudioApp``'s per-frame updates of its renderer and panel."""
+
+    def _apply_engine_updates(self) -> None:
+        if self.bridge is None:
+            return
+        self.bridge.poll()
+        st = self.bridge.state
+        if st.snapshots_received == self._snapshots_seen or not st.snapshot:
+            return
+        self._snapshots_seen = st.snapshots_received
+        snap = st.snapshot
+        try:  # upload only what changed: geometry by its version, colours by theirs (c_gt changes with geometry)
+            new_geometry = snap.get("geometry_version") != self._geometry_version and "means" in snap
+            if new_geometry:
+                self.stylized.update_geometry(snap)
+                self._geometry_version = snap.get("geometry_version")
+            colour_key = (snap.get("colour_version"), self._geometry_version)
+            new_colours = colour_key != self._colour_key or colour_key[0] is None
+            if new_colours and "colors" in snap and len(snap["colors"]) == self.stylized.count:
+                self.stylized.update_colors(snap["colors"], DIFFUSE_LAYER)
+                self._colour_key = colour_key
+            gt_stale = new_geometry or "gt" not in self.stylized.layers or self._geometry_version is None
+            if gt_stale and "colors_gt" in snap and len(snap["colors_gt"]) == self.stylized.count:
+                self.stylized.update_colors(snap["colors_gt"], "gt")
+        except ValueError as exc:
+            self.panel.status = f"snapshot ignored: {exc}"
+
+    def _fill_panel(self) -> None:
+        p = self.panel
+        p.fps = len(self._frame_times) / max(sum(self._frame_times), 1e-6)
+        p.view_mode = self.view_mode
+        p.fov_deg = self.control.pose.fov_y_deg
+        p.has_ground_truth = "gt" in self.stylized.layers
+        p.gaussians = self.stylized.count
+        p.viewer_notes = self.viewer_notes()
+        p.resume_available = self.resume_available()
+        p.take_names = [t.name for t in self.takes.takes]
+        p.take_labels = [t.label for t in self.takes.takes]
+        shown = [i for i, t in enumerate(self.takes.takes) if t.path == self.take_shown]
+        p.take_shown = shown[0] if shown else -1
+        p.compare_with_take = self.compare_with_take and p.take_shown >= 0
+        p.divider = float(self.divider)
+        p.region_enabled = self.region_enabled
+        mask = self.region_mask()
+        p.region_mode = "rectangle" if self.region_rect_mask is not None else "box"
+        if self.region_box is not None:
+            p.region_box = tuple(self.region_box)
+        p.region_selected = int(mask.sum()) if mask is not None else 0
+        p.region_total = self.loaded.scene.count if self.loaded is not None else 0
+        p.region_in_engine = self.engine_region if self.bridge is not None else ""
+        width, height = self._view_size
+        p.region_outline = self._region_outline(width, height)
+        self._poll_video()
+        if self.bridge is None:
+            p.running, p.paused = False, False
+            return
+        st = self.bridge.state
+        p.running, p.paused, p.error = st.alive, st.paused, st.error
+        p.decisions = st.decisions
+        p.loss_history = st.loss_history[-500:]
+        if st.params:
+            p.params.update(st.params)
+        rep = st.last_report
+        if rep:
+            p.phase = "done" if st.done else str(rep.get("phase", "-"))
+            p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
+            p.eta_seconds = (st.step_seconds / max(st.reports_received, 1) * max(p.total_steps - p.step, 0)
+                             if st.reports_received and not st.done else None)
+        if st.resumed is not None and st.resumed is not self._resume_seen:
+            self._resume_seen = st.resumed
+            p.status = f"resumed the last session at step {st.resumed.get('step')}"
+        exports = (id(st.exported), len(st.exported))  # a restarted worker starts a new list
+        if st.exported and exports != self._exports_seen:  # once per export: later messages stay visible
+            new = st.exported[self._exports_seen[1]:] if exports[0] == self._exports_seen[0] else st.exported[-1:]
+            self._exports_seen = exports
+            self._shelve_exports(new)
+            p.status = f"exported {st.exported[-1]} (kept as {self.takes.takes[0].name})"
+
+    def viewer_notes(self) -> list[str]:
+        """What the viewer evaluates and skips (panel "Decisions"): view-dependent SH, sorts, uploads."""
+        renderers = (self.original, self.stylized)
+        if SH_LAYER in self.original.layers:
+            sh = (f"viewer SH: evaluated for the original scene only, when the camera position changes "
+                  f"({self.original.sh_evaluations} evaluations so far); the stylized scene is diffuse")
+        else:
+            sh = "viewer SH: none evaluated (the scene has no view-dependent SH)"
+        sorts = sum(r.sort_count for r in renderers)
+        colours = sum(r.uploads["colors"] for r in renderers)
+        geometry = sum(r.uploads["geometry"] for r in renderers)
+        return [sh, f"viewer work: {sorts} depth sorts (view changes only), {colours} colour and {geometry} "
+                    "geometry uploads (changes only)"]

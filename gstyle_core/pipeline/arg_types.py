@@ -1,0 +1,49 @@
+"""Command-line value types of the stylization options (``--style-scale``, ``--style-weights``, ``--region``), shared
+by ``gstyle stylize`` and ``gstyle-studio``: a bad value is one line from argparse (exit status 2), not a traceback.
+Nothing here imports torch."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from typing import Any
+
+
+def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """An argparse ``type`` from a parser that raises ``ValueError`` saying why: argparse then reports the reason in
+    one line (and exits with status 2) instead of a traceback."""
+    def checked(text: str) -> Any:
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    return checked
+
+
+def _style_scale(text: str) -> float:
+    """``--style-scale``: a finite number above 0."""
+    from .settings import check_style_scale
+
+    return check_style_scale(float(text))
+
+
+def _style_weights(text: str) -> tuple[float, ...]:
+    """``--style-weights``: numbers separated by commas, each finite and >= 0, not all 0."""
+    from ..style.mix import normalise_style_weights, parse_style_weights
+
+    values = parse_style_weights(text)
+    normalise_style_weights(values, len(values))
+    return tuple(values)
+
+
+def _region(text: str) -> tuple[float, ...]:
+    """``--region``: six comma-separated finite numbers, low corner first."""
+    from .region import parse_region
+
+    return parse_region(text)
+
+
+style_scale_arg = argument_type(_style_scale)
+style_weights_arg = argument_type(_style_weights)
+region_arg = argument_type(_region)
