@@ -1,4 +1,4 @@
-"""Pictures of the artist controls for the README: the same views of several scenes, one labelled row each.
+"""Pictures of the artist controls (docs/artist-controls.md): the same views of several scenes, one labelled row each.
 
     .venv/bin/python bench/control_pictures.py --scene SCENE [--cameras CAMS] --out docs/X.jpg \\
         --row "input=SCENE" --row "The Starry Night=out/mix/starry.ply" --row "mix 0.5=out/mix/mix.ply" ...

@@ -1,5 +1,5 @@
-"""The README's gallery: ``gstyle stylize`` (preview preset, defaults) per scene × painting, then a before/after
-picture at a width where strokes can be judged, and a table row of what the run measured.
+"""The gallery of docs/gallery.md: ``gstyle stylize`` (preview preset, defaults) per scene × painting, then a
+before/after picture at a width where strokes can be judged, and a table row of what the run measured.
 
     .venv/bin/python bench/gallery.py [--pairs demo:starry,fountain:wave] [--width 512] [--docs docs]
 

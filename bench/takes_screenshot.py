@@ -1,4 +1,4 @@
-"""Screenshot of the studio comparing a take with the current run (README, "Artist controls").
+"""Screenshot of the studio comparing a take with the current run (docs/artist-controls.md).
 
     .venv/bin/python bench/takes_screenshot.py [--first 0.2] [--second 0.8] [--out docs/studio_takes.png]
 

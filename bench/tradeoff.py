@@ -24,7 +24,7 @@ Quality is measured on 3 fixed evaluation views at one width (256 px) for every 
 Writes ``docs/tradeoff.csv`` and ``docs/tradeoff.png`` (NNFM drop against time per scene/style, Pareto front =
 among the points that keep the structure (≥ ``MIN_STRUCTURE``), no other point of the group is both faster and more
 stylized) and prints ``RESULT points=N pareto=M`` last. ``--replot`` redraws both from the CSV, ``--table`` prints
-the README's table from it.
+the table of docs/tradeoffs.md from it.
 ``--merge --points "width 320,bf16 VGG" --with-slow`` re-measures only those points and keeps the other rows.
 Run it on a quiet machine: the times are wall-clock seconds on this one.
 """
@@ -54,8 +54,8 @@ FERN_CAMERAS = ROOT.parent / "shared" / "data" / "scenes" / "llff_fern"  # photo
 STYLES = {"starry": ROOT / "assets" / "styles" / "starry_night.jpg",
           "mandelbrot": ROOT.parent / "shared" / "data" / "styles" / "mandelbrot_color.png"}
 # The sweep's base point: the 6-epoch preview preset it was measured with (labelled "preview" in docs/tradeoff.csv).
-# The preset itself became the "epochs 3" point once the front was known (README), so the base stays explicit here
-# and every point below changes one knob of it.
+# The preset itself became the "epochs 3" point once the front was known (docs/tradeoffs.md), so the base stays
+# explicit here and every point below changes one knob of it.
 BASE = {"epochs": 6.0, "min_steps": 60}
 FULL_SWEEP = [
     ("preview", "preview", {}),
@@ -71,7 +71,7 @@ FULL_SWEEP = [
     ("balanced", "balanced", {}),
     ("no CLIP term", "preview", {"lambda_clip": 0.0}),  # λ 0: the term (here its coarse-VGG substitute) never runs
 ]
-SLOW_POINTS = [  # --with-slow: measured once (see the README), left out of the default sweep for its time
+SLOW_POINTS = [  # --with-slow: measured once (see docs/tradeoffs.md), left out of the default sweep for its time
     ("width 320", "preview", {"working_width": 320}),
     ("bf16 VGG", "preview", {"vgg_dtype": "bfloat16"}),  # 5-13x slower VGG on this CPU (no AVX512-BF16)
     ("reference raster", "preview", {"raster_backend": "reference"}),  # pure-torch rasterizer for GT and refits
@@ -229,7 +229,7 @@ def write_outputs(rows: list[dict], out: Path) -> None:
 
 
 def markdown_rows(rows: list[dict]) -> list[str]:
-    """The README's table rows (one per point) from the CSV's rows."""
+    """The rows of the table in docs/tradeoffs.md (one per point) from the CSV's rows."""
     def num(r: dict, key: str, fmt: str) -> str:
         v = r.get(key)
         return "—" if v in (None, "") else format(float(v), fmt)
@@ -282,7 +282,7 @@ def main() -> None:
                    help="keep the rows already in the CSV that this run does not re-measure")
     p.add_argument("--points", default=None,
                    help="comma-separated point labels to run (of the sweep, with --with-slow its slow points too)")
-    p.add_argument("--table", action="store_true", help="print the CSV as the README's Markdown table and exit")
+    p.add_argument("--table", action="store_true", help="print the CSV as docs/tradeoffs.md's table and exit")
     p.add_argument("--replot", action="store_true", help="recompute the Pareto flags and the plot from the CSV")
     args = p.parse_args()
     if args.replot:

@@ -283,7 +283,7 @@ def test_raster_backend_setting_reaches_ground_truth_and_refits_with_the_same_re
 
 
 def test_forward_preview_children_keep_the_parents_footprint():
-    """The preview's short refit cannot regrow children at the reference's 1/16 scale (README, fern measured)."""
+    """The preview's short refit cannot regrow children at the reference's 1/16 scale (docs/tradeoffs.md: fern)."""
     assert resolve_settings("preview", "forward", 20).split_scale_divisor == 1.6
     assert resolve_settings("preview", "forward", 20, defaults="paper").split_scale_divisor == 1.6
     assert resolve_settings("balanced", "forward", 20).split_scale_divisor == 16.0

@@ -5,10 +5,19 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import GStyleError
+
+if TYPE_CHECKING:
+    import torch
+
+    from ..cameras import CameraSet
+    from ..scene import GaussianScene
+    from .trainer import Trainer
 
 
 def add_fit_arguments(p: argparse.ArgumentParser) -> None:
@@ -30,18 +39,46 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
 def fit_command(args: argparse.Namespace) -> int:
     """Run ``gstyle fit``."""
     import torch
-    from tqdm import tqdm
 
-    from ..atomic import atomic_write_text, refuse_overwrite
-    from ..cameras import load_cameras
+    from ..atomic import refuse_overwrite
     from ..io import save_scene
-    from .init import random_points_in_view, scene_from_points
     from .model import params_from_scene, scene_from_params
-    from .strategy import DefaultStrategy
-    from .trainer import FitConfig, Trainer, scene_scale
 
     refuse_overwrite(args.out, args.force)
     torch.manual_seed(args.seed)
+    views = _load_views(args)
+    init, source = _initial_scene(views, args)
+    train, test = views.train, views.test
+    print(f"fit: {len(train.cameras)} training views, {len(test.cameras) if test else 0} held out, "
+          f"{train.cameras[0].width}x{train.cameras[0].height}, init from {source}")
+    params = params_from_scene(init)
+    trainer, seconds = _train(params, views, args)
+    train_psnr = trainer.evaluate(train.cameras, views.train_images)
+    test_psnr = trainer.evaluate(test.cameras, views.test_images) if views.test_images else float("nan")
+    scene = scene_from_params(params)
+    save_scene(scene, args.out)
+    _write_summary(args, views, source, scene.count, seconds, train_psnr, test_psnr)
+    print(f"train PSNR {train_psnr:.2f} dB")
+    print(f"held-out PSNR {test_psnr:.2f} dB")
+    print(f"wrote {args.out} ({scene.count} Gaussians, {seconds:.0f} s)")
+    return 0
+
+
+@dataclass
+class _Views:
+    """The cameras split into training and held-out views, with their photos."""
+
+    cams: CameraSet  # all views
+    train: CameraSet
+    test: CameraSet | None  # None: nothing held out
+    train_images: list[np.ndarray]
+    test_images: list[np.ndarray]
+
+
+def _load_views(args: argparse.Namespace) -> _Views:
+    """Cameras with photos, scaled to ``--width``, every ``--holdout``-th view held out; their images loaded."""
+    from ..cameras import load_cameras
+
     cams = load_cameras(args.cameras or args.scene_dir, image_dir=args.images)
     if not cams.has_images:
         raise GStyleError(f"no images found for the cameras in {args.scene_dir}; fitting needs photos")
@@ -50,25 +87,37 @@ def fit_command(args: argparse.Namespace) -> int:
     train, test = cams.split_train_test(args.holdout) if args.holdout else (cams, None)
     train_images = train.load_images()
     test_images = test.load_images() if test is not None and test.cameras else []
+    return _Views(cams, train, test, train_images, test_images)
+
+
+def _initial_scene(views: _Views, args: argparse.Namespace) -> tuple[GaussianScene, str]:
+    """The starting Gaussians: the sparse points of the cameras, else random points in the training views; and
+    a description of which."""
+    from .init import random_points_in_view, scene_from_points
+
+    cams = views.cams
     if cams.points is not None and len(cams.points) > 0:
-        init = scene_from_points(cams.points, cams.point_colors, args.sh_degree)
-        source = f"{len(cams.points)} sparse points"
-    else:
-        near = cams.near or 0.1
-        far = cams.far or 10.0
-        pts = random_points_in_view(train.cameras, 50_000, near, far, args.seed)
-        init = scene_from_points(pts, None, args.sh_degree)
-        source = "50000 random points (no sparse points found)"
-    print(f"fit: {len(train.cameras)} training views, {len(test.cameras) if test else 0} held out, "
-          f"{train.cameras[0].width}x{train.cameras[0].height}, init from {source}")
-    params = params_from_scene(init)
+        return scene_from_points(cams.points, cams.point_colors, args.sh_degree), f"{len(cams.points)} sparse points"
+    near = cams.near or 0.1
+    far = cams.far or 10.0
+    pts = random_points_in_view(views.train.cameras, 50_000, near, far, args.seed)
+    return scene_from_points(pts, None, args.sh_degree), "50000 random points (no sparse points found)"
+
+
+def _train(params: torch.nn.ParameterDict, views: _Views, args: argparse.Namespace) -> tuple[Trainer, float]:
+    """``--iterations`` steps of 3DGS training with densification, behind a progress bar: (trainer, seconds)."""
+    from tqdm import tqdm
+
+    from .strategy import DefaultStrategy
+    from .trainer import FitConfig, Trainer, scene_scale
+
     cfg = FitConfig(iterations=args.iterations, sh_degree=args.sh_degree, backend=args.backend, seed=args.seed,
                     sh_increase_every=max(1, args.iterations // 4))
-    extent = scene_scale(train.cameras)
+    extent = scene_scale(views.train.cameras)
     strategy = DefaultStrategy(refine_start=min(500, args.iterations // 10), refine_stop=int(args.iterations * 0.7),
                                refine_every=100, reset_every=3000 if args.iterations > 4000 else 0,
                                max_gaussians=args.max_gaussians, scene_scale=extent)
-    trainer = Trainer(params, train.cameras, train_images, cfg, strategy, extent=extent)
+    trainer = Trainer(params, views.train.cameras, views.train_images, cfg, strategy, extent=extent)
     t0 = time.perf_counter()
     with tqdm(total=args.iterations, desc="fit", unit="it", dynamic_ncols=True) as bar:
         for _ in range(args.iterations):
@@ -76,19 +125,19 @@ def fit_command(args: argparse.Namespace) -> int:
             if rep.step % 10 == 0:
                 bar.set_postfix(loss=f"{rep.loss:.4f}", gaussians=rep.gaussians)
             bar.update(1)
-    seconds = time.perf_counter() - t0
-    train_psnr = trainer.evaluate(train.cameras, train_images)
-    test_psnr = trainer.evaluate(test.cameras, test_images) if test_images else float("nan")
-    scene = scene_from_params(params)
-    save_scene(scene, args.out)
+    return trainer, time.perf_counter() - t0
+
+
+def _write_summary(args: argparse.Namespace, views: _Views, source: str, count: int, seconds: float,
+                   train_psnr: float, test_psnr: float) -> None:
+    """``OUT.ply.json``: iterations, time, Gaussians, PSNRs, views, resolution and initialisation."""
+    from ..atomic import atomic_write_text
+
+    train, test = views.train, views.test
     summary = {
-        "iterations": args.iterations, "seconds": round(seconds, 1), "gaussians": scene.count,
+        "iterations": args.iterations, "seconds": round(seconds, 1), "gaussians": count,
         "train_psnr": round(train_psnr, 3), "heldout_psnr": None if np.isnan(test_psnr) else round(test_psnr, 3),
         "train_views": len(train.cameras), "heldout_views": len(test.cameras) if test else 0,
         "resolution": [train.cameras[0].width, train.cameras[0].height], "init": source,
     }
     atomic_write_text(str(args.out) + ".json", json.dumps(summary, indent=2))
-    print(f"train PSNR {train_psnr:.2f} dB")
-    print(f"held-out PSNR {test_psnr:.2f} dB")
-    print(f"wrote {args.out} ({scene.count} Gaussians, {seconds:.0f} s)")
-    return 0

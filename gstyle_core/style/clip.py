@@ -1,8 +1,7 @@
-"""CLIP image-embedding style loss, and its documented stand-in when no CLIP weights are available.
+"""The CLIP term: finding CLIP ViT-B/32 weights offline, and the CLIP image-embedding style loss.
 
-``ClipVisionEncoder`` is a self-contained ViT image encoder with the layout of OpenAI CLIP ViT-B/32 and
-OpenCLIP ``ViT-B-32-quickgelu`` (patch 32, width 768, 12 layers, 12 heads, 512-d output, class token,
-``ln_pre``/``ln_post``, ``proj``, QuickGELU). Sizes are configurable so tests can build a tiny one.
+The encoder is ``clip_model.ClipVisionEncoder``; without weights the term is the coarse-VGG substitute of
+``coarse.py`` (``CoarseStyleLoss``). Both, and their labels, are importable from here too.
 
 ``load_clip`` only reads weights that are already on disk (an OpenAI ``ViT-B-32.pt`` — TorchScript archive
 or state dict — or an OpenCLIP ``open_clip_pytorch_model.bin`` state dict); it never downloads.
@@ -12,25 +11,14 @@ uniformly from [min(short side, 224), short side] (so crops cover half to all of
 whole short side of small renders), resized to 224x224 (area averaging; crops smaller than 224 are
 upsampled), CLIP-normalised, embedded, and compared with the style image's embedding by the squared
 great-circle distance ``2·arcsin(‖a−b‖/2)²`` of the unit embeddings; the mean over crops is returned.
-
-Fallback without CLIP weights — ``CoarseStyleLoss``, labelled "coarse-VGG substitute (no CLIP weights)":
-CLIP carries the low-frequency part of the style (large patterns, overall palette layout). Without it we
-match AdaIN-style statistics (per-channel mean and standard deviation) of VGG relu3_1…relu3_3 features of
-the render and of the style image, both downsampled 4x first so the receptive field of relu3 (40 px)
-covers about 160 px of the original image; the error is relative (scale-free, about 0…1 like the CLIP
-distance) so the same λ_CLIP applies. The render's statistics are taken over the scene only, weighted by its
-coverage (rendered alpha) when the caller gives it: an object on an empty background would otherwise be
-pushed to make background and object together look like the painting. It is not CLIP, only a substitute for the
-coarse scale.
 """
 
 from __future__ import annotations
 
 import glob
-import math
 import os
 import zipfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import torch
@@ -38,128 +26,40 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..errors import WeightsUnavailableError
+from .clip_model import ClipVisionEncoder, encoder_from_state_dict, visual_state_dict
+from .coarse import COARSE_LABEL, CoarseStyleLoss
+from .paintings import as_batch, checked_style_weights, style_list
+
+__all__ = [
+    "CLIP_ENV",
+    "CLIP_MEAN",
+    "CLIP_OFF",
+    "CLIP_STD",
+    "COARSE_LABEL",
+    "COARSE_NAME",
+    "ClipStyleLoss",
+    "ClipVisionEncoder",
+    "CoarseStyleLoss",
+    "clip_search_paths",
+    "clip_status",
+    "clip_term_name",
+    "encoder_from_state_dict",
+    "find_clip_weights",
+    "load_clip",
+    "random_square_crops",
+    "resize_short_side_center_crop",
+    "spherical_distance",
+    "visual_state_dict",
+]
 
 CLIP_MEAN = (0.48145466, 0.4578275, 0.40821073)
 CLIP_STD = (0.26862954, 0.26130258, 0.27577711)
-COARSE_LABEL = "coarse-VGG substitute (no CLIP weights)"
 COARSE_NAME = "coarse (CLIP substitute)"  # the term's name on labels (sliders, plots, progress) without CLIP weights
 CLIP_OFF = "CLIP term off (λ_CLIP = 0)"
 CLIP_ENV = "GSTYLE_CLIP_WEIGHTS"
 
 
-# ---------------------------------------------------------------------------------------------- the network
-
-class QuickGELU(nn.Module):
-    """x·sigmoid(1.702x), the activation of the OpenAI CLIP weights."""
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return x * torch.sigmoid(1.702 * x)
-
-
-class _Mlp(nn.Module):
-    def __init__(self, width: int) -> None:
-        super().__init__()
-        self.c_fc = nn.Linear(width, 4 * width)
-        self.gelu = QuickGELU()
-        self.c_proj = nn.Linear(4 * width, width)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.c_proj(self.gelu(self.c_fc(x)))
-
-
-class _ResidualBlock(nn.Module):
-    def __init__(self, width: int, heads: int) -> None:
-        super().__init__()
-        self.ln_1 = nn.LayerNorm(width)
-        self.attn = nn.MultiheadAttention(width, heads, batch_first=True)
-        self.ln_2 = nn.LayerNorm(width)
-        self.mlp = _Mlp(width)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:  # x: [B, T, width]
-        h = self.ln_1(x)
-        x = x + self.attn(h, h, h, need_weights=False)[0]
-        return x + self.mlp(self.ln_2(x))
-
-
-class _Transformer(nn.Module):
-    def __init__(self, width: int, layers: int, heads: int) -> None:
-        super().__init__()
-        self.resblocks = nn.Sequential(*[_ResidualBlock(width, heads) for _ in range(layers)])
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.resblocks(x)
-
-
-class ClipVisionEncoder(nn.Module):
-    """CLIP ViT image tower. ``forward(x [B,3,S,S], CLIP-normalised) -> [B, output_dim]`` embeddings.
-    Parameter names equal the ``visual.*`` keys of OpenAI CLIP and OpenCLIP checkpoints (prefix removed)."""
-
-    def __init__(self, image_size: int = 224, patch_size: int = 32, width: int = 768, layers: int = 12,
-                 heads: int = 12, output_dim: int = 512) -> None:
-        super().__init__()
-        if image_size % patch_size:
-            raise ValueError(f"image_size {image_size} is not a multiple of patch_size {patch_size}")
-        self.image_size = image_size
-        self.conv1 = nn.Conv2d(3, width, kernel_size=patch_size, stride=patch_size, bias=False)
-        scale = width ** -0.5
-        grid = image_size // patch_size
-        self.class_embedding = nn.Parameter(scale * torch.randn(width))
-        self.positional_embedding = nn.Parameter(scale * torch.randn(grid * grid + 1, width))
-        self.ln_pre = nn.LayerNorm(width)
-        self.transformer = _Transformer(width, layers, heads)
-        self.ln_post = nn.LayerNorm(width)
-        self.proj = nn.Parameter(scale * torch.randn(width, output_dim))
-        self.calls = 0
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        self.calls += 1
-        x = self.conv1(x)  # [B, width, g, g]
-        x = x.flatten(2).transpose(1, 2)  # [B, g*g, width]
-        cls = self.class_embedding.to(x.dtype).expand(x.shape[0], 1, -1)
-        x = torch.cat([cls, x], dim=1) + self.positional_embedding.to(x.dtype)
-        x = self.transformer(self.ln_pre(x))
-        return self.ln_post(x[:, 0, :]) @ self.proj
-
-
-# -------------------------------------------------------------------------------------------------- loading
-
-def visual_state_dict(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-    """The image-tower weights of an OpenAI or OpenCLIP checkpoint, keys without the ``visual.`` prefix.
-    Accepts optional ``module.`` prefixes and a ``{"state_dict": ...}`` wrapper."""
-    if "state_dict" in state and isinstance(state["state_dict"], dict):
-        state = state["state_dict"]
-    out = {}
-    for key, value in state.items():
-        name = key[len("module."):] if key.startswith("module.") else key
-        if name.startswith("visual."):
-            out[name[len("visual."):]] = value
-    if not out and "conv1.weight" in state:  # already a bare image-tower dict
-        out = dict(state)
-    return out
-
-
-def encoder_from_state_dict(state: dict[str, torch.Tensor]) -> ClipVisionEncoder:
-    """Build a :class:`ClipVisionEncoder` whose sizes are read off the weights, and load them.
-    The head count is not stored in the weights; CLIP ViTs use 64-wide heads (ViT-B/32: 768 / 64 = 12)."""
-    visual = visual_state_dict(state)
-    needed = ("conv1.weight", "positional_embedding", "proj", "class_embedding")
-    missing = [k for k in needed if k not in visual]
-    if missing:
-        raise WeightsUnavailableError(f"not a CLIP ViT checkpoint (missing visual.{missing[0]})")
-    width, _, patch, _ = visual["conv1.weight"].shape
-    tokens = visual["positional_embedding"].shape[0]
-    grid = math.isqrt(tokens - 1)
-    layers = len({k.split(".")[2] for k in visual if k.startswith("transformer.resblocks.")})
-    encoder = ClipVisionEncoder(image_size=grid * patch, patch_size=patch, width=width, layers=layers,
-                                heads=max(1, width // 64), output_dim=visual["proj"].shape[1])
-    wanted = encoder.state_dict().keys()
-    try:
-        encoder.load_state_dict({k: visual[k].float() for k in wanted if k in visual}, strict=True)
-    except RuntimeError as exc:
-        first = str(exc).splitlines()[1].strip() if "\n" in str(exc) else str(exc)
-        raise WeightsUnavailableError(f"CLIP weights do not fit a ViT image encoder: {first}") from exc
-    return encoder.eval().requires_grad_(False)
-
+# ------------------------------------------------------------------------------------------------ loading
 
 def _is_torchscript_archive(path: Path) -> bool:
     """TorchScript zips hold a ``<name>/constants.pkl`` (or ``code/``) member; plain state dicts do not."""
@@ -297,120 +197,25 @@ class ClipStyleLoss(nn.Module):
         self.input_size = encoder.image_size
         self.register_buffer("mean", torch.tensor(CLIP_MEAN).view(1, 3, 1, 1), persistent=False)
         self.register_buffer("std", torch.tensor(CLIP_STD).view(1, 3, 1, 1), persistent=False)
-        styles = _style_list(style_image)
+        styles = style_list(style_image)
         with torch.no_grad():
-            embeddings = torch.cat([self.embed(resize_short_side_center_crop(_as_batch(s), self.input_size))
+            embeddings = torch.cat([self.embed(resize_short_side_center_crop(as_batch(s), self.input_size))
                                     for s in styles])
         self.register_buffer("style_embeddings", embeddings, persistent=False)  # [K, 512]
         self.set_style_weights(style_weights)
 
     def set_style_weights(self, weights: Sequence[float] | None) -> None:
         """Weights of the paintings (None: one painting, weight 1)."""
-        self.style_weights = _checked_weights(weights, self.style_embeddings.shape[0])
+        self.style_weights = checked_style_weights(weights, self.style_embeddings.shape[0])
 
     def embed(self, images: torch.Tensor) -> torch.Tensor:
         """Embeddings of [N,3,S,S] RGB [0,1] images."""
         return self.encoder((images - self.mean) / self.std)
 
     def forward(self, render: torch.Tensor) -> torch.Tensor:  # render: [B,3,H,W] in [0,1]
-        render = _as_batch(render)
+        render = as_batch(render)
         crops = torch.cat([random_square_crops(render[i:i + 1], self.n_crops, self.input_size, self.generator)
                            for i in range(render.shape[0])])
         embedded = self.embed(crops)
         return torch.stack([w * spherical_distance(embedded, self.style_embeddings[k:k + 1]).mean()
                             for k, w in enumerate(self.style_weights) if w > 0]).sum()
-
-
-class CoarseStyleLoss(nn.Module):
-    """Stand-in for the CLIP term: mean/std statistics of VGG relu3_x features at a coarse scale.
-
-    Per layer: (‖μ_r − μ_s‖² + ‖σ_r − σ_s‖²) / (‖μ_s‖² + ‖σ_s‖²), the relative error of the per-channel
-    statistics, averaged over the three layers. Being relative, it does not depend on the feature scale of
-    the VGG weights and lies in the same range as the CLIP distance (0 for a perfect match, ~1 for unrelated
-    statistics), so λ_CLIP can be kept."""
-
-    network = "vgg"
-    takes_coverage = True
-    label = COARSE_LABEL
-
-    def __init__(self, vgg: Callable[[torch.Tensor], dict[str, torch.Tensor]],
-                 style_image: torch.Tensor | Sequence[torch.Tensor], downsample: int = 4,
-                 style_weights: Sequence[float] | None = None) -> None:
-        super().__init__()
-        self.vgg = vgg
-        self.downsample = downsample
-        self.styles_stats = []  # per painting: {layer: (mean, std)}
-        with torch.no_grad():
-            for style in _style_list(style_image):
-                stats = self._statistics(_as_batch(style))
-                self.styles_stats.append({name: (m.detach(), s.detach()) for name, (m, s) in stats.items()})
-        self.set_style_weights(style_weights)
-
-    def set_style_weights(self, weights: Sequence[float] | None) -> None:
-        """Weights of the paintings (None: one painting, weight 1)."""
-        self.style_weights = _checked_weights(weights, len(self.styles_stats))
-
-    def _statistics(self, img: torch.Tensor, coverage: torch.Tensor | None = None
-                    ) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
-        from .losses import feature_weights
-
-        height, width = img.shape[-2:]
-        size = (max(16, height // self.downsample), max(16, width // self.downsample))
-        small = F.interpolate(img, size=size, mode="bilinear", align_corners=False, antialias=True)
-        feats = self.vgg(small)
-        out = {}
-        for name, f in feats.items():
-            flat = f.flatten(2)  # [B, C, h*w]
-            w = feature_weights(coverage, f.shape[-2:])
-            if w is None or float(w.sum()) <= 0.0:
-                out[name] = (flat.mean(-1), (flat.var(-1, unbiased=False) + 1e-8).sqrt())
-                continue
-            w = w.flatten(2) / w.flatten(2).sum(-1, keepdim=True)  # [B, 1, h*w], sums to 1
-            mean = (flat * w).sum(-1)
-            var = (((flat - mean[..., None]) ** 2) * w).sum(-1)
-            out[name] = (mean, (var + 1e-8).sqrt())
-        return out
-
-    def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
-        """Relative error of the render's feature statistics (over the scene: ``coverage`` [H,W] or [B,1,H,W]
-        weights each position; None: the whole frame) against the style image's (several: weighted sum)."""
-        render_stats = self._statistics(_as_batch(render), coverage)
-        per_style = []
-        for weight, style_stats in zip(self.style_weights, self.styles_stats, strict=True):
-            if weight <= 0:
-                continue
-            terms = []
-            for name, (mean, std) in render_stats.items():
-                style_mean, style_std = style_stats[name]
-                error = ((mean - style_mean) ** 2).sum(-1) + ((std - style_std) ** 2).sum(-1)  # [B]
-                scale = (style_mean**2).sum(-1) + (style_std**2).sum(-1) + 1e-8
-                terms.append((error / scale).mean())
-            per_style.append(weight * torch.stack(terms).mean())
-        return torch.stack(per_style).sum()
-
-
-def _style_list(style_image: torch.Tensor | Sequence[torch.Tensor]) -> list[torch.Tensor]:
-    """One painting or several, as a list (a list of none is an error)."""
-    styles = [style_image] if isinstance(style_image, torch.Tensor) else list(style_image)
-    if not styles:
-        raise ValueError("no style image given")
-    return styles
-
-
-def _checked_weights(weights: Sequence[float] | None, n_styles: int) -> tuple[float, ...]:
-    from .mix import normalise_style_weights
-
-    return (1.0,) if weights is None and n_styles == 1 else normalise_style_weights(weights, n_styles)
-
-
-def _as_batch(img: torch.Tensor) -> torch.Tensor:
-    """Accept [3,H,W], [H,W,3] (numpy layout) or [B,3,H,W]; return float [B,3,H,W]."""
-    img = torch.as_tensor(img).float()
-    if img.ndim == 3:
-        img = img.permute(2, 0, 1) if img.shape[-1] == 3 and img.shape[0] != 3 else img
-        img = img.unsqueeze(0)
-    if img.ndim != 4 or img.shape[1] != 3:
-        raise ValueError(f"expected an RGB image [B,3,H,W], got {tuple(img.shape)}")
-    if img.shape[0] == 0 or img.shape[2] == 0 or img.shape[3] == 0:
-        raise ValueError(f"expected a non-empty RGB image, got shape {tuple(img.shape)}")
-    return img

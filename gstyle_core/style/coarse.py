@@ -1,0 +1,91 @@
+"""The coarse-scale stand-in for the CLIP term when no CLIP weights are available.
+
+``CoarseStyleLoss``, labelled "coarse-VGG substitute (no CLIP weights)": CLIP carries the low-frequency part of the
+style (large patterns, overall palette layout). Without it we match AdaIN-style statistics (per-channel mean and
+standard deviation) of VGG relu3_1…relu3_3 features of the render and of the style image, both downsampled 4x
+first so the receptive field of relu3 (40 px) covers about 160 px of the original image; the error is relative
+(scale-free, about 0…1 like the CLIP distance) so the same λ_CLIP applies. The render's statistics are taken over
+the scene only, weighted by its coverage (rendered alpha) when the caller gives it: an object on an empty background
+would otherwise be pushed to make background and object together look like the painting. It is not CLIP, only a
+substitute for the coarse scale.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from .paintings import as_batch, checked_style_weights, style_list
+
+COARSE_LABEL = "coarse-VGG substitute (no CLIP weights)"
+
+
+class CoarseStyleLoss(nn.Module):
+    """Stand-in for the CLIP term: mean/std statistics of VGG relu3_x features at a coarse scale.
+
+    Per layer: (‖μ_r − μ_s‖² + ‖σ_r − σ_s‖²) / (‖μ_s‖² + ‖σ_s‖²), the relative error of the per-channel
+    statistics, averaged over the three layers. Being relative, it does not depend on the feature scale of
+    the VGG weights and lies in the same range as the CLIP distance (0 for a perfect match, ~1 for unrelated
+    statistics), so λ_CLIP can be kept."""
+
+    network = "vgg"
+    takes_coverage = True
+    label = COARSE_LABEL
+
+    def __init__(self, vgg: Callable[[torch.Tensor], dict[str, torch.Tensor]],
+                 style_image: torch.Tensor | Sequence[torch.Tensor], downsample: int = 4,
+                 style_weights: Sequence[float] | None = None) -> None:
+        super().__init__()
+        self.vgg = vgg
+        self.downsample = downsample
+        self.styles_stats = []  # per painting: {layer: (mean, std)}
+        with torch.no_grad():
+            for style in style_list(style_image):
+                stats = self._statistics(as_batch(style))
+                self.styles_stats.append({name: (m.detach(), s.detach()) for name, (m, s) in stats.items()})
+        self.set_style_weights(style_weights)
+
+    def set_style_weights(self, weights: Sequence[float] | None) -> None:
+        """Weights of the paintings (None: one painting, weight 1)."""
+        self.style_weights = checked_style_weights(weights, len(self.styles_stats))
+
+    def _statistics(self, img: torch.Tensor, coverage: torch.Tensor | None = None
+                    ) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+        from .losses import feature_weights
+
+        height, width = img.shape[-2:]
+        size = (max(16, height // self.downsample), max(16, width // self.downsample))
+        small = F.interpolate(img, size=size, mode="bilinear", align_corners=False, antialias=True)
+        feats = self.vgg(small)
+        out = {}
+        for name, f in feats.items():
+            flat = f.flatten(2)  # [B, C, h*w]
+            w = feature_weights(coverage, f.shape[-2:])
+            if w is None or float(w.sum()) <= 0.0:
+                out[name] = (flat.mean(-1), (flat.var(-1, unbiased=False) + 1e-8).sqrt())
+                continue
+            w = w.flatten(2) / w.flatten(2).sum(-1, keepdim=True)  # [B, 1, h*w], sums to 1
+            mean = (flat * w).sum(-1)
+            var = (((flat - mean[..., None]) ** 2) * w).sum(-1)
+            out[name] = (mean, (var + 1e-8).sqrt())
+        return out
+
+    def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
+        """Relative error of the render's feature statistics (over the scene: ``coverage`` [H,W] or [B,1,H,W]
+        weights each position; None: the whole frame) against the style image's (several: weighted sum)."""
+        render_stats = self._statistics(as_batch(render), coverage)
+        per_style = []
+        for weight, style_stats in zip(self.style_weights, self.styles_stats, strict=True):
+            if weight <= 0:
+                continue
+            terms = []
+            for name, (mean, std) in render_stats.items():
+                style_mean, style_std = style_stats[name]
+                error = ((mean - style_mean) ** 2).sum(-1) + ((std - style_std) ** 2).sum(-1)  # [B]
+                scale = (style_mean**2).sum(-1) + (style_std**2).sum(-1) + 1e-8
+                terms.append((error / scale).mean())
+            per_style.append(weight * torch.stack(terms).mean())
+        return torch.stack(per_style).sum()
