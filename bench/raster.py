@@ -22,6 +22,7 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from gstyle_core.machine import cpu_description  # noqa: E402
 from gstyle_core.raster import ColourCache, rasterize  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
@@ -184,6 +185,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))
+    print(f"cpu: {cpu_description()}")
     print(f"threads: torch {torch.get_num_threads()}, numba {numba.get_num_threads()}")
 
     rows = []

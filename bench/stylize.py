@@ -24,6 +24,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from gstyle_core.machine import cpu_description  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
@@ -134,6 +135,7 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=60, help="stylization steps to time (after warm-up)")
     p.add_argument("--whole-frames", action="store_true", help="VGG on whole frames (crop_to_scene = False)")
     args = p.parse_args()
+    print(f"cpu: {cpu_description()}")
     if args.threads:
         torch.set_num_threads(args.threads)
     request = build_request(args)

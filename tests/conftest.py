@@ -5,6 +5,11 @@ Hypothesis profiles for the fuzz tests (``tests/test_fuzz_readers.py``), chosen 
 failures kept in the ``.hypothesis`` database). The fuzz tests apply the profile themselves, so other tests
 keep hypothesis' defaults. Shared GL fixtures: ``ctx`` (standalone EGL context) and ``window`` (headless studio
 window of the module's W x H).
+
+Thread count: ``GSTYLE_TEST_THREADS=N`` runs the suite with N torch threads (intra-op, set before each test, since
+a test may change it) and N numba threads (``NUMBA_NUM_THREADS``, read when numba is imported), and sets
+``OMP_NUM_THREADS`` / ``MKL_NUM_THREADS`` for the subprocesses tests start. Unset: the libraries' own choice (one
+thread per core). E.g. ``GSTYLE_TEST_THREADS=1 bash scripts/test.sh``. The header names the threads and the CPU.
 """
 
 from __future__ import annotations
@@ -14,6 +19,49 @@ from datetime import timedelta
 
 import pytest
 from hypothesis import HealthCheck, settings
+
+THREADS_ENV = "GSTYLE_TEST_THREADS"
+
+
+_THREADS_RAW = os.environ.get(THREADS_ENV, "").strip()
+TEST_THREADS = int(_THREADS_RAW) if _THREADS_RAW.isdigit() and int(_THREADS_RAW) >= 1 else None
+if TEST_THREADS is not None:  # before torch or numba is imported (test modules import them after this file)
+    for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ[_var] = str(TEST_THREADS)
+
+
+def _set_library_threads(n: int) -> None:
+    import numba
+    import torch
+
+    torch.set_num_threads(n)
+    if numba.config.NUMBA_NUM_THREADS < n:  # numba was imported before this file set NUMBA_NUM_THREADS
+        raise pytest.UsageError(f"{THREADS_ENV}={n}: numba's pool has {numba.config.NUMBA_NUM_THREADS} threads")
+    numba.set_num_threads(n)  # the calling (main) thread's share of the pool
+
+
+def pytest_configure(config) -> None:
+    """Refuse a ``GSTYLE_TEST_THREADS`` that is not a positive integer (rather than silently using the defaults)."""
+    if _THREADS_RAW and TEST_THREADS is None:
+        raise pytest.UsageError(f"{THREADS_ENV}={_THREADS_RAW!r}: give a positive number of threads")
+
+
+def pytest_report_header(config) -> list[str]:
+    """The CPU and the thread counts the run uses (results may depend on both)."""
+    from gstyle_core.machine import cpu_description
+
+    threads = f"{TEST_THREADS} (torch, numba; {THREADS_ENV})" if TEST_THREADS else \
+        f"library defaults ({THREADS_ENV} unset)"
+    return [f"cpu: {cpu_description()}", f"threads: {threads}"]
+
+
+@pytest.fixture(autouse=True)
+def _thread_count():
+    """With ``GSTYLE_TEST_THREADS``: every test starts at that many torch and numba threads."""
+    if TEST_THREADS is not None:
+        _set_library_threads(TEST_THREADS)
+    yield
+
 
 FUZZ_PROFILE = os.environ.get("GSTYLE_FUZZ_PROFILE", "ci")
 _SLOW_CHECKS = [HealthCheck.too_slow, HealthCheck.data_too_large]
