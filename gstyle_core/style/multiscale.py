@@ -1,0 +1,100 @@
+"""A multi-scale style term for when CLIP cannot run: the painting's patterns matched at coarser scales.
+
+The NNFM term compares VGG relu3_x features of the render with the painting's (``losses.py``). A relu3 feature sees
+about 40 px, so at the working width it matches brush marks a few pixels wide, and its gradient reaches the pixels
+through the full-resolution convolutions: the colour updates it asks for are fine-grained. This term runs the same
+network on the render and on the painting both **downsampled** by each factor of ``factors`` (default ×2 and ×4,
+antialiased bilinear): at ×4 a relu3 feature sees ~160 px of the render and of the painting at its matched size, so
+broad strokes and large shapes are compared, and the gradient comes back through the downsampling's adjoint (a
+smooth upsampling), i.e. as a coarse colour change. Both sides are resized by the same factor, so the stroke size
+(the painting's matched size) means the same at every level.
+
+Loss: the mean over levels of the NNFM distance (mean over the render's feature vectors of 1 − cos to the nearest
+painting vector, coverage-weighted like the NNFM term), so its λ is on the NNFM term's scale. Several paintings:
+Σ w_i · NNFM_i at each level (``losses.WeightedTargets``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from .losses import (
+    StyleTarget,
+    WeightedTargets,
+    concat_features,
+    feature_weights,
+    style_nnfm,
+    upsample_for_vgg,
+    vgg_input_size,
+)
+
+DEFAULT_FACTORS = (2, 4)
+
+
+def downsample(img: torch.Tensor, factor: float) -> torch.Tensor:
+    """``img`` [B, C, H, W] shrunk by ``factor`` (antialiased bilinear; each side at least 1 px)."""
+    if factor == 1:
+        return img
+    size = (max(1, round(img.shape[-2] / factor)), max(1, round(img.shape[-1] / factor)))
+    return F.interpolate(img, size=size, mode="bilinear", align_corners=False, antialias=True)
+
+
+class MultiScaleStyleLoss(nn.Module):
+    """NNFM between the render and the painting(s), both downsampled by each of ``factors``.
+
+    ``paintings``: [1, 3, H, W] RGB in [0, 1], each already at its matched size (stroke size × working width, as the
+    NNFM target is built); ``style_weights``: one per painting (None: one painting, or equal shares).
+    ``forward(render [1, 3, H, W], coverage [H, W] | None)`` returns the scalar loss; ``last_levels`` holds each
+    level's distance of the last call (for logs)."""
+
+    network = "vgg"
+    takes_coverage = True
+
+    def __init__(self, vgg: nn.Module, paintings: Sequence[torch.Tensor] | torch.Tensor,
+                 factors: Sequence[float] = DEFAULT_FACTORS, style_weights: Sequence[float] | None = None,
+                 chunk: int = 4096) -> None:
+        super().__init__()
+        paintings = [paintings] if isinstance(paintings, torch.Tensor) else list(paintings)
+        if not paintings:
+            raise ValueError("the multi-scale term needs at least one painting")
+        factors = tuple(float(f) for f in factors)
+        if not factors or any(not f >= 1 for f in factors):
+            raise ValueError(f"downsampling factors must be 1 or more, got {factors}")
+        if style_weights is None:
+            style_weights = [1.0 / len(paintings)] * len(paintings)
+        if len(style_weights) != len(paintings):
+            raise ValueError(f"{len(style_weights)} weight(s) for {len(paintings)} painting(s)")
+        self.vgg = vgg
+        self.factors = factors
+        self.chunk = chunk
+        self.targets: list[StyleTarget | WeightedTargets] = []
+        for f in factors:
+            per_painting = [StyleTarget.from_image(vgg, upsample_for_vgg(downsample(p, f))) for p in paintings]
+            self.targets.append(per_painting[0] if len(per_painting) == 1
+                                else WeightedTargets(per_painting, style_weights))
+        self.last_levels: dict[float, float] = {}
+
+    def set_style_weights(self, weights: Sequence[float]) -> None:
+        """Re-weight the paintings of a mix (nothing is re-extracted)."""
+        for target in self.targets:
+            if isinstance(target, WeightedTargets):
+                target.weights = tuple(float(w) for w in weights)
+
+    def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
+        if render.ndim != 4 or render.shape[1] != 3:
+            raise ValueError(f"render must be [B, 3, H, W], got {tuple(render.shape)}")
+        terms = []
+        for factor, target in zip(self.factors, self.targets, strict=True):
+            small = downsample(render, factor)
+            if tuple(small.shape[-2:]) != vgg_input_size(small.shape[-2:]):
+                small = upsample_for_vgg(small)
+            feats = concat_features(self.vgg(small))
+            grid = feature_weights(coverage, feats.shape[-2:])
+            d = style_nnfm(feats, target, self.chunk, weights=grid)
+            self.last_levels[factor] = float(d.detach())
+            terms.append(d)
+        return torch.stack(terms).mean()

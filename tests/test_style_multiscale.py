@@ -1,0 +1,74 @@
+"""The multi-scale style term: NNFM of render and painting downsampled ×2 and ×4."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from gstyle_core.style.losses import StyleTarget, concat_features, nnfm_loss
+from gstyle_core.style.multiscale import MultiScaleStyleLoss, downsample
+from gstyle_core.style.texture_scale import band_shares
+
+
+def _painting(h: int = 64, w: int = 96, seed: int = 0) -> torch.Tensor:
+    g = torch.Generator().manual_seed(seed)
+    return torch.rand(1, 3, h, w, generator=g)
+
+
+def test_zero_for_the_painting_itself_and_positive_otherwise(vgg):
+    painting = _painting()
+    term = MultiScaleStyleLoss(vgg, painting)
+    assert float(term(painting)) == pytest.approx(0.0, abs=1e-5)
+    assert set(term.last_levels) == {2.0, 4.0}
+    assert float(term(_painting(seed=1))) > 1e-3
+
+
+def test_each_level_is_nnfm_on_downsampled_images(vgg):
+    painting, render = _painting(), _painting(48, 80, seed=3)
+    term = MultiScaleStyleLoss(vgg, painting, factors=(4,))
+    target = StyleTarget.from_image(vgg, downsample(painting, 4))
+    expected = nnfm_loss(concat_features(vgg(downsample(render, 4))), target)
+    torch.testing.assert_close(term(render), expected)
+
+
+def test_its_gradient_is_coarse(vgg):
+    painting, render = _painting(), _painting(seed=4).requires_grad_(True)
+    fine_term = MultiScaleStyleLoss(vgg, painting, factors=(1,))
+    coarse_term = MultiScaleStyleLoss(vgg, painting, factors=(4,))
+    shares = []
+    for term in (fine_term, coarse_term):
+        render.grad = None
+        term(render).backward()
+        shares.append(band_shares(render.grad[0].permute(1, 2, 0).numpy()))
+    assert shares[1][0] < 0.5 * shares[0][0]  # far less of its gradient at the pixel scale
+    assert shares[1][2] > 2 * shares[0][2]
+
+
+def test_coverage_weights_the_scene(vgg):
+    painting, render = _painting(), _painting(seed=5)
+    term = MultiScaleStyleLoss(vgg, painting)
+    full = term(render, torch.ones(64, 96))
+    torch.testing.assert_close(full, term(render))
+    assert float(term(render, torch.zeros(64, 96))) == 0.0  # nothing of the scene in view: nothing to match
+    half = torch.zeros(64, 96)
+    half[:, :48] = 1.0
+    assert float(term(render, half)) != pytest.approx(float(full), abs=1e-6)
+
+
+def test_small_renders_mixes_and_bad_arguments(vgg):
+    a, b = _painting(), _painting(seed=6)
+    render = _painting(10, 12, seed=7)
+    assert np.isfinite(float(MultiScaleStyleLoss(vgg, a)(render)))  # ×4 of 10 px is stretched to VGG's minimum
+    mixed = MultiScaleStyleLoss(vgg, [a, b], style_weights=(1.0, 0.0))
+    torch.testing.assert_close(mixed(render), MultiScaleStyleLoss(vgg, a)(render))
+    mixed.set_style_weights((0.0, 1.0))
+    torch.testing.assert_close(mixed(render), MultiScaleStyleLoss(vgg, b)(render))
+    with pytest.raises(ValueError):
+        MultiScaleStyleLoss(vgg, a, factors=(0.5,))
+    with pytest.raises(ValueError):
+        MultiScaleStyleLoss(vgg, [a, b], style_weights=(1.0,))
+    with pytest.raises(ValueError):
+        MultiScaleStyleLoss(vgg, [])
+    with pytest.raises(ValueError):
+        MultiScaleStyleLoss(vgg, a)(render[0])
