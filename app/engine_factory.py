@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from gstyle_core.pipeline.controls import cli_control_names
+
 # ``gstyle stylize`` options the studio may set (engine_config keys); None keeps the preset's value.
-ENGINE_OPTIONS = ("defaults", "lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
-                  "style_scale", "keep_colours", "working_width", "clip_weights", "vgg_weights", "max_gaussians",
+ENGINE_OPTIONS = ("defaults", *cli_control_names(), "working_width", "clip_weights", "vgg_weights", "max_gaussians",
                   "style_weights",
                   "region", "selection")  # region: a box; selection: a bool mask (the studio's rectangle)
 

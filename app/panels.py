@@ -9,6 +9,8 @@ from typing import Any
 import numpy as np
 from imgui_bundle import imgui
 
+from gstyle_core.pipeline.controls import control, panel_controls
+
 VIEW_MODES = ("stylized", "original", "compare", "ground truth", "take")
 TURNTABLE_FORMATS = ("mp4", "gif", "png frames")
 MAX_TURNTABLE_FRAMES = 3600
@@ -17,7 +19,8 @@ PANEL_WIDTH = 420.0  # wide enough for a λ row with the substitute's name and i
 
 @dataclass(frozen=True)
 class Param:
-    """One engine parameter shown as a log-scale slider; a loss term's λ also gets an on/off checkbox."""
+    """One engine parameter shown as a slider (a row of ``gstyle_core.pipeline.controls``); a loss term's λ also
+    gets an on/off checkbox."""
 
     key: str
     label: str
@@ -25,6 +28,8 @@ class Param:
     low: float
     high: float
     tooltip: str
+    log: bool = True
+    fmt: str = "%.3g"
 
     @property
     def is_term(self) -> bool:
@@ -32,38 +37,15 @@ class Param:
         return self.key.startswith("lambda_")
 
 
-PARAMS = (
-    Param("lambda_clip", "lambda CLIP", 10.0, 1e-2, 1e3,
-          "Weight of the CLIP term: matches the style's large-scale patterns and layout of colour."),
-    Param("lambda_nnfm", "lambda NNFM", 100.0, 1e-1, 1e4,
-          "Weight of the nearest-neighbour feature matching term: brush strokes and local texture (VGG)."),
-    Param("lambda_content", "lambda content", 0.05, 1e-4, 10.0,
-          "Weight of content preservation: keeps the scene recognisable (VGG features of the photo)."),
-    Param("lambda_tv", "lambda TV", 1e-4, 1e-7, 1e-1, "Weight of total variation: smooths noisy pixels."),
-    Param("strength", "style strength", 1.0, 0.1, 100.0,
-          "Style strength: multiplies the style terms (CLIP and NNFM) against content preservation; 1 keeps the "
-          "lambda values as they are, more paints harder, less keeps more of the scene."),
-    Param("style_scale", "stroke size", 1.0, 0.25, 4.0,
-          "Stroke size: the scale at which the painting's brush strokes are matched (its image resized to this times "
-          "the working width before its VGG features are taken): 2 matches the painting at twice that size, 0.5 at "
-          "half; at the preview's 256 px the visible change is subtle (README). "
-          "Changing it re-extracts the painting's features from the next step on (--style-scale)."),
-    Param("split_rate", "split rate", 0.05, 1e-3, 0.5,
-          "Fraction of Gaussians split where the style gradient is largest (finer detail, more Gaussians)."),
-    Param("lr", "learning rate", 0.1, 1e-3, 1.0, "Starting learning rate of the colour optimisation."),
-)
+def param_rows() -> tuple[Param, ...]:
+    """The parameter section's sliders: every live control shown as a slider there (``controls.panel_controls``)."""
+    return tuple(Param(c.name, c.label, c.default, c.low, c.high, c.tooltip, c.log, c.fmt)
+                 for c in panel_controls("slider"))
+
+
 COARSE_CLIP_TOOLTIP = (
     "Weight of the coarse (CLIP substitute) term: no CLIP ViT-B/32 weights were found, so the style's large-scale "
     "colour and texture statistics (VGG features of 4x smaller images) are matched instead of CLIP's embedding.")
-KEEP_COLOURS_TOOLTIP = (
-    "Keep the scene's colours: it keeps its hues and takes only the painting's light and dark pattern (colour "
-    "match and networks on luminance; each Gaussian's own chroma restored after every step). Turned on mid-run the "
-    "hues come back at once; turned off, the painting's colours are matched again from the next step and at the "
-    "end (--keep-colours).")
-STYLE_MIX_TOOLTIP = (
-    "Share of the second painting: 0 is the first alone, 1 the second alone. Every style term is the weighted sum of "
-    "its terms against each painting, and the colours match the weighted palette; changed mid-run it applies from "
-    "the next step (--style A --style B --style-weights).")
 VIEW_TOOLTIPS = {
     "stylized": "The stylized scene as the engine has it now.",
     "original": "The input scene, with its view-dependent colour (SH) when it has any.",
@@ -109,7 +91,7 @@ class PanelState:
     error: str | None = None
     status: str = ""
     loss_history: list[dict[str, float]] = field(default_factory=list)
-    params: dict[str, float] = field(default_factory=lambda: {p.key: p.default for p in PARAMS})
+    params: dict[str, float] = field(default_factory=lambda: {p.key: p.default for p in param_rows()})
     view_mode: str = "stylized"
     has_ground_truth: bool = False
     camera_count: int = 0
@@ -183,9 +165,10 @@ def format_eta(seconds: float | None) -> str:
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
 
 
-def log_slider(label: str, value: float, low: float, high: float) -> tuple[bool, float]:
-    """A float slider on a logarithmic scale (ImGui's logarithmic flag)."""
-    return imgui.slider_float(label, float(value), low, high, "%.3g", imgui.SliderFlags_.logarithmic)
+def param_slider(label: str, value: float, p: Param) -> tuple[bool, float]:
+    """A parameter's float slider: its range and format, on a logarithmic scale when it has one."""
+    flags = imgui.SliderFlags_.logarithmic if p.log else imgui.SliderFlags_.none
+    return imgui.slider_float(label, float(value), p.low, p.high, p.fmt, flags)
 
 
 def tooltip(text: str) -> None:
@@ -258,11 +241,12 @@ def _second_style(state: PanelState, out: list[Command]) -> None:
     _thumbnail(state.style2_texture, state.style2_size, 60.0)
     imgui.text_wrapped(f"Second style: {state.style2_path}")
     imgui.set_next_item_width(150)
-    mix = float(state.params.get("style_mix", 0.5))
-    changed, mix = imgui.slider_float("style mix", mix, 0.0, 1.0, "%.2f")
-    tooltip(STYLE_MIX_TOOLTIP)
+    row = control("style_mix")
+    mix = float(state.params.get(row.name, 0.5))
+    changed, mix = imgui.slider_float(row.label, mix, row.low, row.high, row.fmt)
+    tooltip(row.tooltip)
     if changed:
-        out.append(Command("set_params", {"style_mix": float(min(max(mix, 0.0), 1.0))}))
+        out.append(Command("set_params", {row.name: float(min(max(mix, row.low), row.high))}))
     imgui.same_line()
     if button("remove", "Back to the first painting alone (restarts the stylization).", small=True):
         out.append(Command("remove_style2"))
@@ -424,18 +408,18 @@ def switch_command(state: PanelState, p: Param, on: bool) -> Command:
 
 def _params_section(state: PanelState, out: list[Command]) -> None:
     imgui.separator()
-    for p in PARAMS:
+    for p in param_rows():
         imgui.push_id(p.key)
         _param_row(state, p, out)
         imgui.pop_id()
-    keep = bool(state.params.get("keep_colours", 0.0))
-    changed, keep = imgui.checkbox("keep colours", keep)
-    tooltip(KEEP_COLOURS_TOOLTIP)
-    if changed:
-        out.append(Command("set_params", {"keep_colours": float(keep)}))
+    for c in panel_controls("checkbox"):  # keep colours
+        changed, on = imgui.checkbox(c.label, bool(state.params.get(c.name, c.default)))
+        tooltip(c.tooltip)
+        if changed:
+            out.append(Command("set_params", {c.name: float(on)}))
     if button("Reset all", "Every parameter back to the preset's value for this scene (keep colours too)."):
-        values = {p.key: default_value(state, p) for p in PARAMS}
-        values["keep_colours"] = float(state.defaults.get("keep_colours", 0.0))
+        values = {p.key: default_value(state, p) for p in param_rows()}
+        values.update({c.name: float(state.defaults.get(c.name, c.default)) for c in panel_controls("checkbox")})
         out.append(Command("set_params", values))
 
 
@@ -452,7 +436,7 @@ def _param_row(state: PanelState, p: Param, out: list[Command]) -> None:
     imgui.begin_disabled(off)
     imgui.set_next_item_width(96)  # room for the longest label, its reset button and the panel's scrollbar
     shown = state.switched_off.get(p.key, default_value(state, p)) if off else value
-    changed, new = log_slider(param_label(state, p), shown, p.low, p.high)
+    changed, new = param_slider(param_label(state, p), shown, p)
     tooltip(param_tooltip(state, p))
     if changed and not off:
         out.append(Command("set_params", {p.key: float(new)}))

@@ -16,6 +16,7 @@ from imgui_bundle import imgui
 from gstyle_core.atomic import atomic_write_bytes
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.errors import GStyleError
+from gstyle_core.pipeline.controls import cli_control_names, painting_controls
 from gstyle_core.scene import GaussianScene
 from gstyle_core.style.clip import clip_term_name
 
@@ -163,8 +164,7 @@ class StudioApp(RegionTool, TakesView):
         if kind == "auto":
             kind = classify_scene_kind(self.cameras)
         preset = self.engine_config.get("preset") or "preview"
-        keys = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate", "style_scale",
-                "keep_colours", "style_weights")
+        keys = (*cli_control_names(), "style_weights")  # the engine config's controls (ENGINE_OPTIONS)
         overrides = {k: self.engine_config.get(k) for k in keys} if with_overrides else {}
         overrides["clip_weights"] = self.engine_config.get("clip_weights")  # CLIP or not sets 360° λ_CLIP
         try:
@@ -503,7 +503,7 @@ class StudioApp(RegionTool, TakesView):
             self.start_engine(resume=True)
         elif name == "set_params":
             self.panel.params.update(args)
-            if "style_mix" in args and self.panel.style2_path:  # a restarted engine keeps the mix
+            if painting_controls() & args.keys() and self.panel.style2_path:  # a restarted engine keeps the mix
                 self._update_style_config()
             if bridge is not None:
                 bridge.set_params(**args)

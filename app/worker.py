@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gstyle_core.pipeline.controls import painting_controls
+
 GEOMETRY_FIELDS = ("means", "log_scales", "quats", "opacity_logits")
 # Sent only with a new geometry version: c_gt changes only when the geometry is refitted (the UI reads it then).
 FOLLOW_GEOMETRY = (*GEOMETRY_FIELDS, "colors_gt")
@@ -320,7 +322,7 @@ def style_entries(engine: Any, style: str | list[str] | None) -> list[dict[str, 
     return [{"path": str(p), "weight": round(float(w), 6)} for p, w in zip(paths, weights, strict=True)]
 
 
-PAINTING_PARAMS = ("style_mix",)  # engine params that belong to the config's paintings, not carried to a new one
+PAINTING_PARAMS = painting_controls()  # engine params that belong to the config's paintings, not carried to a new one
 WORKER_NICE = 10  # default niceness increment of the worker process (env GSTYLE_WORKER_NICE overrides it)
 
 
@@ -507,8 +509,8 @@ class WorkerBridge:
         self._send("checkpoint_path", self.checkpoint_path)
 
     def set_params(self, **params: float) -> None:
-        """Change engine parameters (λ weights, strength, split_rate, lr, style_scale, keep_colours) from the next
-        step on."""
+        """Change engine parameters (the live controls of ``gstyle_core.pipeline.controls``: λ weights, strength,
+        stroke size, keep colours, split rate, lr, style mix) from the next step on."""
         self._send("set_params", dict(params))
 
     def export(self, path: str | os.PathLike) -> None:

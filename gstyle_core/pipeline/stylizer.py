@@ -37,7 +37,7 @@ import copy
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -221,34 +221,29 @@ class Stylizer:
         return n + pre + 1 + self.stylize_steps + splits * (s.refit_iterations + 1) + 1
 
     def set_params(self, **kw: float) -> None:
-        """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), strength, split_rate, lr,
-        style_scale, keep_colours or style_mix (the last painting's weight when several are mixed; the others share
-        the rest) from the next step on; a term whose weight turns non-zero is built then."""
-        known = {"split_rate", "lr", "strength", "style_scale", "keep_colours", "style_mix"} | {
-            f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
-        unknown = set(kw) - known
-        if unknown:
-            raise ValueError(f"unknown parameters: {', '.join(sorted(unknown))}")
-        weights = {k[len("lambda_"):]: float(v) for k, v in kw.items() if k.startswith("lambda_") and v is not None}
-        if kw.get("strength") is not None:
-            if not float(kw["strength"]) >= 0:
-                raise ValueError(f"strength must be 0 or more, got {kw['strength']}")
-            self.settings.strength = float(kw["strength"])
-        if weights or kw.get("strength") is not None:
-            self.settings.weights = replace(self.settings.weights, **weights)
+        """Change live controls (``controls.CONTROLS``: λ weights, strength, stroke size, keep colours, split rate,
+        lr, style mix: the last painting's weight when several are mixed, the others share the rest) from the next
+        step on; a term whose weight turns non-zero is built then. ``ValueError`` (nothing changed) for an unknown
+        name or a refused value."""
+        from .controls import Effect, apply_controls
+
+        effects = apply_controls(self.settings, kw)
+        if effects & Effect.REWEIGHT:
             if self._objective is not None:
                 self._objective.set_weights(self.settings.weights)
                 self._note_networks()
             else:
                 self._note_planned_clip()
             self._note_loss_terms()
-        if kw.get("split_rate") is not None:
-            self.settings.split_rate = float(kw["split_rate"])
-        self._set_style_controls(kw.get("style_scale"), kw.get("keep_colours"), kw.get("style_mix"))
-        if kw.get("lr") is not None:
-            ratio = self.settings.lr_end / self.settings.lr_start
-            self.settings.lr_start = float(kw["lr"])
-            self.settings.lr_end = float(kw["lr"]) * ratio
+        if effects & Effect.CONTENT_TARGETS and self.content_images:  # past the colour match: new content targets
+            self._match_content_targets()
+            if effects & Effect.RESTORE_CHROMA and self.settings.keep_colours:  # c_s takes c_gt's chroma
+                self._restore_chroma()
+                self.colour_version += 1
+        if effects & Effect.CONTENT_TARGETS and hasattr(self._objective, "clear_content_cache"):
+            self._objective.clear_content_cache()
+        if effects & Effect.STYLE_FEATURES:
+            self._set_style_controls(None, None)  # the painting's features for the new settings, and their note
 
     def _set_style_controls(self, scale: float | None, keep: float | bool | None, mix: float | None = None) -> None:
         """Stroke size, keep colours and the style mix, mid-run too (the module docstring says what each does
