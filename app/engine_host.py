@@ -23,6 +23,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from gstyle_core.pipeline.controls import painting_controls
+
 from .child_process import lower_priority, one_line_error, single_compute_thread, worker_nice
 from .export import export_engine
 from .snapshot import FOLLOW_GEOMETRY
@@ -30,7 +32,7 @@ from .snapshot import FOLLOW_GEOMETRY
 IDLE_POLL_SECONDS = 0.05
 REPORT_FIELDS = ("phase", "step", "total_steps", "losses", "seconds", "gaussians", "colours_changed",
                  "geometry_changed", "done", "message")
-PAINTING_PARAMS = ("style_mix",)  # engine params that belong to the config's paintings, not carried to a new one
+PAINTING_PARAMS = painting_controls()  # engine params that belong to the config's paintings, not carried to a new one
 
 
 def report_to_dict(report: Any) -> dict[str, Any]:

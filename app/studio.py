@@ -17,6 +17,7 @@ import numpy as np
 
 from gstyle_core.atomic import atomic_write_bytes
 from gstyle_core.cameras.camera import Camera
+from gstyle_core.pipeline.controls import cli_control_names
 from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
@@ -140,8 +141,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         if kind == "auto":
             kind = classify_scene_kind(self.cameras)
         preset = self.engine_config.get("preset") or "preview"
-        keys = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate", "style_scale",
-                "keep_colours", "style_weights")
+        keys = (*cli_control_names(), "style_weights")  # the engine config's controls (ENGINE_OPTIONS)
         overrides = {k: self.engine_config.get(k) for k in keys} if with_overrides else {}
         overrides["clip_weights"] = self.engine_config.get("clip_weights")  # CLIP or not sets 360° λ_CLIP
         try:

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from gstyle_core.errors import GStyleError
+from gstyle_core.pipeline.controls import painting_controls
 from gstyle_core.scene import GaussianScene
 
 from .panels import Command
@@ -41,7 +42,7 @@ class StudioCommands:
             self.start_engine(resume=True)
         elif name == "set_params":
             self.panel.params.update(args)
-            if "style_mix" in args and self.panel.style2_path:  # a restarted engine keeps the mix
+            if painting_controls() & args.keys() and self.panel.style2_path:  # a restarted engine keeps the mix
                 self._update_style_config()
             if bridge is not None:
                 bridge.set_params(**args)

@@ -168,8 +168,8 @@ class WorkerBridge:
         self._send("checkpoint_path", self.checkpoint_path)
 
     def set_params(self, **params: float) -> None:
-        """Change engine parameters (λ weights, strength, split_rate, lr, style_scale, keep_colours) from the next
-        step on."""
+        """Change engine parameters (the live controls of ``gstyle_core.pipeline.controls``: λ weights, strength,
+        stroke size, keep colours, split rate, lr, style mix) from the next step on."""
         self._send("set_params", dict(params))
 
     def export(self, path: str | os.PathLike) -> None:

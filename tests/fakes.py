@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gstyle_core.pipeline.controls import control_names
+
 
 @dataclass
 class FakeReport:
@@ -59,8 +61,7 @@ class FakeEngine:
                           True, grew, self.steps >= self.total)
 
     def set_params(self, **kw: float) -> None:
-        unknown = set(kw) - {"lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
-                             "lr", "style_scale", "keep_colours"}
+        unknown = set(kw) - set(control_names())
         if unknown:
             raise ValueError(f"unknown parameters: {sorted(unknown)}")
         self.params.update({k: float(v) for k, v in kw.items()})

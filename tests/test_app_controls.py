@@ -9,7 +9,7 @@ from fakes import BUILT, keep_small_stylizer  # noqa: E402
 from imgui_driver import PanelDriver, install, paused_studio_driver, studio_driver  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
-from app.panels import PARAMS, PanelState, draw_panel, loss_series  # noqa: E402
+from app.panels import PanelState, draw_panel, loss_series, param_rows  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
 from gstyle_core.pipeline.settings import resolve_settings, ui_params  # noqa: E402
 from gstyle_core.style.clip import COARSE_NAME  # noqa: E402
@@ -101,7 +101,7 @@ def test_reset_goes_to_the_presets_values_of_a_360_scene(window, monkeypatch, tm
         driver.click("lambda_nnfm/reset")
         assert app.panel.params["lambda_nnfm"] == 200.0 and app.panel.params["lr"] == 0.1
         driver.click("Reset all")
-        assert {p.key: app.panel.params[p.key] for p in PARAMS} == {p.key: preset[p.key] for p in PARAMS}
+        assert {p.key: app.panel.params[p.key] for p in param_rows()} == {p.key: preset[p.key] for p in param_rows()}
     finally:
         app.close()
 

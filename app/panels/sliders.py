@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from .params import COARSE_CLIP_TOOLTIP, KEEP_COLOURS_TOOLTIP, PARAMS, Param
+from .params import COARSE_CLIP_TOOLTIP, KEEP_COLOURS_TOOLTIP, Param, param_rows
 from .state import Command, PanelState
-from .widgets import button, log_slider, tooltip
+from .widgets import button, param_slider, tooltip
 
 
 def default_value(state: PanelState, p: Param) -> float:
@@ -37,7 +37,7 @@ def switch_command(state: PanelState, p: Param, on: bool) -> Command:
 def params_section(state: PanelState, out: list[Command]) -> None:
     """One slider row per parameter, the keep-colours checkbox and "Reset all"."""
     imgui.separator()
-    for p in PARAMS:
+    for p in param_rows():
         imgui.push_id(p.key)
         param_row(state, p, out)
         imgui.pop_id()
@@ -47,7 +47,7 @@ def params_section(state: PanelState, out: list[Command]) -> None:
     if changed:
         out.append(Command("set_params", {"keep_colours": float(keep)}))
     if button("Reset all", "Every parameter back to the preset's value for this scene (keep colours too)."):
-        values = {p.key: default_value(state, p) for p in PARAMS}
+        values = {p.key: default_value(state, p) for p in param_rows()}
         values["keep_colours"] = float(state.defaults.get("keep_colours", 0.0))
         out.append(Command("set_params", values))
 
@@ -65,7 +65,7 @@ def param_row(state: PanelState, p: Param, out: list[Command]) -> None:
     imgui.begin_disabled(off)
     imgui.set_next_item_width(96)  # room for the longest label, its reset button and the panel's scrollbar
     shown = state.switched_off.get(p.key, default_value(state, p)) if off else value
-    changed, new = log_slider(param_label(state, p), shown, p.low, p.high)
+    changed, new = param_slider(param_label(state, p), shown, p.low, p.high, p.fmt, p.log)
     tooltip(param_tooltip(state, p))
     if changed and not off:
         out.append(Command("set_params", {p.key: float(new)}))

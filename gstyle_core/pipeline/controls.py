@@ -1,0 +1,267 @@
+"""The live controls: one row per value a user may change while a run goes on, and everything derived from it.
+
+A row (``Control``) says what the control is called and shows (label, range, log scale, format, tooltip), how it
+reads and writes ``StylizeSettings`` (the write checks the value and says why it is refused), what the engine must
+do when it changes (``Effect``) and, when ``gstyle stylize`` takes it too, its command-line option. From ``CONTROLS``
+come ``Stylizer.set_params`` (``apply_controls``), ``ui_params`` (``read_controls``), ``resolve_settings``'
+overrides of these names, the CLI options (``add_control_arguments``), the studio's slider rows and checkboxes
+(``panel_controls``), the worker's and the studio's names (``control_names``, ``painting_controls``) and the
+options the studio's engine factory passes on (``cli_control_names``). A new control is one row.
+
+Torch-free: the studio imports it at start (``settings.py``, which needs torch, is imported only inside functions).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import enum
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+from ..style.mix import weights_with_mix
+from .arg_types import argument_type
+
+if TYPE_CHECKING:
+    from .settings import StylizeSettings
+
+
+class Effect(enum.Flag):
+    """What the engine does when a control changes (``Stylizer.set_params`` carries them out)."""
+
+    NONE = 0
+    REWEIGHT = enum.auto()  # new λ weights for the objective: a term whose weight turns non-zero is built then
+    STYLE_FEATURES = enum.auto()  # the painting's features are taken again (stroke size, luminance) or re-weighted
+    CONTENT_TARGETS = enum.auto()  # past the start's colour match: the content targets are matched again
+    RESTORE_CHROMA = enum.auto()  # with keep colours on: every Gaussian takes its ground truth's chroma back at once
+    LR_SCHEDULE = enum.auto()  # the learning-rate schedule is rescaled (read at the next step: nothing to do now)
+    NEXT_SPLIT = enum.auto()  # read at the next colour-gradient split (nothing to do now)
+
+
+@dataclass(frozen=True)
+class CliOption:
+    """A control's ``gstyle stylize`` option (``--`` + its name with dashes; default None: the preset's value)."""
+
+    help: str
+    type: Callable[[str], Any] = float  # argparse's type; a ValueError reads "invalid float value"
+    metavar: str | None = None
+    switch: bool = False  # a flag without a value (store_true)
+
+
+@dataclass(frozen=True)
+class Control:
+    """One live control: what it shows, how it reads and writes the settings, what a change makes the engine do."""
+
+    name: str  # set_params / ui_params key
+    label: str  # the panel's label
+    default: float  # the forward-facing preview's value (the panel's before a scene's preset is known;
+    # ``preset_values`` gives every preset's and scene kind's)
+    low: float  # the panel's range
+    high: float
+    log: bool  # the panel's slider is on a logarithmic scale
+    tooltip: str
+    effects: Effect
+    read: Callable[[StylizeSettings], float]
+    write: Callable[[StylizeSettings, Any], None]  # ValueError saying why a value is refused
+    widget: str = "slider"  # "slider" or "checkbox" (0/1)
+    fmt: str = "%.3g"  # the slider's number format
+    tolerance: float = 0.0  # a change of the read value by at most this is none (float noise)
+    with_paintings: bool = False  # belongs to the paintings of a mix: shown beside the second painting, and a new
+    # set of paintings brings its own value (not carried over)
+    cli: CliOption | None = None
+
+    @property
+    def flag(self) -> str:
+        """The command-line option, e.g. ``--lambda-nnfm``."""
+        return "--" + self.name.replace("_", "-")
+
+
+def check_style_scale(scale: float) -> float:
+    """``scale`` as a float if it is a usable stroke size (finite, > 0), else ``ValueError`` saying why."""
+    try:
+        value = float(scale)
+    except (TypeError, ValueError):
+        raise ValueError(f"style scale must be a number, got {scale!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"style scale must be a finite number above 0 (1 = the painting at the working "
+                         f"resolution, 2 = the painting at twice that size), got {scale}")
+    return value
+
+
+def _write_weight(term: str) -> Callable[[StylizeSettings, Any], None]:
+    def write(s: StylizeSettings, value: Any) -> None:
+        s.weights = replace(s.weights, **{term: float(value)})
+
+    return write
+
+
+def _write_strength(s: StylizeSettings, value: Any) -> None:
+    if not float(value) >= 0:
+        raise ValueError(f"strength must be 0 or more, got {value}")
+    s.strength = float(value)
+
+
+def _write_style_scale(s: StylizeSettings, value: Any) -> None:
+    s.style_scale = check_style_scale(value)
+
+
+def _write_keep_colours(s: StylizeSettings, value: Any) -> None:
+    s.keep_colours = bool(value)
+
+
+def _write_split_rate(s: StylizeSettings, value: Any) -> None:
+    s.split_rate = float(value)
+
+
+def _write_lr(s: StylizeSettings, value: Any) -> None:
+    """The starting learning rate; the final one keeps its ratio to it."""
+    ratio = s.lr_end / s.lr_start
+    s.lr_start = float(value)
+    s.lr_end = float(value) * ratio
+
+
+def _read_mix(s: StylizeSettings) -> float:
+    """The last painting's share of a mix (0 with one painting)."""
+    return s.style_weights[-1] / sum(s.style_weights) if len(s.style_weights) > 1 else 0.0
+
+
+def _write_mix(s: StylizeSettings, value: Any) -> None:
+    """The last painting takes ``value``, the others share the rest (the engine holds one weight per painting)."""
+    if len(s.style_weights) > 1:
+        s.style_weights = weights_with_mix(s.style_weights, float(value))
+    elif float(value) != 0.0:
+        raise ValueError("the style mix needs a second style image")
+
+
+def _term(term: str, label: str, default: float, low: float, high: float, tooltip: str, cli_help: str) -> Control:
+    """The row of a loss term's λ (the panel adds an on/off checkbox to every ``lambda_`` row)."""
+    return Control(f"lambda_{term}", label, default, low, high, True, tooltip, Effect.REWEIGHT,
+                   read=lambda s: getattr(s.weights, term), write=_write_weight(term),
+                   cli=CliOption(f"weight of the {cli_help}"))
+
+
+CONTROLS: tuple[Control, ...] = (
+    _term("clip", "lambda CLIP", 10.0, 1e-2, 1e3,
+          "Weight of the CLIP term: matches the style's large-scale patterns and layout of colour.",
+          "CLIP (or substitute) large-pattern term"),
+    _term("nnfm", "lambda NNFM", 100.0, 1e-1, 1e4,
+          "Weight of the nearest-neighbour feature matching term: brush strokes and local texture (VGG).",
+          "NNFM brush-stroke term"),
+    _term("content", "lambda content", 0.05, 1e-4, 10.0,
+          "Weight of content preservation: keeps the scene recognisable (VGG features of the photo).",
+          "content preservation"),
+    _term("tv", "lambda TV", 1e-4, 1e-7, 1e-1, "Weight of total variation: smooths noisy pixels.",
+          "total-variation smoothness"),
+    Control("strength", "style strength", 1.0, 0.1, 100.0, True,
+            "Style strength: multiplies the style terms (CLIP and NNFM) against content preservation; 1 keeps the "
+            "lambda values as they are, more paints harder, less keeps more of the scene.",
+            Effect.REWEIGHT, read=lambda s: s.strength, write=_write_strength,
+            cli=CliOption("style strength: scales the style terms (CLIP, NNFM) against content; default 1")),
+    Control("style_scale", "stroke size", 1.0, 0.25, 4.0, True,
+            "Stroke size: the scale at which the painting's brush strokes are matched (its image resized to this "
+            "times the working width before its VGG features are taken): 2 matches the painting at twice that size, "
+            "0.5 at half; at the preview's 256 px the visible change is subtle (README). "
+            "Changing it re-extracts the painting's features from the next step on (--style-scale).",
+            Effect.STYLE_FEATURES, read=lambda s: s.style_scale, write=_write_style_scale,
+            cli=CliOption("stroke size: the painting is matched at S × the working width (2: at twice that size, "
+                          "0.5: half; subtle at the preview's 256 px, README); default 1",
+                          type=argument_type(lambda text: check_style_scale(float(text))), metavar="S")),
+    Control("keep_colours", "keep colours", 0.0, 0.0, 1.0, False,
+            "Keep the scene's colours: it keeps its hues and takes only the painting's light and dark pattern "
+            "(colour match and networks on luminance; each Gaussian's own chroma restored after every step). "
+            "Turned on mid-run the hues come back at once; turned off, the painting's colours are matched again "
+            "from the next step and at the end (--keep-colours).",
+            Effect.STYLE_FEATURES | Effect.CONTENT_TARGETS | Effect.RESTORE_CHROMA,
+            read=lambda s: float(s.keep_colours), write=_write_keep_colours, widget="checkbox",
+            cli=CliOption("keep the scene's hues and take only the painting's luminance pattern", switch=True)),
+    Control("split_rate", "split rate", 0.05, 1e-3, 0.5, True,
+            "Fraction of Gaussians split where the style gradient is largest (finer detail, more Gaussians).",
+            Effect.NEXT_SPLIT, read=lambda s: s.split_rate, write=_write_split_rate,
+            cli=CliOption("fraction of Gaussians split by colour gradient")),
+    Control("lr", "learning rate", 0.1, 1e-3, 1.0, True, "Starting learning rate of the colour optimisation.",
+            Effect.LR_SCHEDULE, read=lambda s: s.lr_start, write=_write_lr),
+    Control("style_mix", "style mix", 0.0, 0.0, 1.0, False,
+            "Share of the second painting: 0 is the first alone, 1 the second alone. Every style term is the "
+            "weighted sum of its terms against each painting, and the colours match the weighted palette; changed "
+            "mid-run it applies from the next step (--style A --style B --style-weights).",
+            Effect.STYLE_FEATURES | Effect.CONTENT_TARGETS, read=_read_mix, write=_write_mix, fmt="%.2f",
+            tolerance=1e-9, with_paintings=True),
+)
+
+
+def control(name: str) -> Control:
+    """The row called ``name`` (``KeyError`` for none)."""
+    for row in CONTROLS:
+        if row.name == name:
+            return row
+    raise KeyError(name)
+
+
+def control_names() -> tuple[str, ...]:
+    """Every name ``Stylizer.set_params`` accepts (the worker's and the studio's ``set_params`` commands)."""
+    return tuple(row.name for row in CONTROLS)
+
+
+def cli_control_names() -> tuple[str, ...]:
+    """The controls that ``gstyle stylize`` (and the studio's engine factory, through it) takes as options."""
+    return tuple(row.name for row in CONTROLS if row.cli is not None)
+
+
+def painting_controls() -> frozenset[str]:
+    """The controls that belong to the paintings of a mix (a new set of paintings brings its own)."""
+    return frozenset(row.name for row in CONTROLS if row.with_paintings)
+
+
+def panel_controls(widget: str) -> tuple[Control, ...]:
+    """The rows the panel's parameter section shows as ``widget`` ("slider" or "checkbox"), in table order."""
+    return tuple(row for row in CONTROLS if row.widget == widget and not row.with_paintings)
+
+
+def read_controls(settings: StylizeSettings) -> dict[str, float]:
+    """Every control's value in ``settings`` (keep colours as 0/1; the mix: the last painting's share)."""
+    return {row.name: float(row.read(settings)) for row in CONTROLS}
+
+
+def apply_controls(settings: StylizeSettings, values: Mapping[str, Any]) -> Effect:
+    """Set the controls in ``values`` (None: keep) on ``settings``, in place; returns what the engine must do now.
+
+    Every value is checked before anything changes: an unknown name or a refused value raises ``ValueError`` and
+    leaves ``settings`` as it was. Only the rows whose value changed contribute their effects."""
+    rows = {row.name: row for row in CONTROLS}
+    unknown = set(values) - set(rows)
+    if unknown:
+        raise ValueError(f"unknown parameters: {', '.join(sorted(unknown))}")
+    given = {name: value for name, value in values.items() if value is not None}
+    trial = copy.deepcopy(settings)
+    for name, value in given.items():
+        rows[name].write(trial, value)
+    effects = Effect.NONE
+    for name, value in given.items():
+        row = rows[name]
+        before = float(row.read(settings))
+        row.write(settings, value)
+        if not abs(float(row.read(settings)) - before) <= row.tolerance:
+            effects |= row.effects
+    return effects
+
+
+def preset_values(preset: str, scene_kind: str, n_views: int = 1, **kw: Any) -> dict[str, float]:
+    """Every control's default for a preset and a scene kind ("forward" or "360"; ``kw``: ``resolve_settings``'
+    other arguments, e.g. ``clip_available``)."""
+    from .settings import resolve_settings
+
+    return read_controls(resolve_settings(preset, scene_kind, n_views, **kw))
+
+
+def add_control_arguments(parser: argparse.ArgumentParser) -> None:
+    """The controls' ``gstyle stylize`` options (default None: the preset's value)."""
+    for row in CONTROLS:
+        if row.cli is None:
+            continue
+        if row.cli.switch:
+            parser.add_argument(row.flag, action="store_true", default=None, help=row.cli.help)
+        else:
+            parser.add_argument(row.flag, type=row.cli.type, default=None, metavar=row.cli.metavar,
+                                help=row.cli.help)
