@@ -100,6 +100,11 @@ def stylize_command(args: argparse.Namespace) -> int:
     print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
           f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
     print(f"structure kept (edge correlation before/after over the scene): {q['structure']:.2f}")
+    ts = q["texture_scale"]
+    print(f"texture scale (fine / middle / coarse detail, DoG σ 0.5-1.5 / 1.5-4 / 4-10 px): added "
+          f"{' / '.join(f'{v:.2f}' for v in ts['added'].values())}, painting at {ts['painting_side']} px "
+          f"{' / '.join(f'{v:.2f}' for v in ts['painting'].values())} "
+          f"(coarse {ts['coarse_ratio']:.2f}× the painting's)")
     print(f"wrote {out}, {stem}.json, {stem}_before.png, {stem}_after.png ({summary['seconds_total']:.0f} s)")
     return 0
 
@@ -230,7 +235,20 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     nnfm_drop = 1.0 - final["nnfm"] / max(initial["nnfm"], 1e-12)
     return {"views": len(cams), "width": width, "initial": initial, "final": final,
             "nnfm_drop": nnfm_drop, "structure": structure_kept(before, after, alpha),
+            "texture_scale": run_texture_scale(engine, style, before, after, alpha, width).to_dict(),
             "images": (np.concatenate(before, axis=1), np.concatenate(after, axis=1))}
+
+
+def run_texture_scale(engine, style, before, after, alpha, width: int):
+    """The texture-scale figure (``style/texture_scale.py``) of evaluation renders ``width`` px wide: band shares of
+    what stylization added inside the scene beside the painting's own at the size it is matched."""
+    from ..style.texture_scale import matched_side, texture_scale
+
+    s = engine.settings
+    paintings = [style] if isinstance(style, np.ndarray) else list(style)
+    side = matched_side(s.working_width, s.style_scale, width)
+    weights = None if len(paintings) == 1 else s.style_weights
+    return texture_scale(before, after, [np.asarray(a) for a in alpha], paintings, side, weights)
 
 
 def _json_default(o):
