@@ -54,10 +54,7 @@ class GlobalNormAdam(VisibleAdam):
         if rows.numel() == 0:
             return 0
         b1, b2 = self.betas
-        g = self.param.grad[rows]
-        m = self.exp_avg[rows].mul_(b1).add_(g, alpha=1 - b1)
-        t = self.steps[rows] + 1
-        self.exp_avg[rows], self.steps[rows] = m, t
+        g, m, t = self.first_moment(rows)
         self.t_all += 1
         self.v_all = b2 * self.v_all + (1 - b2) * float((g * g).mean())
         v_hat = self.v_all / (1 - b2 ** self.t_all)

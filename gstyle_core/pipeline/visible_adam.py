@@ -37,17 +37,25 @@ class VisibleAdam:
         return torch.nonzero(g.reshape(g.shape[0], -1).abs().amax(dim=1) > 0).flatten()
 
     @torch.no_grad()
+    def first_moment(self, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The visible ``rows``' gradient, their first moment and step count advanced by one step (stored)."""
+        b1 = self.betas[0]
+        g = self.param.grad[rows]
+        m = self.exp_avg[rows].mul_(b1).add_(g, alpha=1 - b1)
+        t = self.steps[rows] + 1
+        self.exp_avg[rows], self.steps[rows] = m, t
+        return g, m, t
+
+    @torch.no_grad()
     def step(self) -> int:
         """One Adam step on the visible rows; returns how many rows moved."""
         rows = self.visible_rows()
         if rows.numel() == 0:
             return 0
         b1, b2 = self.betas
-        g = self.param.grad[rows]
-        m = self.exp_avg[rows].mul_(b1).add_(g, alpha=1 - b1)
+        g, m, t = self.first_moment(rows)
         v = self.exp_avg_sq[rows].mul_(b2).addcmul_(g, g, value=1 - b2)
-        t = self.steps[rows] + 1
-        self.exp_avg[rows], self.exp_avg_sq[rows], self.steps[rows] = m, v, t
+        self.exp_avg_sq[rows] = v
         shape = (-1,) + (1,) * (g.ndim - 1)
         m_hat = m / (1 - b1 ** t).reshape(shape)
         v_hat = v / (1 - b2 ** t).reshape(shape)
