@@ -251,7 +251,7 @@ def test_cli_records_strength_and_prints_structure(tiny_scene, fake_vgg_file, tm
     assert sum(ts["painting"].values()) == pytest.approx(1.0, abs=1e-3)
     assert ts["painting_side"] > 0 and ts["coarse_ratio"] == pytest.approx(
         ts["added"]["coarse"] / ts["painting"]["coarse"], abs=1e-3)
-    assert "texture scale (fine / middle / coarse detail" in printed
+    assert "texture scale (fine / middle / coarse, DoG" in printed
 
 
 def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):

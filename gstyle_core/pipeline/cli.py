@@ -100,11 +100,8 @@ def stylize_command(args: argparse.Namespace) -> int:
     print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
           f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
     print(f"structure kept (edge correlation before/after over the scene): {q['structure']:.2f}")
-    ts = q["texture_scale"]
-    print(f"texture scale (fine / middle / coarse detail, DoG σ 0.5-1.5 / 1.5-4 / 4-10 px): added "
-          f"{' / '.join(f'{v:.2f}' for v in ts['added'].values())}, painting at {ts['painting_side']} px "
-          f"{' / '.join(f'{v:.2f}' for v in ts['painting'].values())} "
-          f"(coarse {ts['coarse_ratio']:.2f}× the painting's)")
+    if "texture_scale" in q:  # the figure of what was added, beside the painting's own
+        print(texture_scale_line(q["texture_scale"]))
     print(f"wrote {out}, {stem}.json, {stem}_before.png, {stem}_after.png ({summary['seconds_total']:.0f} s)")
     return 0
 
@@ -237,6 +234,13 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
             "nnfm_drop": nnfm_drop, "structure": structure_kept(before, after, alpha),
             "texture_scale": run_texture_scale(engine, style, before, after, alpha, width).to_dict(),
             "images": (np.concatenate(before, axis=1), np.concatenate(after, axis=1))}
+
+
+def texture_scale_line(ts: dict) -> str:
+    """The end-of-run line of the texture-scale figure (from ``TextureScale.to_dict()``)."""
+    from ..style.texture_scale import TextureScale
+
+    return TextureScale(tuple(ts["added"].values()), tuple(ts["painting"].values()), ts["painting_side"]).line()
 
 
 def run_texture_scale(engine, style, before, after, alpha, width: int):
