@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from ..style.mix import weights_with_mix
-from .arg_types import argument_type
+from .arg_types import style_scale_arg
 
 if TYPE_CHECKING:
     from .settings import StylizeSettings
@@ -167,7 +167,7 @@ CONTROLS: tuple[Control, ...] = (
             Effect.STYLE_FEATURES, read=lambda s: s.style_scale, write=_write_style_scale,
             cli=CliOption("stroke size: the painting is matched at S × the working width (2: at twice that size, "
                           "0.5: half; subtle at the preview's 256 px, README); default 1",
-                          type=argument_type(lambda text: check_style_scale(float(text))), metavar="S")),
+                          type=style_scale_arg, metavar="S")),
     Control("keep_colours", "keep colours", 0.0, 0.0, 1.0, False,
             "Keep the scene's colours: it keeps its hues and takes only the painting's light and dark pattern "
             "(colour match and networks on luminance; each Gaussian's own chroma restored after every step). "

@@ -32,14 +32,15 @@ from ..cameras.camera import Camera
 from ..fit.model import scene_from_params
 from ..scene import GaussianScene, rgb_to_sh_dc
 from ..style.clip import clip_term_name
-from ..style.mix import normalise_style_weights, weights_with_mix
+from ..style.mix import normalise_style_weights
 from .active import ActiveSet
+from .controls import Effect, apply_controls
 from .notes import note_loss_terms, note_networks, note_planned_clip, note_style, sh_note
 from .phases import ColourMatch, GroundTruth, Phase, Preprocess, StepReport, Stylize
 from .phases.colour_match import match_content_targets
 from .region import region_note, selection_mask
 from .run_state import RunState
-from .settings import StylizeSettings, check_style_scale, ui_params
+from .settings import StylizeSettings, ui_params
 
 __all__ = ["Stylizer", "StepReport", "choose_views", "ENGINE_STATE"]
 
@@ -238,10 +239,11 @@ class Stylizer:
         lr, style mix: the last painting's weight when several are mixed, the others share the rest) from the next
         step on; a term whose weight turns non-zero is built then. ``ValueError`` (nothing changed) for an unknown
         name or a refused value."""
-        from .controls import Effect, apply_controls
+        self._carry_out(apply_controls(self.settings, kw))
 
+    def _carry_out(self, effects: Effect) -> None:
+        """What the engine does now for controls that changed (``controls.Effect``)."""
         s, run = self.settings, self.run_state
-        effects = apply_controls(s, kw)
         if effects & Effect.REWEIGHT:
             if run.objective is not None:
                 run.objective.set_weights(s.weights)
@@ -256,35 +258,10 @@ class Stylizer:
                 run.colour_version += 1
         if effects & Effect.CONTENT_TARGETS and hasattr(run.objective, "clear_content_cache"):
             run.objective.clear_content_cache()
-        if effects & Effect.STYLE_FEATURES:
-            self._set_style_controls(None, None)  # the painting's features for the new settings, and their note
-
-    def _set_style_controls(self, scale: float | None, keep: float | bool | None, mix: float | None = None) -> None:
-        """Stroke size, keep colours and the style mix, mid-run too (the module docstring says what each does
-        then)."""
-        s, run = self.settings, self.run_state
-        if scale is not None:
-            s.style_scale = check_style_scale(scale)
-        mix_changed = False
-        if mix is not None and len(run.styles) > 1:
-            weights = weights_with_mix(s.style_weights, float(mix))
-            mix_changed = not np.allclose(weights, s.style_weights, rtol=0, atol=1e-9)
-            s.style_weights = weights
-        elif mix is not None and float(mix) != 0.0:
-            raise ValueError("the style mix needs a second style image")
-        keep_changed = keep is not None and bool(keep) != s.keep_colours
-        if keep_changed:
-            s.keep_colours = bool(keep)
-        if (keep_changed or mix_changed) and run.content_images:  # past the colour match: new content targets
-            match_content_targets(run)
-            if keep_changed and s.keep_colours:  # c_s takes c_gt's chroma
-                self.stylize.restore_chroma()
-                run.colour_version += 1
-        if hasattr(run.objective, "refresh_style"):  # test objectives may have no style features
-            run.objective.refresh_style()
-        if (keep_changed or mix_changed) and hasattr(run.objective, "clear_content_cache"):
-            run.objective.clear_content_cache()
-        note_style(run.decisions, s, run.objective, len(run.styles))
+        if effects & Effect.STYLE_FEATURES:  # the painting's features for the settings as they are now, their note
+            if hasattr(run.objective, "refresh_style"):  # test objectives may have no style features
+                run.objective.refresh_style()
+            note_style(run.decisions, s, run.objective, len(run.styles))
 
     # ----------------------------------------------------------------- outputs
     def snapshot(self) -> dict[str, Any]:
@@ -334,7 +311,9 @@ class Stylizer:
         saved = state.get("settings") or {}
         if len(saved.get("style_weights") or ()) == len(self.styles) > 1:  # the mix as it was (content targets too)
             self.settings.style_weights = normalise_style_weights(saved["style_weights"], len(self.styles))
-        self._set_style_controls(saved.get("style_scale"), saved.get("keep_colours"))  # a resumed run keeps them
+        # a resumed run keeps its stroke size and keep colours; the painting's features follow them and the mix
+        kept = {"style_scale": saved.get("style_scale"), "keep_colours": saved.get("keep_colours")}
+        self._carry_out(apply_controls(self.settings, kept) | Effect.STYLE_FEATURES)
         self._settle()
 
 
