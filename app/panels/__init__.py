@@ -4,9 +4,9 @@
 which share ``widgets``; ``params.py`` is the table of engine parameters the sliders show."""
 
 from .draw import PANEL_WIDTH, draw_panel, shortcut_commands
-from .params import PARAMS, Param, param_rows
+from .params import Param, param_rows
 from .run_sections import decision_lines, format_eta, loss_series
 from .state import Command, PanelState
 
-__all__ = ["PANEL_WIDTH", "PARAMS", "Command", "PanelState", "Param", "param_rows", "decision_lines", "draw_panel",
-           "format_eta", "loss_series", "shortcut_commands"]
+__all__ = ["PANEL_WIDTH", "Command", "PanelState", "Param", "param_rows", "decision_lines", "draw_panel", "format_eta",
+           "loss_series", "shortcut_commands"]

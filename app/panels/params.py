@@ -34,9 +34,7 @@ def param_rows() -> tuple[Param, ...]:
                  for c in panel_controls("slider"))
 
 
-PARAMS = param_rows()
 COARSE_CLIP_TOOLTIP = (
     "Weight of the coarse (CLIP substitute) term: no CLIP ViT-B/32 weights were found, so the style's large-scale "
     "colour and texture statistics (VGG features of 4x smaller images) are matched instead of CLIP's embedding.")
 KEEP_COLOURS_TOOLTIP = control("keep_colours").tooltip
-STYLE_MIX_TOOLTIP = control("style_mix").tooltip

@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 from imgui_bundle import imgui
 
-from .params import STYLE_MIX_TOOLTIP
+from gstyle_core.pipeline.controls import control
+
 from .state import Command, PanelState
 from .widgets import button, button_row, thumbnail, tooltip
 
@@ -38,11 +39,12 @@ def second_style(state: PanelState, out: list[Command]) -> None:
     thumbnail(state.style2_texture, state.style2_size, 60.0)
     imgui.text_wrapped(f"Second style: {state.style2_path}")
     imgui.set_next_item_width(150)
-    mix = float(state.params.get("style_mix", 0.5))
-    changed, mix = imgui.slider_float("style mix", mix, 0.0, 1.0, "%.2f")
-    tooltip(STYLE_MIX_TOOLTIP)
+    row = control("style_mix")
+    mix = float(state.params.get(row.name, 0.5))
+    changed, mix = imgui.slider_float(row.label, mix, row.low, row.high, row.fmt)
+    tooltip(row.tooltip)
     if changed:
-        out.append(Command("set_params", {"style_mix": float(min(max(mix, 0.0), 1.0))}))
+        out.append(Command("set_params", {row.name: float(min(max(mix, row.low), row.high))}))
     imgui.same_line()
     if button("remove", "Back to the first painting alone (restarts the stylization).", small=True):
         out.append(Command("remove_style2"))

@@ -1,4 +1,4 @@
-"""The panel's parameter sliders (one row per ``PARAMS`` entry: on/off for a loss term, log slider, reset), the
+"""The panel's parameter sliders (one row per ``param_rows()`` entry: on/off for a loss term, slider, reset), the
 keep-colours checkbox and "Reset all"."""
 
 from __future__ import annotations
