@@ -9,8 +9,10 @@ colour-gradient splitting off, culling of Gaussians no camera sees off, VGG on w
 box (``crop_to_scene`` off; photos are whole frames anyway), the ``balanced`` preset, the style strength (0.3, 1,
 3, 10 on the preview preset as shipped: ``STRENGTH_SWEEP``, every group), and with
 ``--with-slow`` VGG in bf16 (channels_last) and the pure-torch reference rasterizer for ground truth and refits.
-Scenes: the bundled demo (360°) and the fern (forward-facing; fit it first with
-``gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply``).
+Scenes: the bundled demo (360°), the fern (forward-facing; fit it first with
+``gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply``) and, from ``../shared/data`` when present, the 360°
+captures ``biker`` and ``winter`` (winter_fountain). ``--sweep scale`` runs ``SCALE_SWEEP`` instead on every group:
+the broad-strokes term on and off at stroke sizes 0.5, 1 and 2, and the balanced and final presets, as shipped.
 
 Quality is measured on 3 fixed evaluation views at one width (256 px) for every point:
 - ``nnfm_drop``: 1 − NNFM distance to the style after / before (coverage-weighted; higher = more stylized),
@@ -20,7 +22,9 @@ Quality is measured on 3 fixed evaluation views at one width (256 px) for every 
 - ``consistency``: reprojection error between each evaluation view and a nearby view (rendered depth;
   ``consistency_input`` is the same for the input scene, the floor of the measure; the nearby view is the
   evaluation camera moved sideways by 3 % of the scene's median depth),
-- ``preprocess_psnr``: PSNR of the pre-processed scene against the ground truth on the training views.
+- ``preprocess_psnr``: PSNR of the pre-processed scene against the ground truth on the training views,
+- ``coarse_added`` / ``coarse_painting`` / ``coarse_ratio``: the texture-scale figure (``style/texture_scale.py``):
+  the coarse band's share of what stylization added, the painting's own at its matched size, and their ratio.
 Writes ``docs/tradeoff.csv`` and ``docs/tradeoff.png`` (NNFM drop against time per scene/style, Pareto front =
 among the points that keep the structure (≥ ``MIN_STRUCTURE``), no other point of the group is both faster and more
 stylized) and prints ``RESULT points=N pareto=M`` last. ``--replot`` redraws both from the CSV, ``--table`` prints
@@ -49,10 +53,14 @@ from gstyle_core.pipeline.build import BuildRequest, build_stylizer  # noqa: E40
 from gstyle_core.pipeline.consistency import nearby_camera, view_consistency  # noqa: E402
 from gstyle_core.pipeline.stylizer import choose_views  # noqa: E402
 
+SHARED = ROOT.parent / "shared" / "data"
 SCENES: dict[str, tuple[str | None, str | None]] = {"demo": (None, None)}  # (scene, cameras); None = the demo
-FERN_CAMERAS = ROOT.parent / "shared" / "data" / "scenes" / "llff_fern"  # photos + poses: the fern's ground truth
+CAPTURES = {"biker": SHARED / "scenes" / "playcanvas" / "biker.spz",  # 360° captures, used when present
+            "winter": SHARED / "scenes" / "splat" / "winter_fountain.cropped.splat"}
+FERN_CAMERAS = SHARED / "scenes" / "llff_fern"  # photos + poses: the fern's ground truth
 STYLES = {"starry": ROOT / "assets" / "styles" / "starry_night.jpg",
-          "mandelbrot": ROOT.parent / "shared" / "data" / "styles" / "mandelbrot_color.png"}
+          "mandelbrot": SHARED / "styles" / "mandelbrot_color.png",
+          "wave": SHARED / "styles" / "great_wave_hokusai.jpg"}
 # The sweep's base point: the 6-epoch preview preset it was measured with (labelled "preview" in docs/tradeoff.csv).
 # The preset itself became the "epochs 3" point once the front was known (docs/tradeoffs.md), so the base stays
 # explicit here and every point below changes one knob of it.
@@ -80,12 +88,19 @@ SLOW_POINTS = [  # --with-slow: measured once (see docs/tradeoffs.md), left out 
 STRENGTH_SWEEP = [("as shipped", "shipped", {})] + [
     (f"strength {s:g}", "shipped", {"strength": s}) for s in (0.3, 3.0, 10.0)]
 FULL_SWEEP += STRENGTH_SWEEP
+# Style at every scale (issue #23): the broad-strokes term on/off at three stroke sizes, and the higher presets, all
+# as shipped (on 360° captures the calibrated defaults).
+SCALE_SWEEP = [(f"stroke {s:g}{suffix}", "shipped", {"style_scale": s, **extra})
+               for suffix, extra in (("", {}), (", no broad strokes", {"lambda_multiscale": 0.0}))
+               for s in (0.5, 1.0, 2.0)]
+SCALE_SWEEP += [("balanced as shipped", "balanced", {}), ("final as shipped", "final", {})]
 SHORT_SWEEP = [p for p in FULL_SWEEP if p[0] in ("preview", "width 128", "width 256", "epochs 3", "epochs 12")]
 SHORT_SWEEP += STRENGTH_SWEEP
 QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5}),
                ("width 128", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5,
                                           "working_width": 128})]
 EVAL_WIDTH = 256
+PICTURE_WIDTH = 512  # --pictures: one view per point at this width (strokes can be judged)
 MIN_STRUCTURE = 0.5  # edge correlation below which the scene is considered lost (issue #14's threshold)
 NEARBY_SHIFT = 0.03  # consistency: the second view is moved sideways by 3 % of the scene's median depth
 
@@ -109,8 +124,23 @@ def psnr(engine) -> float:
     return float(-10 * math.log10(max(np.mean(errors), 1e-12)))
 
 
-def run_point(scene: str | None, style: Path, preset: str, overrides: dict, cameras: str | None = None) -> dict:
-    """One stylization with ``overrides``; wall time per phase and the quality figures."""
+def save_pictures(engine, scene_in, folder: Path, name: str, width: int = PICTURE_WIDTH) -> None:
+    """The middle evaluation view of the input and of the stylized scene, ``width`` px wide, cropped to the scene:
+    ``folder/<name>.png`` (stylized) and ``folder/input.png``."""
+    from gstyle_core.render_cli import save_png, scene_rows
+
+    cams = engine.full_cameras
+    camera = cams[choose_views(cams, 3)[1 if len(cams) > 1 else 0]]
+    before, after = scene_rows([scene_in, engine.stylized_scene()], [camera], 1, width)
+    folder.mkdir(parents=True, exist_ok=True)
+    save_png(folder / f"{name}.png", after)
+    save_png(folder / "input.png", before)
+
+
+def run_point(scene: str | None, style: Path, preset: str, overrides: dict, cameras: str | None = None,
+              pictures: tuple[Path, str] | None = None) -> dict:
+    """One stylization with ``overrides``; wall time per phase and the quality figures (``pictures`` = (folder,
+    name): also the pictures of ``save_pictures``)."""
     from gstyle_core.pipeline.cli import evaluate_run
 
     kw = {**BASE, **overrides} if preset == "preview" else dict(overrides)
@@ -137,6 +167,8 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
     total = time.perf_counter() - t0
     q = evaluate_run(engine, scene_in, style_img, n_views=3, width=EVAL_WIDTH)
     q.pop("images")
+    if pictures is not None:
+        save_pictures(engine, scene_in, *pictures)
     eval_cams = [engine.full_cameras[i].resized_to_width(EVAL_WIDTH) for i in choose_views(engine.full_cameras, 3)]
     pairs = [(c, nearby_camera(c, NEARBY_SHIFT * median_depth(scene_in, c))) for c in eval_cams]
     return {
@@ -147,6 +179,9 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
         "colour": q["final"]["colour"], "consistency": view_consistency(engine.stylized_scene(), pairs),
         "consistency_input": view_consistency(scene_in, pairs), "preprocess_psnr": pre_psnr,
         "working_width": engine.settings.working_width, "steps": engine.global_step,
+        "coarse_added": q["texture_scale"]["added"]["coarse"],
+        "coarse_painting": q["texture_scale"]["painting"]["coarse"],
+        "coarse_ratio": q["texture_scale"]["coarse_ratio"],
     }
 
 
@@ -242,7 +277,7 @@ def markdown_rows(rows: list[dict]) -> list[str]:
         out.append(f"| {r['group']} | {r['label']} | {float(r['seconds']):.0f} | {100 * float(r['nnfm_drop']):.1f} % | "
                    f"{num(r, 'structure', '.2f')} | {num(r, 'content', '.1f')} | {num(r, 'colour', '.3f')} | "
                    f"{num(r, 'consistency', '.4f')} ({num(r, 'consistency_input', '.4f')}) | {psnr_text} | "
-                   f"{'yes' if r.get('pareto') in (True, 'True') else ''} |")
+                   f"{num(r, 'coarse_ratio', '.2f')} | {'yes' if r.get('pareto') in (True, 'True') else ''} |")
     return out
 
 
@@ -275,8 +310,13 @@ def main() -> None:
     p.add_argument("--groups", default="demo:starry,demo:mandelbrot,fern:starry,fern:mandelbrot",
                    help="scene:style pairs; the first gets the full sweep, the others a short one")
     p.add_argument("--quick", action="store_true", help="two tiny points on the demo (a smoke test, minutes)")
+    p.add_argument("--sweep", choices=("knobs", "scale"), default="knobs",
+                   help="knobs: the full sweep on the first group, a short one on the others; scale: SCALE_SWEEP on "
+                        "every group")
     p.add_argument("--with-slow", action="store_true", help="also the width-320 and bf16 points of the first group")
     p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--pictures", default=None, metavar="DIR",
+                   help=f"also save one {PICTURE_WIDTH}-px view per point: DIR/<scene>_<style>/<label>.png")
     p.add_argument("--out", default=str(ROOT / "docs" / "tradeoff"), help="CSV/PNG path without suffix")
     p.add_argument("--merge", action="store_true",
                    help="keep the rows already in the CSV that this run does not re-measure")
@@ -298,6 +338,7 @@ def main() -> None:
     scenes = dict(SCENES)
     if Path(args.fern).is_file():
         scenes["fern"] = (args.fern, str(FERN_CAMERAS))
+    scenes.update({name: (str(path), None) for name, path in CAPTURES.items() if path.is_file()})
     out = Path(args.out)
     groups = [g.split(":") for g in args.groups.split(",")] if not args.quick else [["demo", "starry"]]
     wanted = None if args.points is None else {x.strip() for x in args.points.split(",")}
@@ -310,26 +351,33 @@ def main() -> None:
     rows: list[dict] = read_rows(out.with_suffix(".csv"), names, wanted) if args.merge else []
     for gi, (scene_name, style_name) in enumerate(groups):
         if scene_name not in scenes:
-            print(f"skip {scene_name}: not found (fit it first: gstyle fit ../shared/data/scenes/llff_fern "
-                  f"--out out/fern.ply)")
+            fit = "fit it first: gstyle fit ../shared/data/scenes/llff_fern --out out/fern.ply"
+            hint = (fit if scene_name == "fern"
+                    else f"not in {SHARED}" if scene_name in CAPTURES else "unknown scene name")
+            print(f"skip {scene_name}: not found ({hint})")
             continue
         if not STYLES[style_name].is_file():
             print(f"skip {style_name}: {STYLES[style_name]} not found")
             continue
         sweep = QUICK_SWEEP if args.quick else (FULL_SWEEP if gi == 0 else SHORT_SWEEP)
+        if args.sweep == "scale" and not args.quick:
+            sweep = SCALE_SWEEP
         if gi == 0 and args.with_slow and not args.quick:
             sweep = sweep + SLOW_POINTS
         for label, preset, overrides in sweep:
             if wanted is not None and label not in wanted:
                 continue
             scene_path, cameras = scenes[scene_name]
-            res = run_point(scene_path, STYLES[style_name], preset, overrides, cameras=cameras)
+            shots = None if args.pictures is None else (Path(args.pictures) / f"{scene_name}_{style_name}",
+                                                         label.replace(" ", "_").replace(",", ""))
+            res = run_point(scene_path, STYLES[style_name], preset, overrides, cameras=cameras, pictures=shots)
             row = {"group": f"{scene_name} / {style_name}", "label": label, **res}
             rows.append(row)
             print(f"{row['group']:<20} {label:<16} {res['seconds']:7.1f} s  NNFM drop {100 * res['nnfm_drop']:5.1f} %"
                   f"  structure {res['structure']:.2f}"
                   f"  content {res['content']:7.2f}  colour {res['colour']:.3f}  consistency {res['consistency']:.4f}"
-                  f" (input {res['consistency_input']:.4f})  preprocess PSNR {res['preprocess_psnr']:.2f} dB",
+                  f" (input {res['consistency_input']:.4f})  preprocess PSNR {res['preprocess_psnr']:.2f} dB"
+                  f"  coarse ratio {res['coarse_ratio']:.2f}",
                   flush=True)
             write_outputs(rows, out)
     print(f"wrote {out.with_suffix('.csv')} and {out.with_suffix('.png')}")

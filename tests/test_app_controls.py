@@ -11,6 +11,7 @@ from synthetic import blob_scene, ring_cameras  # noqa: E402
 
 from app.panels import PanelState, draw_panel, loss_series, param_rows  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
+from gstyle_core.pipeline.controls import control  # noqa: E402
 from gstyle_core.pipeline.settings import resolve_settings, ui_params  # noqa: E402
 from gstyle_core.style.clip import COARSE_NAME  # noqa: E402
 
@@ -18,7 +19,8 @@ W, H = 700, 1100  # tall enough for the whole panel
 
 
 def panel_state(**kw) -> PanelState:
-    params = ui_params(resolve_settings("preview", "forward", 4))
+    params = ui_params(resolve_settings("preview", "forward", 4, clip_available=False))  # as on a machine without
+    # CLIP weights: the CLIP term off, the broad-strokes term on
     return PanelState(params=dict(params), defaults=dict(params), **kw)
 
 
@@ -57,11 +59,21 @@ def test_camera_list_reaches_every_camera(panel):
     assert [(c.name, c.args) for c in commands] == [("snap_camera", {"index": 11})]
 
 
-def test_each_term_switches_off_and_back_on(panel):
+@pytest.mark.parametrize("key", ["lambda_nnfm", "lambda_multiscale"])
+def test_each_term_switches_off_and_back_on(panel, key):
     driver, state = panel
-    commands = driver.click("lambda_clip/##on")
-    assert [c.args for c in commands] == [{"lambda_clip": 0.0}]
-    assert driver.click("lambda_clip/lambda CLIP") == []  # its slider is disabled while off
+    value = state.params[key]
+    assert value > 0
+    commands = driver.click(f"{key}/##on")
+    assert [c.args for c in commands] == [{key: 0.0}]
+    assert driver.click(f"{key}/{control(key).label}") == []  # its slider is disabled while off
+    commands = driver.click(f"{key}/##on")
+    assert [c.args for c in commands] == [{key: value}]
+
+
+def test_the_clip_term_off_without_weights_turns_on_at_the_papers_weight(panel):
+    driver, state = panel
+    assert state.params["lambda_clip"] == 0.0
     commands = driver.click("lambda_clip/##on")
     assert [c.args for c in commands] == [{"lambda_clip": 10.0}]
 
@@ -79,7 +91,9 @@ def test_coarse_substitute_is_named_so_on_slider_tooltip_and_plot(panel):
     driver.frame()
     slider = driver.recorder.find(f"lambda_clip/lambda {COARSE_NAME}")
     assert "coarse (CLIP substitute)" in slider.tooltip and "no CLIP ViT-B/32 weights" in slider.tooltip
-    assert [label for label, _ in loss_series([{"clip": 1.0, "nnfm": 2.0}], COARSE_NAME)] == [COARSE_NAME, "nnfm"]
+    history = [{"clip": 1.0, "nnfm": 2.0, "multiscale": 3.0, "content": 0.0}]
+    assert [label for label, _ in loss_series(history, COARSE_NAME)] == [COARSE_NAME, "broad strokes", "NNFM"]
+    # (content: weight 0, never computed, no line in the plot)
 
 
 def test_studio_names_the_clip_term_by_the_weights_found(window, no_clip_weights, tmp_path):

@@ -56,13 +56,14 @@ def test_quick_sweep_writes_both_points_and_the_result_line(tradeoff, tmp_path, 
     for r in rows:
         assert float(r["seconds"]) > 0 and int(r["steps"]) > 0
         assert math.isfinite(float(r["nnfm_drop"])) and math.isfinite(float(r["consistency"]))
+        assert 0.0 <= float(r["coarse_added"]) <= 1.0 and float(r["coarse_ratio"]) >= 0.0
     assert any(r["pareto"] == "True" for r in rows)
     assert printed.strip().splitlines()[-1].startswith("RESULT points=2 pareto=")
     monkeypatch.setattr(sys, "argv", ["tradeoff.py", "--table", "--out", str(out)])
     tradeoff.main()
     table = capsys.readouterr().out.strip().splitlines()
     assert [line.split(" | ")[1] for line in table] == ["w32", "w48"]
-    assert all(line.startswith("| demo / starry |") and line.count("|") == 11 for line in table)
+    assert all(line.startswith("| demo / starry |") and line.count("|") == 12 for line in table)  # 11 columns
 
 
 def test_a_point_that_loses_the_structure_is_never_on_the_front(tradeoff):

@@ -95,8 +95,13 @@ def test_the_table_gives_each_presets_values(preset, kind):
     s = resolve_settings(preset, kind, 20, clip_available=True)
     assert values["lambda_nnfm"] == s.weights.nnfm and values["lr"] == s.lr_start
     assert values["split_rate"] == s.split_rate and values["keep_colours"] == 0.0 and values["style_mix"] == 0.0
-    if (preset, kind) == ("preview", "forward"):  # the rows' own defaults are this preset's (the panel's start)
-        assert values == {row.name: row.default for row in controls.CONTROLS}
+    assert values["lambda_multiscale"] == 0.0  # CLIP keeps its place: no broad-strokes term
+    without_clip = preset_values(preset, kind, 20, clip_available=False)
+    assert without_clip["lambda_multiscale"] == without_clip["lambda_nnfm"] and without_clip["lambda_clip"] == 0.0
+    if (preset, kind) == ("preview", "forward"):  # the rows' own defaults are this preset's (the panel's start),
+        # the broad-strokes term's as it is without CLIP weights (a term's row default is what "on" restores)
+        assert values == {row.name: row.default for row in controls.CONTROLS} | {"lambda_multiscale": 0.0}
+        assert without_clip["lambda_multiscale"] == controls.control("lambda_multiscale").default
 
 
 def test_a_change_is_checked_whole_before_anything_changes():

@@ -45,16 +45,17 @@ def _engine(**overrides):
 
 
 def test_settings_follow_the_paper_per_scene_kind():
-    ff = resolve_settings("final", "forward", 20)
+    ff = resolve_settings("final", "forward", 20, clip_available=True)
     s360 = resolve_settings("final", "360", 200, defaults="paper")
     assert (ff.weights.nnfm, s360.weights.nnfm) == (100.0, 10.0)
-    assert (ff.weights.clip, ff.weights.content, ff.weights.tv) == (10.0, 0.05, 1e-4)
+    assert (ff.weights.clip, ff.weights.content, ff.weights.tv, ff.weights.multiscale) == (10.0, 0.05, 1e-4, 0.0)
     assert (ff.lr_start, ff.lr_end, s360.lr_start, s360.lr_end) == (1e-1, 1e-2, 1e-2, 5e-3)
     assert (ff.preprocess_rounds, s360.preprocess_rounds) == (5, 10)
     assert (ff.refit_iterations, s360.refit_iterations) == (2000, 1000 * 0 + max(5 * 200, 2000))
     assert ff.split_rate == 0.05 and s360.split_rate == 0.02 and s360.split_at == (0.2, 7 / 15)
     assert resolve_settings("preview", "360", 5, lambda_nnfm=3.0).weights.nnfm == 3.0
-    assert replace(resolve_settings("final", "forward", 20, defaults="paper"), defaults="calibrated") == ff  # same
+    paper_ff = resolve_settings("final", "forward", 20, defaults="paper", clip_available=False)
+    assert replace(paper_ff, defaults="calibrated") == ff  # forward-facing: the paper's values when CLIP can run
     with pytest.raises(ValueError):
         resolve_settings("nope", "forward", 5)
     with pytest.raises(ValueError):
@@ -62,8 +63,9 @@ def test_settings_follow_the_paper_per_scene_kind():
 
 
 def test_calibrated_360_defaults_and_the_clip_substitute():
-    """360° scenes default to the values measured on this machine (settings.CALIBRATED_360); the coarse CLIP
-    substitute is off there unless CLIP weights exist or λ_CLIP is given; forward-facing scenes keep the paper's."""
+    """360° scenes default to the values measured on this machine (settings.CALIBRATED_360); without CLIP weights the
+    calibrated defaults of either kind turn the coarse CLIP substitute off (unless λ_CLIP is given) and the
+    broad-strokes term on at λ_NNFM; the paper's defaults and real CLIP weights have no broad-strokes term."""
     from gstyle_core.pipeline.settings import CALIBRATED_360
 
     paper = resolve_settings("preview", "360", 16, defaults="paper", clip_available=False)
@@ -75,7 +77,15 @@ def test_calibrated_360_defaults_and_the_clip_substitute():
     assert resolve_settings("preview", "360", 16, clip_available=True).weights.clip == 10.0
     assert resolve_settings("preview", "360", 16, clip_available=False, lambda_clip=2.0).weights.clip == 2.0
     assert cal.working_width == 256 and resolve_settings("preview", "forward", 16).working_width == 192
-    assert resolve_settings("preview", "forward", 16, clip_available=False).weights.clip == 10.0
+    forward = resolve_settings("preview", "forward", 16, clip_available=False)
+    assert (forward.weights.clip, forward.weights.multiscale) == (0.0, forward.weights.nnfm)
+    assert cal.weights.multiscale == cal.weights.nnfm and paper.weights.multiscale == 0.0
+    with_clip = resolve_settings("preview", "360", 16, clip_available=True)
+    assert with_clip.weights.multiscale == 0.0
+    tied = resolve_settings("preview", "360", 16, clip_available=False, lambda_nnfm=50.0)
+    assert tied.weights.multiscale == 50.0  # the default follows a given λ_NNFM
+    given = resolve_settings("preview", "360", 16, clip_available=False, lambda_nnfm=50.0, lambda_multiscale=0.0)
+    assert given.weights.multiscale == 0.0  # a given λ_broad strokes wins (0: off)
     assert cal.to_dict()["defaults"] == "calibrated"  # recorded in OUT.json with the other settings
 
 

@@ -53,7 +53,7 @@ class _SizeRecorder(nn.Module):
 
 
 def _objective(vgg, crop: bool) -> StyleObjective:
-    settings = resolve_settings("preview", "360", 4, crop_to_scene=crop, working_width=160)
+    settings = resolve_settings("preview", "360", 4, crop_to_scene=crop, working_width=160, clip_available=False)
     style = np.random.default_rng(1).random((48, 64, 3)).astype(np.float32)
     return StyleObjective(style, settings, vgg=_SizeRecorder(vgg))
 
@@ -67,7 +67,8 @@ def test_cropped_losses_equal_the_whole_frames_and_cost_fewer_pixels(vgg):
     image_crop = render.clone().requires_grad_(True)
     total_full, terms_full = full(image_full, content, 0, coverage=cov)
     total_crop, terms_crop = cropped(image_crop, content, 0, coverage=cov)
-    for term in ("nnfm", "content", "tv"):
+    assert full._settings.weights.multiscale > 0  # the broad-strokes term on (no CLIP weights): on a wider box
+    for term in ("nnfm", "content", "tv", "multiscale"):
         assert terms_crop[term] == pytest.approx(terms_full[term], rel=2e-3), term
     assert terms_crop["clip"] == pytest.approx(terms_full["clip"], rel=1e-5)  # the substitute sees the whole frame
     assert sum(cropped.vgg.pixels) < 0.6 * sum(full.vgg.pixels)

@@ -72,3 +72,24 @@ def test_small_renders_mixes_and_bad_arguments(vgg):
         MultiScaleStyleLoss(vgg, [])
     with pytest.raises(ValueError):
         MultiScaleStyleLoss(vgg, a)(render[0])
+
+
+def test_the_combined_loss_adds_it_only_when_weighted(vgg):
+    """In ``StyleLoss`` the term is λ_MS × the term on the same render, counted as one VGG run per level; at weight 0
+    it never runs and the total is the four-term sum; a weight without the term is refused."""
+    from gstyle_core.style.losses import StyleLoss, StyleTarget, StyleWeights
+
+    painting = _painting()
+    term = MultiScaleStyleLoss(vgg, painting)
+    target = StyleTarget.from_image(vgg, painting)
+    render = _painting(seed=3).requires_grad_(True)
+    off = StyleLoss(vgg, target, None, weights=StyleWeights(clip=0.0, tv=0.0), multiscale_term=term)
+    on = StyleLoss(vgg, target, None, weights=StyleWeights(clip=0.0, tv=0.0, multiscale=7.0), multiscale_term=term)
+    total_off, terms_off = off(render, render.detach())
+    total_on, terms_on = on(render, render.detach())
+    assert terms_off["multiscale"] == 0.0 and off.calls["vgg"] == 2  # render + content features
+    assert on.calls["vgg"] == 2 + len(term.factors)
+    assert terms_on["multiscale"] == pytest.approx(float(term(render.detach())), rel=1e-6)
+    assert float((total_on - total_off).detach()) == pytest.approx(7.0 * terms_on["multiscale"], rel=1e-4)
+    with pytest.raises(ValueError, match="broad-strokes"):
+        StyleLoss(vgg, target, None, weights=StyleWeights(clip=0.0, multiscale=1.0))

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from imgui_bundle import imgui
 
-from gstyle_core.pipeline.controls import control
+from gstyle_core.pipeline.controls import control, term_label
 
 from .state import Command, PanelState
 from .widgets import button, button_row, thumbnail, tooltip
@@ -87,15 +87,19 @@ def format_eta(seconds: float | None) -> str:
 
 
 def term_name(key: str, clip_name: str = "CLIP") -> str:
-    """A loss key as labels show it: ``clip`` by what the term is (``clip_name``), the others as they are."""
-    return clip_name if key == "clip" else key
+    """A loss key as labels show it: ``clip`` by what the term is (``clip_name``), the others by their λ row's label
+    (``multiscale``: "broad strokes")."""
+    return clip_name if key == "clip" else term_label(key)
 
 
 def loss_series(history: list[dict[str, float]], clip_name: str = "CLIP") -> list[tuple[str, np.ndarray]]:
-    """(legend label, values) per loss key in ``history``; missing or non-positive values are NaN (log axis)."""
+    """(legend label, values) per loss key in ``history``; missing or non-positive values are NaN (log axis); a
+    term never computed (no positive value: switched off) has no series."""
     series = []
     for key in sorted({k for h in history for k in h}):
         ys = np.array([h.get(key, np.nan) for h in history], np.float64)
+        if not np.any(ys > 0):
+            continue
         series.append((term_name(key, clip_name), np.where(ys > 0, ys, np.nan)))
     return series
 

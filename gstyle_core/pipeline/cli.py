@@ -87,7 +87,8 @@ def stylize_command(args: argparse.Namespace) -> int:
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
-    for key in ("region", "sh", "preprocess", "culled", "loss_terms", "clip", "vgg", "styles"):  # what it needed
+    for key in ("region", "sh", "preprocess", "culled", "loss_terms", "broad_strokes", "clip", "vgg",
+                "styles"):  # what it needed
         # (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
@@ -174,13 +175,16 @@ def _run_with_progress(engine, checkpointer, stop: dict) -> None:
 
 
 def _advance(bar, rep, clip_name: str) -> None:
-    """One step on the bar: phase as description, total as planned now, losses (the CLIP term by its name)."""
+    """One step on the bar: phase as description, total as planned now, losses (each term as the panel names it,
+    the CLIP term by what it is)."""
     if rep.total_steps and rep.total_steps != bar.total:
         bar.total = rep.total_steps
     bar.set_description(f"{rep.phase:>12}", refresh=False)
     if rep.losses:
-        bar.set_postfix({(clip_name if k == "clip" else k): f"{v:.3g}" for k, v in rep.losses.items() if v},
-                        refresh=False)
+        from .controls import term_label
+
+        bar.set_postfix({(clip_name if k == "clip" else term_label(k) if k != "total" else k): f"{v:.3g}"
+                         for k, v in rep.losses.items() if v}, refresh=False)
     bar.update(1)
 
 

@@ -149,16 +149,23 @@ CONTROLS: tuple[Control, ...] = (
     _term("nnfm", "lambda NNFM", 100.0, 1e-1, 1e4,
           "Weight of the nearest-neighbour feature matching term: brush strokes and local texture (VGG).",
           "NNFM brush-stroke term"),
+    _term("multiscale", "lambda broad strokes", 100.0, 1e-1, 1e4,
+          "Weight of the broad-strokes term: the painting's larger strokes and shapes, matched on the render and the "
+          "painting both shrunk 2x and 4x (multi-scale NNFM). On by default, at lambda NNFM, when no CLIP weights "
+          "are found; follows the stroke size and the style strength.",
+          "broad-strokes term (multi-scale NNFM: the painting's larger strokes and shapes; default λ_NNFM "
+          "without CLIP weights, 0 with them)"),
     _term("content", "lambda content", 0.05, 1e-4, 10.0,
           "Weight of content preservation: keeps the scene recognisable (VGG features of the photo).",
           "content preservation"),
     _term("tv", "lambda TV", 1e-4, 1e-7, 1e-1, "Weight of total variation: smooths noisy pixels.",
           "total-variation smoothness"),
     Control("strength", "style strength", 1.0, 0.1, 100.0, True,
-            "Style strength: multiplies the style terms (CLIP and NNFM) against content preservation; 1 keeps the "
-            "lambda values as they are, more paints harder, less keeps more of the scene.",
+            "Style strength: multiplies the style terms (CLIP, NNFM, broad strokes) against content preservation; "
+            "1 keeps the lambda values as they are, more paints harder, less keeps more of the scene.",
             Effect.REWEIGHT, read=lambda s: s.strength, write=_write_strength,
-            cli=CliOption("style strength: scales the style terms (CLIP, NNFM) against content; default 1")),
+            cli=CliOption("style strength: scales the style terms (CLIP, NNFM, broad strokes) against content; "
+                          "default 1")),
     Control("style_scale", "stroke size", 1.0, 0.25, 4.0, True,
             "Stroke size: the scale at which the painting's brush strokes are matched (its image resized to this "
             "times the working width before its VGG features are taken): 2 matches the painting at twice that size, "
@@ -197,6 +204,15 @@ def control(name: str) -> Control:
         if row.name == name:
             return row
     raise KeyError(name)
+
+
+def term_label(term: str) -> str:
+    """A loss term (a ``StyleWeights`` field, e.g. ``multiscale``) as people read it: its λ row's label without
+    "lambda" ("broad strokes"); the term's own name when it has no row."""
+    try:
+        return control(f"lambda_{term}").label.removeprefix("lambda ")
+    except KeyError:
+        return term
 
 
 def control_names() -> tuple[str, ...]:

@@ -5,11 +5,13 @@ Each function writes or returns one entry; none of them changes what a run does.
 
 from __future__ import annotations
 
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
 
 from ..style.clip import CLIP_OFF, clip_status, clip_term_name
+from ..style.losses import StyleWeights
 from .scene_box import SCENE_BOX_MARGIN_PX, box_fraction, scene_box
 from .settings import StylizeSettings
 
@@ -30,10 +32,9 @@ def sh_note(degree: int, from_photos: bool, used_degree: int, views: int) -> str
 def note_planned_clip(decisions: Decisions, s: StylizeSettings) -> None:
     """Before the objective is built: what its CLIP term will be (weights found, or the coarse substitute)."""
     decisions["clip"] = clip_status(s.clip_weights) if s.weights.clip > 0 else CLIP_OFF
-    if s.weights.clip == 0 and s.scene_kind == "360" and s.defaults == "calibrated" \
-            and clip_term_name(s.clip_weights) != "CLIP":
-        decisions["clip"] = ("off: no CLIP weights, and the calibrated 360° defaults leave the coarse "
-                             "substitute off (it cost style and structure; README); --lambda-clip turns it on")
+    if s.weights.clip == 0 and s.defaults == "calibrated" and clip_term_name(s.clip_weights) != "CLIP":
+        decisions["clip"] = ("off: no CLIP weights, and the calibrated defaults leave the coarse substitute off "
+                             "(it cost style and structure; README); --lambda-clip turns it on")
 
 
 def note_networks(decisions: Decisions, objective: Any) -> None:
@@ -45,12 +46,19 @@ def note_networks(decisions: Decisions, objective: Any) -> None:
 
 
 def note_loss_terms(decisions: Decisions, s: StylizeSettings, objective: Any) -> None:
-    """Which loss terms are computed (weight above 0) and which never are."""
+    """Which loss terms are computed (weight above 0) and which never are; what the broad-strokes term is, when on."""
     weights = getattr(getattr(objective, "loss", None), "weights", s.weights)
-    on = [k for k in ("clip", "nnfm", "content", "tv") if getattr(weights, k) > 0]
-    off = [k for k in ("clip", "nnfm", "content", "tv") if k not in on]
+    names = [f.name for f in fields(StyleWeights)]
+    on = [k for k in names if getattr(weights, k) > 0]
+    off = [k for k in names if k not in on]
     decisions["loss_terms"] = (f"computed: {', '.join(on) or 'none'}; never computed (weight 0): "
                                f"{', '.join(off) or 'none'}")
+    decisions.pop("broad_strokes", None)
+    if s.weights.multiscale > 0:
+        decisions["broad_strokes"] = (
+            f"lambda {s.weights.multiscale:g} (multiscale): NNFM on the render and the painting both shrunk 2x and "
+            "4x, for the painting's larger strokes and shapes (docs/texture-scale.md)"
+            + ("; in CLIP's place: no CLIP weights" if clip_term_name(s.clip_weights) != "CLIP" else ""))
 
 
 def note_style(decisions: Decisions, s: StylizeSettings, objective: Any, paintings: int) -> None:

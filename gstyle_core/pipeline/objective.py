@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import asdict
 
@@ -10,7 +11,7 @@ import torch
 
 from ..cameras.images import resize_image
 from ..style.clip import CLIP_OFF
-from .scene_box import scene_box
+from .scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, scene_box
 from .settings import StylizeSettings
 
 
@@ -25,6 +26,8 @@ def resize_long_side(img: np.ndarray, long_side: int) -> np.ndarray:
     s = long_side / max(h, w)
     return resize_image(img, (max(1, int(round(w * s))), max(1, int(round(h * s)))))
 
+
+STYLE_TERMS = ("clip", "nnfm", "multiscale")  # the terms the style strength multiplies
 
 MIN_STYLE_SIDE = 16  # below this the painting has next to no relu3 feature vectors (2 poolings: 4 × 4)
 MAX_STYLE_SIDE = 1024  # above this the style features outgrow a CPU's memory and time (768 × 65k vectors at 1024²)
@@ -41,7 +44,8 @@ def style_side(working_width: int, scale: float) -> tuple[int, bool]:
 
 
 class StyleObjective:
-    """λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV on a render [H, W, 3] of one view.
+    """λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV (+ λ_MS·L_broad strokes) on a render [H, W, 3] of one
+    view.
 
     The style image is resized so that its longer side is ``style_scale`` × max(64, working width), clamped to
     16-1024 px: the scale at which brush strokes are matched (``style_side``). ``style`` may be a list of paintings
@@ -50,7 +54,8 @@ class StyleObjective:
     ``keep_colours`` the networks see luminance only (render, content view and painting as grey images;
     ``style/keep_colours.py``).
     CLIP ViT-B/32 is used when its weights are found; otherwise the documented coarse-VGG substitute
-    (``clip_status`` says which). ``refresh_style()`` re-extracts the style features after either setting changed.
+    (``clip_status`` says which). The broad-strokes term (``style/multiscale.py``) matches the same resized paintings
+    downsampled ×2 and ×4. ``refresh_style()`` re-extracts the style features after either setting changed.
     """
 
     luminance_networks = True  # keep colours: networks see luminance (False: colour, chroma restored only; the
@@ -72,7 +77,9 @@ class StyleObjective:
         self._build_style_target()
         self.clip_status = CLIP_OFF
         clip_term = self._build_clip_term() if settings.weights.clip > 0 else None
-        self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=self._effective(settings.weights))
+        multiscale_term = self._build_multiscale_term() if settings.weights.multiscale > 0 else None
+        self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=self._effective(settings.weights),
+                              multiscale_term=multiscale_term)
         self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
         self._boxes: dict[tuple[int, tuple[int, ...]], tuple[slice, slice] | None] = {}
 
@@ -130,6 +137,8 @@ class StyleObjective:
             new_gen = getattr(self.loss.clip_term, "generator", None)
             if isinstance(old_gen, torch.Generator) and isinstance(new_gen, torch.Generator):
                 new_gen.set_state(old_gen.get_state())  # CLIP's random crops go on where they were
+        if self.loss.multiscale_term is not None:
+            self.loss.multiscale_term = self._build_multiscale_term()
         if colours_changed:  # content features are of grey or colour views
             self._content_cache.clear()
         return True
@@ -145,6 +154,8 @@ class StyleObjective:
             self.target.weights = weights
         if self.loss.clip_term is not None and hasattr(self.loss.clip_term, "set_style_weights"):
             self.loss.clip_term.set_style_weights(weights)
+        if self.loss.multiscale_term is not None:
+            self.loss.multiscale_term.set_style_weights(weights)
         self._write_style_note()
 
     def _write_style_note(self) -> None:
@@ -172,25 +183,33 @@ class StyleObjective:
                                                   for style in self._styles],
                              generator=torch.Generator().manual_seed(self._settings.seed), style_weights=weights)
 
+    def _build_multiscale_term(self) -> torch.nn.Module:
+        """The broad-strokes term on the NNFM target's own resized paintings (built when its weight is non-zero)."""
+        from ..style.multiscale import MultiScaleStyleLoss
+
+        return MultiScaleStyleLoss(self.vgg, self._styles_small, style_weights=self._style_weights())
+
     @property
     def calls(self) -> dict[str, int]:
         """Network runs so far (``vgg``, ``clip``)."""
         return self.loss.calls
 
     def _effective(self, weights) -> dict[str, float]:
-        """λ weights as the loss uses them: the style terms (CLIP, NNFM) times the settings' style strength."""
+        """λ weights as the loss uses them: the style terms (CLIP, NNFM, broad strokes) times the style strength."""
         w = asdict(weights)
         strength = float(self._settings.strength)
-        w["clip"] *= strength
-        w["nnfm"] *= strength
+        for term in STYLE_TERMS:
+            w[term] *= strength
         return w
 
     def set_weights(self, weights) -> None:
         """Change λ weights (a ``StyleWeights``; the settings' strength applies); the CLIP term (or its substitute)
-        is built the first time its weight is non-zero."""
+        and the broad-strokes term are built the first time their weight is non-zero."""
         w = self._effective(weights)
         if w["clip"] > 0 and self.loss.clip_term is None:
             self.loss.clip_term = self._build_clip_term()
+        if w["multiscale"] > 0 and self.loss.multiscale_term is None:
+            self.loss.multiscale_term = self._build_multiscale_term()
         self.loss.weights = w
 
     def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int,
@@ -204,9 +223,12 @@ class StyleObjective:
 
             image, content = grey(image), grey(content)
         box = self.network_box(view, coverage)
-        clip_view = None
+        clip_view = multiscale_view = None
         if box is not None:  # VGG on the box; the CLIP term (or its coarse substitute) keeps the whole frame
             clip_view = (image.permute(2, 0, 1)[None], coverage)
+            if self.loss.weights.multiscale > 0:  # its coarsest level: a box grown and aligned by its factor
+                wide = self.network_box(view, coverage, grow=int(math.ceil(max(self.loss.multiscale_term.factors))))
+                multiscale_view = clip_view if wide is None else (image[wide].permute(2, 0, 1)[None], coverage[wide])
             image, content, coverage = image[box], content[box], coverage[box]
         render = image.permute(2, 0, 1)[None]
         gt_feats = None
@@ -215,14 +237,17 @@ class StyleObjective:
             if gt_feats is None:
                 gt_feats = self.loss.content_features(content.permute(2, 0, 1)[None], render.shape[-2:])
                 self._content_cache[view] = gt_feats
-        return self.loss(render, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view)
+        return self.loss(render, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view,
+                         multiscale_view=multiscale_view)
 
-    def network_box(self, view: int, coverage: torch.Tensor | None) -> tuple[slice, slice] | None:
-        """The view's scene box (fixed per view: the coverage is the ground truth's), None for the whole frame."""
+    def network_box(self, view: int, coverage: torch.Tensor | None, grow: int = 1) -> tuple[slice, slice] | None:
+        """The view's scene box (fixed per view: the coverage is the ground truth's), None for the whole frame.
+        ``grow``: margin and alignment times this (the broad-strokes term's coarsest downsampling factor: at ×4 a
+        pixel of its level is 4 of the render's, so the same context and pooling grid need 4× the pixels)."""
         if coverage is None or not self._settings.crop_to_scene or self.loss.working_width is not None:
             return None
-        key = (view, tuple(coverage.shape))
+        key = (view, tuple(coverage.shape), grow)
         if key not in self._boxes:
-            self._boxes[key] = scene_box(coverage)
+            self._boxes[key] = scene_box(coverage, SCENE_BOX_MARGIN_PX * grow, SCENE_BOX_ALIGN_PX * grow)
         return self._boxes[key]
 

@@ -109,14 +109,16 @@ PRESETS = {
 # cannot run here, and on a GPU budget (15 epochs at 1024 px). Applied over the paper's 360° values and the preset.
 CALIBRATED_360 = dict(
     nnfm=200.0,  # the knee of style against structure (README: λ_NNFM 200 and 300 over 3 captures × 3 paintings)
-    substitute_clip=0.0,  # λ_CLIP when only the coarse CLIP substitute can run (at λ_NNFM 100 and weight 100 it cost
-    # 3 points of drop and 0.2 of structure; at these values and λ_CLIP 10 no measurable style for ~10 % more time);
-    # real CLIP weights keep the paper's λ_CLIP
     optimizer="visible_adam",  # a view moves only the Gaussians it sees, as 3DGS trainers do (measured: the same
     # result as plain Adam at 4 views per step)
     view_order="random", views_per_step=4,  # each Gaussian updated more often, less view-to-view zigzag
     lr_start=5e-2, lr_end=2.5e-2,
 )
+# Calibrated defaults without CLIP weights (either scene kind; docs/texture-scale.md): the large scale comes from the
+# broad-strokes term (style/multiscale.py) at λ = λ_NNFM, and the coarse CLIP substitute is off (on 360° captures, at
+# λ_NNFM 100 and weight 100 it cost 3 points of drop and 0.2 of structure; at λ_CLIP 10 no measurable style for
+# ~10 % more time). Real CLIP weights keep the paper's λ_CLIP and no broad-strokes term.
+BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0)
 CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0)}  # strokes need 256 px; 32 steps of 4 views
 # Forward-facing preview: the reference splits into children at 1/16 of the parent's scale and lets a refit of
 # max(5·n_views, 2000) iterations regrow them; the preview refits 60, so its children keep 3DGS's 1/1.6 and cover
@@ -130,9 +132,9 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
                      **overrides) -> StylizeSettings:
     """Settings for a preset and a scene kind ("forward" or "360"), then explicit ``overrides`` (None = keep).
 
-    ``defaults``: "calibrated" (default) or "paper" (the paper's 360° values; forward-facing scenes are the same
-    either way). ``clip_available``: whether CLIP weights can be loaded (None: look for them, without loading);
-    without them, calibrated 360° settings turn the CLIP term (its coarse substitute) off unless λ_CLIP is given."""
+    ``defaults``: "calibrated" (default) or "paper" (the paper's values). ``clip_available``: whether CLIP weights
+    can be loaded (None: look for them, without loading). Calibrated settings without them turn the CLIP term (its
+    coarse substitute) off unless λ_CLIP is given, and the broad-strokes term on at λ_NNFM (``BROAD_STROKES``)."""
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     if scene_kind not in KIND_DEFAULTS:
@@ -143,16 +145,18 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     kind = dict(KIND_DEFAULTS[scene_kind])
     p = dict(PRESETS[preset])
     clip_weight = StyleWeights().clip
-    if defaults == "calibrated" and scene_kind == "360":
-        kind.update(CALIBRATED_360)
-        p.update(CALIBRATED_360_PRESETS.get(preset, {}))
-        substitute = kind.pop("substitute_clip")
+    broad_strokes = False
+    if defaults == "calibrated":
         if clip_available is None:
             from ..style.clip import clip_term_name
 
             clip_available = clip_term_name(overrides.get("clip_weights")) == "CLIP"
-        if not clip_available:
-            clip_weight = substitute
+        broad_strokes = not clip_available
+        if broad_strokes:
+            clip_weight = BROAD_STROKES["substitute_clip"]
+    if defaults == "calibrated" and scene_kind == "360":
+        kind.update(CALIBRATED_360)
+        p.update(CALIBRATED_360_PRESETS.get(preset, {}))
     if scene_kind == "forward":
         p.update(FORWARD_PRESETS.get(preset, {}))
     nnfm = kind.pop("nnfm")
@@ -166,6 +170,8 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     live = {k: overrides.pop(k) for k in control_names() if k in overrides}  # λ weights, strength, stroke size...
     s = replace(s, **{k: v for k, v in overrides.items() if v is not None})
     apply_controls(s, live)  # checked and set as the studio's controls are (controls.py)
+    if broad_strokes and live.get("lambda_multiscale") is None:  # tied to λ_NNFM, the given one included
+        s.weights = replace(s.weights, multiscale=s.weights.nnfm * BROAD_STROKES["multiscale_per_nnfm"])
     for name, allowed in (("optimizer", ("adam", "visible_adam")), ("view_order", ("orbit", "random"))):
         if getattr(s, name) not in allowed:
             raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {getattr(s, name)!r}")

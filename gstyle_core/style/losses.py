@@ -10,9 +10,11 @@
   horizontal neighbours. This follows the G-Style reference code (``calculate_total_variation_loss``: sum
   of squared differences), which its λ_TV = 1e-4 is paired with; ``kind="abs"`` gives the L1 variant.
 * CLIP: see :mod:`gstyle_core.style.clip` (or its coarse-VGG substitute).
+* Broad strokes (``multiscale``): NNFM with the render and the painting both downsampled ×2 and ×4
+  (:mod:`gstyle_core.style.multiscale`): the painting's larger patterns, for when CLIP cannot run.
 
-A term whose weight is 0 is not computed at all; when both λ_NNFM and λ_C are 0 VGG never runs, when λ_CLIP
-is 0 the CLIP term never runs. ``StyleLoss.calls`` counts network runs.
+A term whose weight is 0 is not computed at all; when λ_NNFM, λ_C and λ_broad strokes are 0 VGG never runs, when
+λ_CLIP is 0 the CLIP term never runs. ``StyleLoss.calls`` counts network runs.
 """
 
 from __future__ import annotations
@@ -31,12 +33,14 @@ MIN_VGG_SIDE = 4  # relu3_x follow two 2x poolings: a smaller input has no featu
 
 @dataclass(frozen=True)
 class StyleWeights:
-    """Loss weights; defaults are G-Style's for forward-facing scenes (λ_NNFM 10 for 360° scenes)."""
+    """Loss weights; defaults are G-Style's for forward-facing scenes (λ_NNFM 10 for 360° scenes). ``multiscale``
+    (the broad-strokes term) is not the paper's: 0 here, the settings turn it on when CLIP cannot run."""
 
     clip: float = 10.0
     nnfm: float = 100.0
     content: float = 0.05
     tv: float = 1e-4
+    multiscale: float = 0.0
 
     @classmethod
     def for_scene_kind(cls, kind: str) -> StyleWeights:
@@ -236,7 +240,9 @@ class StyleLoss(nn.Module):
 
     ``vgg`` and ``style_target`` (one painting's or a :class:`WeightedTargets` mix) serve NNFM and content;
     ``clip_term`` is a :class:`ClipStyleLoss` or a
-    :class:`CoarseStyleLoss` (or None: the CLIP weight must then be 0). ``working_width`` resizes the render
+    :class:`CoarseStyleLoss` (or None: the CLIP weight must then be 0); ``multiscale_term`` a
+    :class:`~gstyle_core.style.multiscale.MultiScaleStyleLoss` (or None: its weight must then be 0), given the same
+    (resized, cropped) render and coverage as NNFM. ``working_width`` resizes the render
     (and gt) before the networks, like the reference's 1024-px stylization size; TV uses the full render.
     A render (or gt) with a side below ``MIN_VGG_SIDE`` px is stretched to it for VGG (no relu3 features otherwise).
     Terms with weight 0 are skipped entirely and reported as 0.
@@ -244,11 +250,13 @@ class StyleLoss(nn.Module):
 
     def __init__(self, vgg: nn.Module | None, style_target: StyleTarget | WeightedTargets | None,
                  clip_term: nn.Module | None = None, weights: StyleWeights | Mapping[str, float] | None = None,
-                 working_width: int | None = None, nnfm_chunk: int = 4096) -> None:
+                 working_width: int | None = None, nnfm_chunk: int = 4096,
+                 multiscale_term: nn.Module | None = None) -> None:
         super().__init__()
         self.vgg = vgg
         self.style_target = style_target
         self.clip_term = clip_term
+        self.multiscale_term = multiscale_term
         self.working_width = working_width
         self.nnfm_chunk = nnfm_chunk
         self.calls = {"vgg": 0, "clip": 0}
@@ -275,22 +283,27 @@ class StyleLoss(nn.Module):
             raise ValueError("the NNFM weight needs a style target")
         if value.clip > 0 and self.clip_term is None:
             raise ValueError("the CLIP weight needs a CLIP term (or its coarse-VGG substitute)")
+        if value.multiscale > 0 and self.multiscale_term is None:
+            raise ValueError("the broad-strokes weight needs its multi-scale term")
         self._weights = value
 
     def forward(self, render: torch.Tensor, gt: torch.Tensor | None = None,
                 gt_feats: Mapping[str, torch.Tensor] | None = None,
                 coverage: torch.Tensor | None = None,
                 clip_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
+                multiscale_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
                 ) -> tuple[torch.Tensor, dict[str, float]]:
         """``coverage``: the scene's rendered alpha ([H,W] or [1,1,H,W], render resolution) for scenes on an empty
         background; NNFM, content and the coarse substitute then average over the scene's feature positions
         (None: over the whole frame, as for photos). ``clip_view`` = (render, coverage) gives the CLIP term (or its
         substitute, whose context is a large part of the frame) another view of the same render than ``render``,
-        e.g. the whole frame when ``render`` is a crop of it."""
+        e.g. the whole frame when ``render`` is a crop of it; ``multiscale_view`` likewise for the broad-strokes term
+        (a wider crop: its coarse levels need more context and a coarser pixel grid than NNFM's)."""
         w = self._weights
         zero = render.new_zeros(())
-        terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero}
-        small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip) else render
+        terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero, "multiscale": zero}
+        small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip or w.multiscale) \
+            else render
         if w.nnfm > 0 or w.content > 0:
             feats = self.vgg(upsample_for_vgg(small))
             self.calls["vgg"] += 1
@@ -308,10 +321,17 @@ class StyleLoss(nn.Module):
             takes_coverage = getattr(self.clip_term, "takes_coverage", False)
             terms["clip"] = self.clip_term(clip_in, clip_cov) if takes_coverage else self.clip_term(clip_in)
             self.calls[getattr(self.clip_term, "network", "clip")] += 1
+        if w.multiscale > 0:
+            ms_in, ms_cov = (small, coverage) if multiscale_view is None else (
+                resize_to_width(multiscale_view[0], self.working_width), multiscale_view[1])
+            terms["multiscale"] = self.multiscale_term(ms_in, ms_cov)
+            self.calls["vgg"] += len(self.multiscale_term.factors)
         if w.tv > 0:
             terms["tv"] = tv_loss(render)
         total = (w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"]
                  + w.tv * terms["tv"])
+        if w.multiscale > 0:  # added last: with the term off the total is the same sum, bit for bit
+            total = total + w.multiscale * terms["multiscale"]
         return total, {name: float(value.detach()) for name, value in terms.items()}
 
     @torch.no_grad()
