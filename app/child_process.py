@@ -14,9 +14,13 @@ WORKER_NICE = 10  # default niceness increment of a helper process (env GSTYLE_W
 
 
 def one_line_error(exc: BaseException) -> str:
-    """``Type: message`` on one line (the full traceback goes to the helper's stderr)."""
+    """``Type: message`` on one line (the full traceback goes to the helper's stderr); a ``GStyleError`` is already
+    worded for the user (e.g. ``cannot write PATH: no space left on the device``, as the CLI prints it): its message
+    alone."""
+    from gstyle_core.errors import GStyleError
+
     text = " ".join(str(exc).split()) or "(no message)"
-    return f"{type(exc).__name__}: {text}"
+    return text if isinstance(exc, GStyleError) else f"{type(exc).__name__}: {text}"
 
 
 def lower_priority(increment: int = WORKER_NICE) -> None:

@@ -197,8 +197,9 @@ class EngineHost:
             return
         try:
             written = export_engine(self.engine, Path(path), self.last_report, self.params, self.config.get("style"))
-        except Exception as exc:  # noqa: BLE001
-            self.send("error", f"export: {one_line_error(exc)}")
+        except Exception as exc:  # noqa: BLE001 - one line in the panel; the run goes on, nothing was written
+            traceback.print_exc()
+            self.send("export_failed", f"export: {one_line_error(exc)}")
             return
         self.send("exported", written)
 

@@ -15,32 +15,35 @@ EXPORT_FORMATS = ("ply", "spz", "compressed-ply")  # what the studio exports (th
 def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, params: dict[str, float],
                   style: str | list[str] | None = None) -> str:
     """Save the stylized scene as .ply, .spz or .compressed.ply (``gstyle_core.io.save_scene``) and a JSON summary
-    beside it (``name.json``; ``style``: the engine's painting path(s), named there with their weights)."""
+    beside it (``summary_path``; ``style``: the engine's painting path(s), named there with their weights). Both
+    appear or neither (``OutputGroup``): a failed write (``OutputWriteError``, one line) leaves no take behind."""
     from gstyle_core.atomic import atomic_write_text
     from gstyle_core.errors import GStyleError
     from gstyle_core.io import save_scene
     from gstyle_core.io.saver import format_of
+    from gstyle_core.outputs import OutputGroup
 
-    if format_of(path) not in EXPORT_FORMATS:
+    fmt = format_of(path)
+    if fmt not in EXPORT_FORMATS:
         raise GStyleError(f"export path must end in .ply, .spz or .compressed.ply, got {path.name}")
     scene = engine.stylized_scene() if hasattr(engine, "stylized_scene") else scene_from_snapshot(engine.snapshot())
-    save_scene(scene, path)
     summary = {"scene": str(path), "gaussians": scene.count, "styles": style_entries(engine, style),
                "report": last_report, "params": params,
                "decisions": getattr(engine, "decisions", None),
                "settings": engine.settings.to_dict() if hasattr(getattr(engine, "settings", None), "to_dict")
                else None}
-    atomic_write_text(summary_path(path), json.dumps(summary, indent=2, default=str))
+    with OutputGroup() as group:
+        group.write(summary_path(path), lambda tmp: atomic_write_text(tmp, json.dumps(summary, indent=2, default=str)))
+        group.write(path, lambda tmp: save_scene(scene, tmp, fmt=fmt))
     return str(path)
 
 
 def summary_path(export: str | Path) -> Path:
-    """The JSON summary written beside an export: ``name.json`` for ``name.ply``, ``.spz`` or ``.compressed.ply``."""
-    from gstyle_core.io.saver import COMPRESSED_PLY_SUFFIX, format_of
+    """The JSON summary written beside an export: ``name.json`` for ``name.ply``, ``.spz`` or ``.compressed.ply``
+    (``gstyle_core.outputs.companion``: never cut at an inner dot)."""
+    from gstyle_core.outputs import SUMMARY, companion
 
-    path = Path(export)
-    stem = path.name[: -len(COMPRESSED_PLY_SUFFIX)] if format_of(path) == "compressed-ply" else path.stem
-    return path.with_name(stem + ".json")
+    return companion(export, SUMMARY)
 
 
 def style_entries(engine: Any, style: str | list[str] | None) -> list[dict[str, Any]]:

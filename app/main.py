@@ -199,7 +199,10 @@ def _run_frames(window, app, args: argparse.Namespace, stop: dict[str, bool]) ->
         count += 1
         window.end_frame(swap=False)
         for path in app.screenshot_requests:
-            app.panel.status = f"screenshot {app.save_png(path, app.capture(screen))}"
+            try:
+                app.panel.status = f"screenshot {app.save_png(path, app.capture(screen))}"
+            except OSError as exc:  # OutputWriteError: "cannot write PATH: no space left on the device"
+                app.panel.status = f"screenshot: {exc}"
         app.screenshot_requests.clear()
         if last and args.screenshot:
             saved = app.save_png(args.screenshot, app.capture(screen))

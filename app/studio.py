@@ -93,6 +93,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.screenshot_requests: list[Path] = []
         self.video_job: VideoJob | None = None
         self._exports_seen: tuple[int, int] = (0, 0)
+        self._export_failures_seen: tuple[int, int] = (0, 0)  # the same for failed exports (their one line)
         # Selection tool (issue #15 item 4): a box in scene coordinates or a screen rectangle's mask of the input's
         # Gaussians; highlighted in both renderers; handed to the engine when it (re)starts.
         self.region_enabled = False

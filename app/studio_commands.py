@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from gstyle_core.errors import GStyleError
+from gstyle_core.outputs import SUMMARY, unused_name
 from gstyle_core.pipeline.controls import painting_controls
 from gstyle_core.scene import GaussianScene
 
@@ -121,7 +122,10 @@ class StudioCommands:
             self.panel.status = "export: no engine is running"
             return
         suffix = EXPORT_SUFFIXES[fmt]
-        path = Path(path) if path else self.output_dir / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}{suffix}"
+        if not path:  # a name of its own: an earlier export of this second (another format) keeps its summary
+            stamped = self.output_dir / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}{suffix}"
+            path = unused_name(stamped, (SUMMARY,))
+        path = Path(path)
         self.bridge.export(path)
         self.panel.status = f"exporting {path} ..."
 

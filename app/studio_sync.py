@@ -62,6 +62,7 @@ class StudioSync:
         self._poll_video()
         if self.bridge is None:
             p.running, p.paused = False, False
+            self._show_takes_error()  # (renaming or forgetting takes needs no engine)
             return
         st = self.bridge.state
         p.running, p.paused, p.error = st.alive, st.paused, st.error
@@ -78,12 +79,30 @@ class StudioSync:
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             p.status = f"resumed the last session at step {st.resumed.get('step')}"
+        self._sync_exports(st)
+        self._show_takes_error()
+
+    def _sync_exports(self, st) -> None:
+        """New exports become takes (status: the last one); a failed export's one line goes to the status (no take
+        was added: nothing was written)."""
+        p = self.panel
         exports = (id(st.exported), len(st.exported))  # a restarted worker starts a new list
         if st.exported and exports != self._exports_seen:  # once per export: later messages stay visible
             new = st.exported[self._exports_seen[1]:] if exports[0] == self._exports_seen[0] else st.exported[-1:]
             self._exports_seen = exports
             self._shelve_exports(new)
             p.status = f"exported {st.exported[-1]} (kept as {self.takes.takes[0].name})"
+        failures = (id(st.export_failures), len(st.export_failures))
+        if st.export_failures and failures != self._export_failures_seen:
+            self._export_failures_seen = failures
+            p.status = st.export_failures[-1]
+
+    def _show_takes_error(self) -> None:
+        """A failure to save ``takes.json`` (one line) after the status; the shelf goes on for this session."""
+        error = self.takes.pop_write_error()
+        if error:
+            status = self.panel.status
+            self.panel.status = f"{status}; {error} (the takes are kept for this session)" if status else error
 
     def viewer_notes(self) -> list[str]:
         """What the viewer evaluates and skips (panel "Decisions"): view-dependent SH, sorts, uploads."""

@@ -43,6 +43,7 @@ class TakeShelf:
         self.folder = Path(folder)
         self.limit = max(1, int(limit))
         self.takes: list[Take] = self._read()
+        self.write_error: str | None = None
         self._counter = len(self.takes)
 
     def _read(self) -> list[Take]:
@@ -55,10 +56,19 @@ class TakeShelf:
         return [t for t in takes if Path(t.path).is_file()][: self.limit]
 
     def _write(self) -> None:
+        """Save the list (atomically: the old ``takes.json`` stays whole); a failure (a read-only folder, a full
+        disk) is kept as one line for the panel (``pop_write_error``): the takes still work for this session."""
         try:
             atomic_write_text(self.folder / TAKES_FILE, json.dumps([asdict(t) for t in self.takes], indent=2))
-        except OSError:
-            pass  # a read-only folder: the takes still work for this session
+        except OSError as exc:  # OutputWriteError: "cannot write .../takes.json: <cause>"
+            self.write_error = " ".join(str(exc).split())
+        else:
+            self.write_error = None
+
+    def pop_write_error(self) -> str | None:
+        """The last failure to save ``takes.json`` not yet shown (then forgotten)."""
+        error, self.write_error = self.write_error, None
+        return error
 
     def add(self, path: str | Path, gaussians: int, name: str | None = None) -> Take:
         """Shelve an export (newest first; the oldest beyond ``limit`` is forgotten, its file kept)."""

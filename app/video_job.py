@@ -118,5 +118,8 @@ class VideoJob:
 
 
 def turntable_path(output_dir: Path, fmt: str, stamp: str) -> Path:
-    """Where the studio writes a turntable of format ``fmt`` ("mp4", "gif" or "png frames")."""
-    return output_dir / f"turntable_{stamp}{TURNTABLE_SUFFIXES[fmt]}"
+    """Where the studio writes a turntable of format ``fmt`` ("mp4", "gif" or "png frames"): never over an earlier
+    one (``outputs.unused_name``)."""
+    from gstyle_core.outputs import unused_name
+
+    return unused_name(output_dir / f"turntable_{stamp}{TURNTABLE_SUFFIXES[fmt]}")

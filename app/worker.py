@@ -44,6 +44,7 @@ class WorkerState:
     params: dict[str, float] = field(default_factory=dict)
     decisions: dict[str, Any] = field(default_factory=dict)  # the engine's "what this scene needs" decisions
     exported: list[str] = field(default_factory=list)
+    export_failures: list[str] = field(default_factory=list)  # one line each ("export: cannot write ...")
     checkpoint: str | None = None
     resumed: dict[str, Any] | None = None  # {"checkpoint": path, "step": n} once a checkpoint was loaded
     started_at: float = 0.0
@@ -187,7 +188,7 @@ class WorkerBridge:
         """Apply all pending worker messages to ``state``; returns them (oldest first) as (kind, payload).
 
         Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
-        decisions (dict), exported (path), checkpoint (path), resumed (dict), bye.
+        decisions (dict), exported (path), export_failed (one line), checkpoint (path), resumed (dict), bye.
         """
         messages: list[tuple[str, Any]] = []
         if self._events is None:
@@ -240,6 +241,8 @@ class WorkerBridge:
             st.decisions = dict(payload)
         elif kind == "exported":
             st.exported.append(payload)
+        elif kind == "export_failed":  # one line for the panel; the engine goes on (not an engine error)
+            st.export_failures.append(payload)
         elif kind == "checkpoint":
             st.checkpoint = payload
         elif kind == "resumed":

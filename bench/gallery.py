@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.strokes_sweep import SCENES, STYLES, find_file  # noqa: E402
+from gstyle_core.outputs import SUMMARY, companion  # noqa: E402
 
 # Scenes fitted here first (``gstyle fit``), stylized with their photos as ground truth: key -> (scene, cameras).
 FITTED = {"fern": (ROOT / "out" / "fern.ply", Path("scenes") / "llff_fern")}
@@ -49,7 +50,7 @@ def make_pair(scene_key: str, style_key: str, data: Path, docs: Path, width: int
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0
-        summary = json.loads(out.with_suffix(".json").read_text())
+        summary = json.loads(companion(out, SUMMARY).read_text())
         before, _report, cams = load_scene_and_cameras(scene, cameras)
         after, _ = load_scene(out)
         picture = before_after_picture(before, after, cams.cameras, n_views=3, width=width)

@@ -24,6 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gstyle_core.images import load_style_image  # noqa: E402
+from gstyle_core.outputs import SUMMARY, companion, output_base  # noqa: E402
 from gstyle_core.style.texture_scale import (  # noqa: E402
     BAND_NAMES,
     band_shares,
@@ -61,10 +62,10 @@ def recolour_residual_shares(before: np.ndarray, after: np.ndarray, mask: np.nda
 def out_row(path: str | Path) -> dict:
     """The figure of one ``gstyle stylize`` output (its PNGs and OUT.json)."""
     stem = Path(path)
-    stem = stem.with_suffix("") if stem.suffix in (".ply", ".json") else stem
-    before, after = read_png(Path(f"{stem}_before.png")), read_png(Path(f"{stem}_after.png"))
-    json_path = Path(f"{stem}.json")
-    if not json_path.exists():  # gstyle stylize names it OUT.with_suffix(".json"): x_S0.5.ply -> x_S0.json
+    stem = stem.with_suffix("") if stem.suffix == ".json" else output_base(stem)  # the CLI's companion rule
+    before, after = read_png(companion(stem, "_before.png")), read_png(companion(stem, "_after.png"))
+    json_path = companion(stem, SUMMARY)
+    if not json_path.exists():  # written before issue #25 cut OUT at its last dot: x_S0.5.ply -> x_S0.json
         json_path = stem.with_suffix(".json")
     summary = json.loads(json_path.read_text())
     s = summary["settings"]

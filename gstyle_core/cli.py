@@ -1,7 +1,8 @@
 """The ``gstyle`` command line: info, convert, render, fit, stylize, cache.
 
-Every error a user can cause (bad file, missing cameras, missing weights) is a ``GStyleError`` and is printed as one
-line without a traceback; the exit status is then 2.
+Every error a user can cause (bad file, missing cameras, missing weights, an output that cannot be written: a full
+disk, a read-only or forbidden folder) is a ``GStyleError`` and is printed as one line without a traceback; the exit
+status is then 2.
 """
 
 from __future__ import annotations
@@ -26,8 +27,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
 def _cmd_convert(args: argparse.Namespace) -> int:
     from .atomic import refuse_overwrite
     from .io import load_scene, save_scene
+    from .outputs import check_writable
 
     refuse_overwrite(args.output, args.force, inputs=[args.input])
+    check_writable(args.output)
     scene, report = load_scene(args.input)
     if args.sh0:
         scene = scene.with_sh_degree(0)
@@ -119,15 +122,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run(argv: Sequence[str] | None, func_wrapper: Callable[[Callable[[], int]], int] | None = None) -> int:
-    """Parse ``argv`` and run the command; GStyleError and bad paths become one line and exit status 2."""
+    """Parse ``argv`` and run the command; GStyleError and bad paths become one line and exit status 2 (writes
+    that fail are ``OutputWriteError``s: ``cannot write PATH: CAUSE``)."""
     args = build_parser().parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # as given: ``gstyle stylize``'s resume command
     try:
         return int(args.func(args) or 0)
     except GStyleError as exc:
         print(f"gstyle {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-        print(f"gstyle {args.command}: error: {exc.strerror or exc}: {exc.filename}", file=sys.stderr)
+    except OSError as exc:  # a path that cannot be read (or another system error): one line all the same
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"gstyle {args.command}: error: {' '.join(str(exc.strerror or exc).split())}{where}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"gstyle {args.command}: interrupted", file=sys.stderr)

@@ -19,3 +19,19 @@ class StyleImageError(GStyleError):
 
 class WeightsUnavailableError(GStyleError):
     """Network weights (VGG, CLIP) are not available offline."""
+
+
+class OutputWriteError(GStyleError, OSError):
+    """An output could not be written (no space, permission denied, read-only file system, a directory in its
+    place). The message is one line naming the path and the cause; no partial file is left. Also an ``OSError``
+    (``errno`` and ``filename`` set), so callers that tolerate a failed write still catch it."""
+
+    def __init__(self, path: object, cause: str, errno: int | None = None) -> None:
+        super().__init__(f"cannot write {path}: {cause}")
+        self.errno, self.filename, self.cause = errno, str(path), cause
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+    def __reduce__(self):
+        return type(self), (self.filename, self.cause, self.errno)

@@ -91,6 +91,7 @@ def before_after_picture(before_scene, after_scene, cameras: list, n_views: int 
 def render_command(args: argparse.Namespace) -> int:
     """Run ``gstyle render``: one PNG, or a video / folder of frames (``render_video.video_command``)."""
     from .atomic import refuse_overwrite
+    from .outputs import check_writable
     from .render_video import is_video_request, video_command
 
     if is_video_request(args):
@@ -100,6 +101,7 @@ def render_command(args: argparse.Namespace) -> int:
     if args.fps is not None:
         raise GStyleError("--fps is for videos (--turntable, --camera-path, or --out FILE.mp4/.gif/DIR/)")
     refuse_overwrite(args.out, args.force, inputs=[args.scene] if args.scene else [])
+    check_writable(args.out)
     scene, report, cams = load_scene_and_cameras(args.scene, args.cameras, args.width)
     if not 0 <= index < len(cams.cameras):
         raise GStyleError(f"camera {index} does not exist (there are {len(cams.cameras)})")

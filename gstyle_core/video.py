@@ -9,6 +9,7 @@ import contextlib
 import io
 import os
 import shutil
+import subprocess
 import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -17,6 +18,7 @@ import numpy as np
 
 from .atomic import atomic_path, current_umask
 from .errors import GStyleError
+from .outputs import check_writable, writing
 
 VIDEO_SUFFIXES = {".mp4": "mp4", ".gif": "gif"}
 FRAME_PATTERN = "frame_{:05d}.png"
@@ -40,14 +42,17 @@ def output_kind(out: str | os.PathLike) -> str:
 
 
 def check_video_output(out: str | os.PathLike, force: bool) -> None:
-    """Refuse an existing output unless ``force``; a folder is replaced only if it is empty or holds our frames."""
+    """Refuse an existing output unless ``force``; a folder is replaced only if it is empty or holds our frames;
+    a place that refuses new files is refused now (``outputs.check_writable``), not after the frames."""
     p = Path(out)
     if output_kind(out) != "dir":
         if p.is_dir():
             raise GStyleError(f"{p} is a folder; name a .mp4 or .gif file")
         if p.exists() and not force:
             raise GStyleError(f"{p} exists; pass --force to overwrite it")
+        check_writable(p)
         return
+    check_writable(p.parent / f".{p.name}.frames")  # the frames are written in a folder beside it, then renamed
     if p.exists() and not p.is_dir():
         raise GStyleError(f"{p} exists and is not a folder")
     if p.is_dir():
@@ -84,7 +89,6 @@ def write_frames(frames: Iterable[np.ndarray], out: str | os.PathLike, fps: floa
         raise GStyleError(f"fps must be in (0, 1000], got {fps}")
     kind = output_kind(out)
     target = Path(out)
-    target.parent.mkdir(parents=True, exist_ok=True)
 
     def checked() -> Iterable[np.ndarray]:
         for frame in frames:
@@ -93,30 +97,64 @@ def write_frames(frames: Iterable[np.ndarray], out: str | os.PathLike, fps: floa
             yield to_uint8(frame)
 
     writer = {"mp4": _write_mp4, "gif": _write_gif, "dir": _write_dir}[kind]
-    count = writer(checked(), target, fps)
+    with writing(target):  # no space, permission denied, read-only: one line naming ``out`` (nothing is left)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        count = writer(checked(), target, fps)
     if count == 0:
         raise GStyleError("no frames to write")
     return count
 
 
 def _write_mp4(frames: Iterable[np.ndarray], target: Path, fps: float) -> int:
+    """H.264 through imageio-ffmpeg's ffmpeg, fed raw frames on its stdin. Its messages are captured, not shown:
+    when it fails (a full disk often shows only when it closes the file) the file is not renamed into place and
+    its words become the error (``outputs.write_cause`` finds e.g. "No space left on device")."""
     try:
-        import imageio.v2 as imageio
+        from imageio_ffmpeg import get_ffmpeg_exe
     except ImportError as exc:  # a dependency (pyproject.toml); reported rather than a traceback
         raise GStyleError(f"MP4 needs imageio and imageio-ffmpeg ({exc}); write .gif or a folder instead") from None
-    count = 0
-    with atomic_path(target, ".mp4") as tmp:  # ffmpeg picks the container from the extension
-        writer = imageio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=MP4_QUALITY,
-                                    pixelformat="yuv420p", macro_block_size=1, ffmpeg_log_level="error")
+    count, proc, size = 0, None, None
+    with atomic_path(target, ".mp4") as tmp, tempfile.TemporaryFile() as log:  # (ffmpeg's container: the suffix)
         try:
             for frame in frames:
-                writer.append_data(even_size(frame))
+                frame = even_size(frame)
+                if proc is None:
+                    size = frame.shape
+                    proc = subprocess.Popen(_ffmpeg_command(get_ffmpeg_exe(), frame, fps, tmp), stdin=subprocess.PIPE,
+                                            stdout=subprocess.DEVNULL, stderr=log)
+                if frame.shape != size:
+                    raise GStyleError(f"frame {count} is {frame.shape[1]}x{frame.shape[0]}, the video "
+                                      f"{size[1]}x{size[0]}")
+                try:
+                    proc.stdin.write(frame.tobytes())
+                except BrokenPipeError:  # ffmpeg stopped: its own words say why (below)
+                    break
                 count += 1
-        finally:
-            writer.close()
-        if count == 0:
+        except BaseException:
+            if proc is not None:
+                proc.kill()
+                proc.wait()
+            raise
+        if proc is None:
             raise GStyleError("no frames to write")  # (nothing is renamed into place)
+        with contextlib.suppress(BrokenPipeError):
+            proc.stdin.close()
+        if proc.wait() != 0:
+            log.seek(0)
+            words = " ".join(log.read().decode("utf-8", "replace").split())
+            raise OSError(f"ffmpeg failed (exit status {proc.returncode}): {words or 'no message'}")
     return count
+
+
+def _ffmpeg_command(exe: str, frame: np.ndarray, fps: float, out: Path) -> list[str]:
+    """ffmpeg reading raw RGB frames of ``frame``'s size on stdin, writing H.264 / yuv420p (what imageio-ffmpeg runs
+    for ``quality=MP4_QUALITY``: CRF 10)."""
+    from fractions import Fraction
+
+    crf = int((1 - MP4_QUALITY / 10.0) * 51)
+    return [exe, "-y", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{frame.shape[1]}x{frame.shape[0]}",
+            "-pix_fmt", "rgb24", "-r", str(Fraction(fps).limit_denominator()), "-i", "-", "-an",
+            "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf), "-v", "error", str(out)]
 
 
 def _write_gif(frames: Iterable[np.ndarray], target: Path, fps: float) -> int:

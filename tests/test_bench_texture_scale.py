@@ -42,8 +42,11 @@ def test_out_row_measures_inside_the_scene(bench, tmp_path):
     _png(tmp_path / "run_S0.5_after.png", after)
     summary = {"style": str(painting), "styles": [{"path": str(painting), "weight": 1.0}],
                "settings": {"working_width": 96, "style_scale": 0.5}, "quality": {"width": 96, "nnfm_drop": 0.3}}
-    (tmp_path / "run_S0.json").write_text(json.dumps(summary))  # the CLI's name for OUT = run_S0.5.ply
+    (tmp_path / "run_S0.5.json").write_text(json.dumps(summary))  # the CLI's name for OUT = run_S0.5.ply
     row = bench.out_row(tmp_path / "run_S0.5.ply")
+    assert bench.out_row(tmp_path / "run_S0.5.json")["figure"].added == row["figure"].added
+    (tmp_path / "run_S0.5.json").rename(tmp_path / "run_S0.json")  # the name before issue #25: still found
+    assert bench.out_row(tmp_path / "run_S0.5.ply")["nnfm_drop"] == 0.3
     b, a = (bench.read_png(tmp_path / f"run_S0.5_{k}.png") for k in ("before", "after"))
     mask = bench.scene_mask(b, a)
     assert mask.sum() == 48 * 64

@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from gstyle_core.errors import SceneFormatError
+from gstyle_core.errors import OutputWriteError, SceneFormatError
 from gstyle_core.io import load_scene, save_scene, validate_and_repair
 from gstyle_core.io.splat import RECORD
 from gstyle_core.scene import GaussianScene, sigmoid
@@ -91,7 +91,7 @@ def test_empty_missing_directory_and_unknown_inputs(tmp_path):
 
 def test_save_to_a_directory_path_fails_cleanly(tmp_path):
     (tmp_path / "out.splat").mkdir()
-    with pytest.raises(SceneFormatError, match="directory"):
+    with pytest.raises(OutputWriteError, match=r"cannot write .*out\.splat: it is a directory"):
         save_scene(random_scene(), tmp_path / "out.splat")
     assert os.listdir(tmp_path) == ["out.splat"]
 

@@ -6,6 +6,7 @@ import argparse
 import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,7 +33,8 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-gaussians", type=int, default=80_000, help="cap on densification (speed)")
     p.add_argument("--backend", choices=["fast", "reference"], default="fast")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", required=True, help="output .ply")
+    p.add_argument("--out", required=True, help="output .ply (or .splat, .spz, .compressed.ply); OUT.json beside it "
+                                                "holds the PSNRs, timings and views")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
 
 
@@ -40,11 +42,16 @@ def fit_command(args: argparse.Namespace) -> int:
     """Run ``gstyle fit``."""
     import torch
 
-    from ..atomic import refuse_overwrite
-    from ..io import save_scene
+    from ..io.saver import format_of
+    from ..outputs import SUMMARY, check_writable, companion, refuse_overwrites
     from .model import params_from_scene, scene_from_params
 
-    refuse_overwrite(args.out, args.force)
+    if format_of(args.out) is None:  # found now, not after the training
+        raise GStyleError(f"--out must end in .ply, .compressed.ply, .splat or .spz, got {args.out}")
+    out_files = [Path(args.out), companion(args.out, SUMMARY)]
+    refuse_overwrites(out_files, args.force)
+    for path in out_files:
+        check_writable(path)
     torch.manual_seed(args.seed)
     views = _load_views(args)
     init, source = _initial_scene(views, args)
@@ -56,8 +63,7 @@ def fit_command(args: argparse.Namespace) -> int:
     train_psnr = trainer.evaluate(train.cameras, views.train_images)
     test_psnr = trainer.evaluate(test.cameras, views.test_images) if views.test_images else float("nan")
     scene = scene_from_params(params)
-    save_scene(scene, args.out)
-    _write_summary(args, views, source, scene.count, seconds, train_psnr, test_psnr)
+    _write_outputs(args, scene, _summary(args, views, source, scene.count, seconds, train_psnr, test_psnr))
     print(f"train PSNR {train_psnr:.2f} dB")
     print(f"held-out PSNR {test_psnr:.2f} dB")
     print(f"wrote {args.out} ({scene.count} Gaussians, {seconds:.0f} s)")
@@ -128,16 +134,25 @@ def _train(params: torch.nn.ParameterDict, views: _Views, args: argparse.Namespa
     return trainer, time.perf_counter() - t0
 
 
-def _write_summary(args: argparse.Namespace, views: _Views, source: str, count: int, seconds: float,
-                   train_psnr: float, test_psnr: float) -> None:
-    """``OUT.ply.json``: iterations, time, Gaussians, PSNRs, views, resolution and initialisation."""
-    from ..atomic import atomic_write_text
-
+def _summary(args: argparse.Namespace, views: _Views, source: str, count: int, seconds: float,
+             train_psnr: float, test_psnr: float) -> dict:
+    """``OUT.json``'s summary: iterations, time, Gaussians, PSNRs, views, resolution and initialisation."""
     train, test = views.train, views.test
-    summary = {
+    return {
         "iterations": args.iterations, "seconds": round(seconds, 1), "gaussians": count,
         "train_psnr": round(train_psnr, 3), "heldout_psnr": None if np.isnan(test_psnr) else round(test_psnr, 3),
         "train_views": len(train.cameras), "heldout_views": len(test.cameras) if test else 0,
         "resolution": [train.cameras[0].width, train.cameras[0].height], "init": source,
     }
-    atomic_write_text(str(args.out) + ".json", json.dumps(summary, indent=2))
+
+
+def _write_outputs(args: argparse.Namespace, scene, summary: dict) -> None:
+    """OUT.ply and OUT.json (``outputs.companion``), appearing together or not at all."""
+    from ..atomic import atomic_write_text
+    from ..io import save_scene
+    from ..io.saver import format_of
+    from ..outputs import SUMMARY, OutputGroup, companion
+
+    with OutputGroup() as group:
+        group.write(companion(args.out, SUMMARY), lambda tmp: atomic_write_text(tmp, json.dumps(summary, indent=2)))
+        group.write(args.out, lambda tmp: save_scene(scene, tmp, fmt=format_of(args.out)))

