@@ -39,6 +39,7 @@ import argparse
 import csv
 import io
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -91,7 +92,7 @@ FULL_SWEEP += STRENGTH_SWEEP
 # Style at every scale (issue #23): the broad-strokes term on/off at three stroke sizes, and the higher presets, all
 # as shipped (on 360° captures the calibrated defaults).
 SCALE_SWEEP = [(f"stroke {s:g}{suffix}", "shipped", {"style_scale": s, **extra})
-               for suffix, extra in (("", {}), (", no broad strokes", {"lambda_multiscale": 0.0}))
+               for suffix, extra in (("", {}), (" no broad strokes", {"lambda_multiscale": 0.0}))
                for s in (0.5, 1.0, 2.0)]
 SCALE_SWEEP += [("balanced as shipped", "balanced", {}), ("final as shipped", "final", {})]
 SHORT_SWEEP = [p for p in FULL_SWEEP if p[0] in ("preview", "width 128", "width 256", "epochs 3", "epochs 12")]
@@ -122,6 +123,11 @@ def psnr(engine) -> float:
             img = render_params(engine.params, cam, sh_degree=0).image
             errors.append(float(((img - gt) ** 2).mean()))
     return float(-10 * math.log10(max(np.mean(errors), 1e-12)))
+
+
+def picture_name(label: str) -> str:
+    """A point's label as a file name: "stroke 0.5 no broad strokes" -> "stroke_0.5_no_broad_strokes"."""
+    return re.sub(r"[^\w.]+", "_", label).strip("_")
 
 
 def save_pictures(engine, scene_in, folder: Path, name: str, width: int = PICTURE_WIDTH) -> None:
@@ -369,7 +375,7 @@ def main() -> None:
                 continue
             scene_path, cameras = scenes[scene_name]
             shots = None if args.pictures is None else (Path(args.pictures) / f"{scene_name}_{style_name}",
-                                                         label.replace(" ", "_").replace(",", ""))
+                                                         picture_name(label))
             res = run_point(scene_path, STYLES[style_name], preset, overrides, cameras=cameras, pictures=shots)
             row = {"group": f"{scene_name} / {style_name}", "label": label, **res}
             rows.append(row)

@@ -98,3 +98,29 @@ def test_figure_over_views_and_paintings():
     np.testing.assert_allclose(mixed.painting, painting_shares(_stripes(3.0), 64))
     with pytest.raises(ValueError):
         texture_scale(before, after[:1], None, _stripes(12.0), 64)
+
+
+def test_the_run_figure_takes_the_paintings_luminance_with_keep_colours():
+    """With keep colours only the painting's light-and-dark pattern is transferred, so the figure compares the added
+    texture with the painting's luminance; without, with the painting as it is."""
+    from types import SimpleNamespace
+
+    from gstyle_core.pipeline.cli import run_texture_scale
+    from gstyle_core.style.keep_colours import grey
+    from gstyle_core.style.texture_scale import matched_side, texture_scale
+
+    rng = np.random.default_rng(4)
+    painting = rng.random((40, 60, 3)).astype(np.float32)
+    painting[..., 0] = np.linspace(0, 1, 60)[None, :]  # a colour ramp: its own bands differ from the luminance's
+    before = [rng.random((32, 48, 3)).astype(np.float32)]
+    after = [np.clip(before[0] + 0.1 * rng.standard_normal((32, 48, 3)), 0, 1).astype(np.float32)]
+    alpha = [np.ones((32, 48), np.float32)]
+    side = matched_side(64, 1.0, 48)
+    for keep in (False, True):
+        engine = SimpleNamespace(settings=SimpleNamespace(working_width=64, style_scale=1.0, style_weights=(),
+                                                          keep_colours=keep))
+        figure = run_texture_scale(engine, painting, before, after, alpha, 48)
+        expected = texture_scale(before, after, alpha, [grey(painting) if keep else painting], side, None)
+        assert figure.painting == pytest.approx(expected.painting) and figure.added == pytest.approx(expected.added)
+    assert run_texture_scale(engine, painting, before, after, alpha, 48).painting != pytest.approx(
+        texture_scale(before, after, alpha, [painting], side, None).painting, abs=1e-3)

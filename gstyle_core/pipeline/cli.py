@@ -318,11 +318,15 @@ def texture_scale_line(ts: dict) -> str:
 
 def run_texture_scale(engine, style, before, after, alpha, width: int):
     """The texture-scale figure (``style/texture_scale.py``) of evaluation renders ``width`` px wide: band shares of
-    what stylization added inside the scene beside the painting's own at the size it is matched."""
+    what stylization added inside the scene beside the painting's own at the size it is matched (its luminance with
+    keep colours: only that pattern is transferred)."""
+    from ..style.keep_colours import grey
     from ..style.texture_scale import matched_side, texture_scale
 
     s = engine.settings
     paintings = [style] if isinstance(style, np.ndarray) else list(style)
+    if s.keep_colours:
+        paintings = [grey(np.asarray(p, np.float32)) for p in paintings]
     side = matched_side(s.working_width, s.style_scale, width)
     weights = None if len(paintings) == 1 else s.style_weights
     return texture_scale(before, after, [np.asarray(a) for a in alpha], paintings, side, weights)
