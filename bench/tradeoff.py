@@ -132,15 +132,18 @@ def picture_name(label: str) -> str:
 
 def save_pictures(engine, scene_in, folder: Path, name: str, width: int = PICTURE_WIDTH) -> None:
     """The middle evaluation view of the input and of the stylized scene, ``width`` px wide, cropped to the scene:
-    ``folder/<name>.png`` (stylized) and ``folder/input.png``."""
-    from gstyle_core.render_cli import save_png, scene_rows
+    ``folder/<name>.png`` (stylized) and ``folder/input.png``; and the gallery's picture (``bench/gallery.py``: input
+    above, stylized below, three views) as ``folder/<name>_views.png``."""
+    from gstyle_core.render_cli import before_after_picture, save_png, scene_rows
 
     cams = engine.full_cameras
     camera = cams[choose_views(cams, 3)[1 if len(cams) > 1 else 0]]
-    before, after = scene_rows([scene_in, engine.stylized_scene()], [camera], 1, width)
+    stylized = engine.stylized_scene()
+    before, after = scene_rows([scene_in, stylized], [camera], 1, width)
     folder.mkdir(parents=True, exist_ok=True)
     save_png(folder / f"{name}.png", after)
     save_png(folder / "input.png", before)
+    save_png(folder / f"{name}_views.png", before_after_picture(scene_in, stylized, cams, n_views=3, width=width))
 
 
 def run_point(scene: str | None, style: Path, preset: str, overrides: dict, cameras: str | None = None,
