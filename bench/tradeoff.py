@@ -101,7 +101,7 @@ QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views
                ("width 128", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5,
                                           "working_width": 128})]
 EVAL_WIDTH = 256
-PICTURE_WIDTH = 512  # --pictures: one view per point at this width (strokes can be judged)
+PICTURE_WIDTH = 1024  # --pictures: one view per point at this width (strokes can be judged; the gallery's at 512)
 MIN_STRUCTURE = 0.5  # edge correlation below which the scene is considered lost (issue #14's threshold)
 NEARBY_SHIFT = 0.03  # consistency: the second view is moved sideways by 3 % of the scene's median depth
 
@@ -132,8 +132,9 @@ def picture_name(label: str) -> str:
 
 def save_pictures(engine, scene_in, folder: Path, name: str, width: int = PICTURE_WIDTH) -> None:
     """The middle evaluation view of the input and of the stylized scene, ``width`` px wide, cropped to the scene:
-    ``folder/<name>.png`` (stylized) and ``folder/input.png``; and the gallery's picture (``bench/gallery.py``: input
-    above, stylized below, three views) as ``folder/<name>_views.png``."""
+    ``folder/<name>.png`` (stylized) and ``folder/input.png``; the gallery's picture (``bench/gallery.py``: input
+    above, stylized below, three views 512 px wide) as ``folder/<name>_views.png``; the stylized scene as
+    ``folder/<name>.ply``."""
     from gstyle_core.render_cli import before_after_picture, save_png, scene_rows
 
     cams = engine.full_cameras
@@ -143,7 +144,10 @@ def save_pictures(engine, scene_in, folder: Path, name: str, width: int = PICTUR
     folder.mkdir(parents=True, exist_ok=True)
     save_png(folder / f"{name}.png", after)
     save_png(folder / "input.png", before)
-    save_png(folder / f"{name}_views.png", before_after_picture(scene_in, stylized, cams, n_views=3, width=width))
+    save_png(folder / f"{name}_views.png", before_after_picture(scene_in, stylized, cams, n_views=3, width=512))
+    from gstyle_core.io.saver import save_scene
+
+    save_scene(stylized, folder / f"{name}.ply")  # to look at it again at any size (gstyle render, the studio)
 
 
 def run_point(scene: str | None, style: Path, preset: str, overrides: dict, cameras: str | None = None,
