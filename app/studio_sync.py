@@ -59,6 +59,7 @@ class StudioSync:
         p.region_in_engine = self.engine_region if self.bridge is not None else ""
         width, height = self._view_size
         p.region_outline = self._region_outline(width, height)
+        p.selection_outline = self._selection_outline(width, height)
         self._poll_video()
         if self.bridge is None:
             p.running, p.paused = False, False
