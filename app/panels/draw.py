@@ -23,8 +23,9 @@ def shortcut_commands(state: PanelState) -> list[Command]:
     pressed = imgui.is_key_pressed
     if pressed(imgui.Key.space, False):
         out.append(Command("resume" if state.paused else "pause"))
-    if pressed(imgui.Key.c, False) and not io.key_ctrl:
-        out.append(Command("view_mode", {"mode": "stylized" if state.view_mode == "compare" else "compare"}))
+    if pressed(imgui.Key.c, False) and not io.key_ctrl:  # compare with the original (from a take's too), or back
+        with_original = state.view_mode == "compare" and not state.compare_with_take
+        out.append(Command("view_mode", {"mode": "stylized" if with_original else "compare"}))
     if pressed(imgui.Key.s, False) and io.key_ctrl:
         out.append(Command("export"))
     if pressed(imgui.Key.f12, False):

@@ -11,9 +11,9 @@ from .widgets import button, tooltip
 VIEW_TOOLTIPS = {
     "stylized": "The stylized scene as the engine has it now.",
     "original": "The input scene, with its view-dependent colour (SH) when it has any.",
-    "compare": "Stylized left, original right; drag the white divider (C toggles).",
+    "compare": "Stylized left, original right; drag the white divider (C toggles; T compares with the takes).",
     "ground truth": "The colours the stylization is compared against (available once the engine sent them).",
-    "take": "The take chosen under Takes (an earlier export), alone.",
+    "take": "The take chosen under Takes (an earlier export; the newest when none is chosen), alone.",
 }
 
 HELP_TEXT = """Mouse: left drag orbit (turntable about the scene's up), right drag pan, wheel dolly. W/A/S/D/Q/E fly.
@@ -27,9 +27,10 @@ def view_section(state: PanelState, out: list[Command]) -> None:
     """View modes, field of view, reset view and the scene cameras."""
     imgui.separator()
     for mode in VIEW_MODES:
-        disabled = (mode == "ground truth" and not state.has_ground_truth) or (mode == "take" and state.take_shown < 0)
+        disabled = (mode == "ground truth" and not state.has_ground_truth) or (mode == "take" and not state.take_names)
         imgui.begin_disabled(disabled)
-        if imgui.radio_button(mode, state.view_mode == mode) and state.view_mode != mode and not disabled:
+        again = mode == "compare" and state.compare_with_take  # from a take back to the original
+        if imgui.radio_button(mode, state.view_mode == mode) and (state.view_mode != mode or again) and not disabled:
             out.append(Command("view_mode", {"mode": mode}))
         tooltip(VIEW_TOOLTIPS[mode])
         imgui.end_disabled()
