@@ -38,6 +38,7 @@ from .worker import ThreadWorkerBridge, WorkerBridge
 DIVIDER_COLOUR = (1.0, 1.0, 1.0)
 BACKGROUND = (0.0, 0.0, 0.0)
 MIN_VIEW_WIDTH = 64  # the view keeps at least this many pixels beside the panel
+IDLE_GAP_S = 0.5
 
 
 def _framebuffer_scale() -> tuple[float, float]:
@@ -95,6 +96,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.engine_config = dict(engine_config or {})
         self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
         self.bridge: WorkerBridge | None = None
+        self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
         self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
         self._resume_seen: Any = None  # the last resume report shown in the status line
         self._resume_probe: tuple[float, Path | None, bool] = (0.0, None, False)  # (time, path, exists)
@@ -290,7 +292,8 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         """
         now = time.perf_counter()
         dt, self._last_frame = now - self._last_frame, now
-        self._frame_times = (self._frame_times + [dt])[-60:]
+        if dt < IDLE_GAP_S:  # a gap after waiting for events (render on demand) is not a frame time
+            self._frame_times = (self._frame_times + [dt])[-60:]
         self._apply_engine_updates()
         self._apply_selection()
         self._poll_dialog()
@@ -364,6 +367,17 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self.ctx.scissor = (x0 + max(split - 1, 0), y0, 2, height)
             target.clear(*DIVIDER_COLOUR, 1.0)
             self.ctx.scissor = None
+
+    def busy(self) -> bool:
+        """Something needs frames although no input arrived (render on demand, ``app/on_demand.py``): news from
+        the engine, a view still building its full-resolution image, a video, an open dialog, a screenshot."""
+        news = False
+        if self.bridge is not None:
+            news = bool(self.bridge.poll())
+            key = (self.bridge.state.alive, self.bridge.state.error)
+            news, self._bridge_seen = news or key != self._bridge_seen, key
+        video = self.video_job is not None
+        return news or video or self.view.building or self._dialog is not None or bool(self.screenshot_requests)
 
     def _original_layer(self) -> str:
         return SH_LAYER if SH_LAYER in self.original.layers else DIFFUSE_LAYER
