@@ -70,10 +70,11 @@ class Studio:
                 str(self.out), *extra]
         self.proc = subprocess.Popen(argv, cwd=ROOT, env=self.env, stdout=subprocess.DEVNULL,
                                      stderr=subprocess.PIPE, text=True)
-        found = self.xdo("search", "--sync", "--name", "G-Style Studio", timeout=60)
+        found = self.xdo("search", "--sync", "--onlyvisible", "--name", "G-Style Studio", timeout=60)
         self.window = found.split()[0]
-        self.xdo("windowfocus", "--sync", self.window)
         time.sleep(3.0)  # the first frames (shader compilation)
+        self.move(5, 5)  # no window manager: the keyboard goes to the window under the pointer; focus it too
+        subprocess.run(["xdotool", "windowfocus", self.window], env=self.env, capture_output=True, timeout=20)
 
     def xdo(self, *args: str, timeout: float = 20) -> str:
         return subprocess.run(["xdotool", *args], env=self.env, capture_output=True, text=True, timeout=timeout,
