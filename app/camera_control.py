@@ -1,7 +1,13 @@
-"""Viewer camera maths: orbit around a target, WASD fly, zoom, pan, reset, snap to a scene camera, fov.
+"""Viewer camera maths: a turntable orbit around a target, WASD fly, dolly (zoom), pan, reset, snap to a scene
+camera, fov.
 
 Pure numpy, no GL. Pose = eye position + camera-to-world rotation (columns: x right, y down, z forward,
 the OpenCV axes of ``gstyle_core.cameras.Camera``) + the distance to the orbit target along the view axis.
+The orbit is a turntable, as in Blender, SuperSplat or Sketchfab: a horizontal drag turns about the scene's up
+axis (``world_up``, estimated from the scene cameras by ``gstyle_core.cameras.up.estimate_up``), a vertical drag
+tilts about the view's right axis, and the view is kept level (no roll), so the subject never leans.
+The field of view spans the view's smaller side (a tall, narrow view beside the panel sees as much across as a
+wide one sees from top to bottom).
 """
 
 from __future__ import annotations
@@ -73,8 +79,9 @@ class CameraControl:
         return self.pose.eye + self.pose.distance * self.pose.rotation[:, 2]
 
     def camera(self, width: int, height: int) -> Camera:
-        """A pinhole Camera for an image of this size (square pixels, centred principal point)."""
-        f = 0.5 * height / math.tan(math.radians(self.pose.fov_y_deg) / 2)
+        """A pinhole Camera for an image of this size (square pixels, centred principal point; the field of view
+        spans the smaller side)."""
+        f = 0.5 * min(width, height) / math.tan(math.radians(self.pose.fov_y_deg) / 2)
         c2w = np.eye(4)
         c2w[:3, :3], c2w[:3, 3] = self.pose.rotation, self.pose.eye
         return Camera(int(width), int(height), f, f, width / 2, height / 2, np.linalg.inv(c2w), "viewer")
@@ -94,20 +101,32 @@ class CameraControl:
         self.fly_speed = radius
         self.reset()
 
+    def set_up(self, up: np.ndarray) -> None:
+        """The axis the orbit turns about (the scene's up); the home pose and the view are levelled to it."""
+        self.world_up = np.asarray(up, np.float64) / np.linalg.norm(up)
+        self.home.rotation = look_rotation(self.home.rotation[:, 2], self.world_up)
+        self.level()
+
+    def level(self) -> None:
+        """Remove the view's roll about its axis (image-up towards ``world_up``), the target kept."""
+        target = self.target
+        self.pose.rotation = look_rotation(self.pose.rotation[:, 2], self.world_up)
+        self.pose.eye = target - self.pose.distance * self.pose.rotation[:, 2]
+        self.version += 1
+
     def reset(self) -> None:
         """Back to the home pose."""
         self.pose = self.home.copy()
         self.version += 1
 
     def snap_to(self, camera: Camera, target_distance: float | None = None) -> None:
-        """Take a scene camera's pose and vertical field of view; its image-up becomes the orbit up."""
+        """Take a scene camera's pose (its roll too, until the next orbit levels it) and vertical field of view."""
         c2w = camera.cam_to_world
         rotation = c2w[:3, :3] / np.linalg.norm(c2w[:3, :3], axis=0)
         fov = math.degrees(2 * math.atan(0.5 * camera.height / camera.fy))
         distance = self.pose.distance if target_distance is None else float(target_distance)
         self.pose = Pose(c2w[:3, 3].copy(), rotation, max(distance, MIN_DISTANCE),
                          float(np.clip(fov, MIN_FOV_DEG, MAX_FOV_DEG)))
-        self.world_up = -rotation[:, 1]
         self.version += 1
 
     def set_fov(self, fov_y_deg: float) -> None:
@@ -117,7 +136,7 @@ class CameraControl:
 
     # ----------------------------------------------------------------- interaction
     def orbit(self, dx_pixels: float, dy_pixels: float) -> None:
-        """Drag: turn around the target (dx about the world up, dy about the camera's right axis)."""
+        """Drag: turntable orbit around the target (dx about the world up, dy about the view's right axis), level."""
         target = self.target
         yaw = axis_rotation(self.world_up, -dx_pixels * self.orbit_speed)
         rotation = yaw @ self.pose.rotation
@@ -128,6 +147,7 @@ class CameraControl:
         lo, hi = math.radians(POLE_MARGIN_DEG), math.pi - math.radians(POLE_MARGIN_DEG)
         pitch = float(np.clip(tilt + pitch, lo, hi) - tilt)
         rotation = axis_rotation(right, -pitch) @ rotation  # +angle about right lowers the tilt
+        rotation = look_rotation(rotation[:, 2], self.world_up)  # no roll: the scene's up stays vertical
         self.pose.rotation = rotation
         self.pose.eye = target - self.pose.distance * rotation[:, 2]
         self.version += 1

@@ -58,6 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the stylization engine (default: on in a window, off headless)")
     p.add_argument("--no-engine", dest="engine", action="store_false")
     p.add_argument("--hide-ui", action="store_true", help="draw the scene only (no panel)")
+    p.add_argument("--always-draw", dest="on_demand", action="store_false",
+                   help="draw every frame (default: only while something changes; a still studio sleeps)")
     p.add_argument("--no-pacing", dest="pacing", action="store_false",
                    help="draw every changed frame at full resolution at once (default: reduced resolution while the "
                         "camera moves, full resolution built progressively when it stops; see app/scene_view.py)")
@@ -172,7 +174,11 @@ def open_studio(window, args: argparse.Namespace):
         if not 1 <= args.camera <= len(app.cameras):
             raise GStyleError(f"--camera must be 1..{len(app.cameras)}, got {args.camera}")
         app.control.snap_to(app.cameras[args.camera - 1])
-    glfw.set_drop_callback(window.handle, lambda _w, paths: app.on_drop(paths))
+    def dropped(_w, paths) -> None:
+        window.counter.events += 1  # a frame shows what was opened
+        app.on_drop(paths)
+
+    glfw.set_drop_callback(window.handle, dropped)
     if not app.start_engine(resume=args.resume) and args.resume:
         print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",
               file=sys.stderr)
@@ -180,15 +186,22 @@ def open_studio(window, args: argparse.Namespace):
 
 
 def _run_frames(window, app, args: argparse.Namespace, stop: dict[str, bool]) -> None:
-    """Poll, UI, render, cap the frame rate; screenshot at the end when asked."""
+    """Poll, UI, render, cap the frame rate; screenshot at the end when asked. In a window, frames are drawn only
+    while something changes (``app/on_demand.py``); otherwise the loop sleeps in glfw's event wait."""
     import glfw
+
+    from .on_demand import OnDemand
 
     frames = args.frames if args.frames is not None else (HEADLESS_FRAMES if window.headless else None)
     cap = 0.0 if window.headless else args.fps
     period = 1.0 / cap if cap and cap > 0 else 0.0
     deadline = time.perf_counter()
     count = 0
+    pacer = None if window.headless or not args.on_demand else OnDemand(window.counter, app.busy,
+                                                                         glfw.wait_events_timeout)
     while not (window.should_close() or stop["stop"]):
+        if pacer is not None and not pacer.should_draw():
+            continue  # nothing changed: no frame (render on demand)
         window.begin_frame()
         screen = window.ctx.screen
         screen.viewport = (0, 0, *window.framebuffer_size)  # follows window resizes

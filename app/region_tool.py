@@ -1,5 +1,5 @@
 """The studio's selected-region tool (issue #15, item 4): a box placed in the view or a screen rectangle, the
-selection it makes over the input scene's Gaussians, its highlight and its hand-over to the engine's config.
+selection it makes over the input scene's Gaussians, its outline in the view and its hand-over to the engine's config.
 A mixin of ``StudioApp`` (it uses the app's scene, camera control, renderers, panel and engine config)."""
 
 from __future__ import annotations
@@ -98,20 +98,29 @@ class RegionTool:
             self.engine_region = "box " + ",".join(f"{v:.3g}" for v in self.region_box)
 
     def _apply_selection(self) -> None:
-        """Highlight the selection in both renderers (only when it or the geometry changed)."""
+        """No tint on the splats (the style arriving in the region stays visible): the selection is shown by its
+        outline (``_selection_outline``) in every view mode; a highlight left by an earlier version is dropped."""
+        for renderer in (self.original, self.stylized):
+            if renderer.highlight:
+                renderer.set_selection(None)
+
+    def _selection_outline(self, width: int, height: int) -> list[tuple[float, float, float, float]]:
+        """The footprint of the selected Gaussians' centres in the view (``app/selection_outline.py``), window
+        pixels relative to the view; recomputed only when the camera, the view size or the selection changed."""
+        from .selection_outline import selection_outline
+
         mask = self.region_mask()
-        for name, renderer in (("original", self.original), ("stylized", self.stylized)):
-            shown = mask
-            snap = self.bridge.state.snapshot if self.bridge is not None else {}
-            if mask is not None and renderer is self.stylized and renderer.count != len(mask):
-                engine_sel = snap.get("selected") if snap else None  # after splits: the engine's own selection
-                shown = engine_sel if engine_sel is not None and len(engine_sel) == renderer.count else None
-            key = (self._region_version, renderer.geometry_version, None if shown is None else len(shown),
-                   id(shown) if renderer is self.stylized and mask is not None and shown is not mask else 0)
-            if self._selection_shown.get(name) == key:
-                continue
-            self._selection_shown[name] = key
-            renderer.set_selection(shown)
+        if mask is None or self.loaded is None or not mask.any():
+            return []
+        scale = imgui.get_io().display_framebuffer_scale if imgui.get_current_context() is not None else None
+        sx, sy = (scale.x, scale.y) if scale is not None and scale.x > 0 else (1.0, 1.0)
+        key = (self._region_version, id(mask), self.control.version, width, height, sx, sy)
+        cached = self._selection_shown.get("outline")
+        if cached is None or cached[0] != key:
+            cam = self.control.camera(width, height)
+            cached = (key, selection_outline(np.asarray(self.loaded.scene.means)[mask], cam, (sx, sy)))
+            self._selection_shown["outline"] = cached
+        return cached[1]
 
     def _region_outline(self, width: int, height: int) -> list[tuple[float, float, float, float]]:
         """The region box's 12 edges projected into the view (window pixels), edges behind the camera left out."""

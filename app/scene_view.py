@@ -175,6 +175,11 @@ class SceneView:
             self.stats.reused += 1
         self._blit(target)
 
+    @property
+    def building(self) -> bool:
+        """A full-resolution image is being built or waits to be (more frames are needed to show it)."""
+        return self._build is not None or self._pending is not None
+
     def release(self) -> None:
         """Free the GL objects."""
         for fbo in self._fbos.values():

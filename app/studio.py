@@ -37,6 +37,18 @@ from .worker import ThreadWorkerBridge, WorkerBridge
 
 DIVIDER_COLOUR = (1.0, 1.0, 1.0)
 BACKGROUND = (0.0, 0.0, 0.0)
+MIN_VIEW_WIDTH = 64  # the view keeps at least this many pixels beside the panel
+IDLE_GAP_S = 0.5
+
+
+def _framebuffer_scale() -> tuple[float, float]:
+    """Framebuffer pixels per window coordinate (1, 1 without an ImGui context)."""
+    from imgui_bundle import imgui
+
+    if imgui.get_current_context() is None:
+        return 1.0, 1.0
+    scale = imgui.get_io().display_framebuffer_scale
+    return (scale.x or 1.0), (scale.y or 1.0)
 
 
 def encode_png(rgb: np.ndarray) -> bytes:
@@ -84,6 +96,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.engine_config = dict(engine_config or {})
         self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
         self.bridge: WorkerBridge | None = None
+        self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
         self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
         self._resume_seen: Any = None  # the last resume report shown in the status line
         self._resume_probe: tuple[float, Path | None, bool] = (0.0, None, False)  # (time, path, exists)
@@ -152,13 +165,18 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             return dict(self.panel.params)
 
     def _frame_scene(self) -> None:
+        """Home pose: the first scene camera's viewpoint, levelled to the scene's up axis (estimated from the
+        cameras), orbiting the scene's centre; without cameras, the scene framed from its side."""
         from gstyle_core.cameras.generate import finite_points, robust_centre_radius
+        from gstyle_core.cameras.up import estimate_up
 
         centre, radius = robust_centre_radius(finite_points(self.loaded.scene.means))
+        self.control.world_up = estimate_up(self.cameras)
         if self.cameras:
             cam = self.cameras[0]
             self.control.snap_to(cam, float(np.linalg.norm(cam.position - centre)))
             self.control.home = self.control.pose.copy()
+            self.control.set_up(self.control.world_up)
             self.control.fly_speed = max(radius, 1e-3)
         else:
             self.control.frame(centre, radius)
@@ -268,25 +286,53 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
     def frame(self, target: moderngl.Framebuffer, with_ui: bool = True) -> list[Command]:
         """Update from the engine, handle input, render the scene into ``target`` and (if with_ui) build the UI.
 
-        The caller has started the ImGui frame (when with_ui) and renders ImGui afterwards.
+        The scene is laid out in the part of ``target`` beside the docked panel (``view_rect``): the whole of it
+        when the panel is collapsed or hidden. The caller has started the ImGui frame (when with_ui) and renders
+        ImGui afterwards.
         """
         now = time.perf_counter()
         dt, self._last_frame = now - self._last_frame, now
-        self._frame_times = (self._frame_times + [dt])[-60:]
+        if dt < IDLE_GAP_S:  # a gap after waiting for events (render on demand) is not a frame time
+            self._frame_times = (self._frame_times + [dt])[-60:]
         self._apply_engine_updates()
         self._apply_selection()
         self._poll_dialog()
         commands: list[Command] = []
-        self._view_size = target_size(target)
+        full = tuple(target.viewport)
+        view = self.view_rect(full, with_ui)
+        self._view_size = (view[2], view[3])
         if with_ui:
-            self._handle_input(target_size(target), dt)
+            self._handle_input(view, dt)
             self._fill_panel()
             if self.show_ui:
                 commands = draw_panel(self.panel)
             for cmd in commands:
                 self.execute(cmd)
-        self.render_view(target)
+            view = self.view_rect(full, with_ui)  # the panel may have collapsed or opened this frame
+            self._view_size = (view[2], view[3])
+        if view != full:
+            target.use()
+            target.clear(*BACKGROUND, 1.0)
+        target.viewport = view
+        try:
+            self.render_view(target)
+        finally:
+            target.viewport = full
         return commands
+
+    def view_rect(self, full: tuple[int, ...], with_ui: bool = True) -> tuple[int, int, int, int]:
+        """The scene's part of a target whose viewport is ``full`` (GL: x, y from the bottom, width, height):
+        right of the docked panel, or all of it when the panel is collapsed or hidden. Also sets
+        ``panel.view_rect`` (window coordinates, y down) for the overlays."""
+        x, y, width, height = (int(v) for v in full)
+        left = 0
+        rect = self.panel.panel_rect if with_ui and self.show_ui else None
+        scale = _framebuffer_scale()
+        if rect is not None:
+            left = int(round(min(rect[2] * scale[0], width - MIN_VIEW_WIDTH)))
+        left = max(left, 0)
+        self.panel.view_rect = (left / scale[0], 0.0, (width - left) / scale[0], height / scale[1])
+        return (x + left, y, width - left, height)
 
     def render_view(self, target: moderngl.Framebuffer) -> None:
         """Show the current view mode in ``target`` (its viewport), paced by ``SceneView`` (app/scene_view.py)."""
@@ -316,10 +362,22 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         mode_key = (mode, divider, tuple(p.layer for p in passes), tuple(id(p.renderer) for p in passes))
         self.view.draw(target, camera, passes, mode_key, BACKGROUND)
         if mode == "compare":
+            x0, y0 = target.viewport[:2]
             split = int(round(divider * width))
-            self.ctx.scissor = (max(split - 1, 0), 0, 2, height)
+            self.ctx.scissor = (x0 + max(split - 1, 0), y0, 2, height)
             target.clear(*DIVIDER_COLOUR, 1.0)
             self.ctx.scissor = None
+
+    def busy(self) -> bool:
+        """Something needs frames although no input arrived (render on demand, ``app/on_demand.py``): news from
+        the engine, a view still building its full-resolution image, a video, an open dialog, a screenshot."""
+        news = False
+        if self.bridge is not None:
+            news = bool(self.bridge.poll())
+            key = (self.bridge.state.alive, self.bridge.state.error)
+            news, self._bridge_seen = news or key != self._bridge_seen, key
+        video = self.video_job is not None
+        return news or video or self.view.building or self._dialog is not None or bool(self.screenshot_requests)
 
     def _original_layer(self) -> str:
         return SH_LAYER if SH_LAYER in self.original.layers else DIFFUSE_LAYER

@@ -59,7 +59,7 @@ class StudioCommands:
     def _view_command(self, name: str, args: dict[str, Any]) -> bool:
         """View mode, field of view, camera, help, and the region tool."""
         if name == "view_mode":
-            self.view_mode = args["mode"]
+            self.set_view_mode(args["mode"])
         elif name == "fov":
             self.control.set_fov(args["degrees"])
         elif name == "reset_camera":

@@ -14,19 +14,22 @@ class StudioInput:
     """``StudioApp``'s input handling; the drag state lives on the app (``_dragging``, ``_last_mouse``,
     ``_rect_start``)."""
 
-    def _handle_input(self, size: tuple[int, int], dt: float) -> None:
+    def _handle_input(self, view: tuple[int, int, int, int], dt: float) -> None:
+        """``view``: the scene's part of the window (GL viewport, framebuffer pixels); mouse positions are taken
+        relative to its top-left corner."""
         io_ = imgui.get_io()
-        width, height = size
-        mouse = (io_.mouse_pos.x, io_.mouse_pos.y)
+        width, height = view[2], view[3]
         scale = io_.display_framebuffer_scale
+        origin = self.panel.view_rect[:2]  # window coordinates
+        mouse = (io_.mouse_pos.x - origin[0], io_.mouse_pos.y - origin[1])
         fb_mouse = (mouse[0] * (scale.x or 1.0), mouse[1] * (scale.y or 1.0))
         if self._dragging == "select" and not imgui.is_mouse_down(0):  # released: select what the rectangle holds
             start, self._rect_start = self._rect_start, None
             self.panel.region_drag = None
             if start is not None and abs(fb_mouse[0] - start[0]) >= 2 and abs(fb_mouse[1] - start[1]) >= 2:
                 self.select_rectangle((*start, *fb_mouse), width, height)
-        if not io_.want_capture_mouse:
-            divider_x = self.divider * width
+        if not io_.want_capture_mouse and mouse[0] >= 0:
+            divider_x = self.divider * width / (scale.x or 1.0)
             if imgui.is_mouse_clicked(0) and io_.key_shift and self.loaded is not None:
                 self._dragging, self._rect_start = "select", fb_mouse
                 self.region_enabled = True
@@ -46,7 +49,7 @@ class StudioInput:
         if self._dragging and self._last_mouse is not None:
             dx, dy = mouse[0] - self._last_mouse[0], mouse[1] - self._last_mouse[1]
             if self._dragging == "divider":
-                self.divider = float(np.clip(mouse[0] / max(width, 1), 0.0, 1.0))
+                self.divider = float(np.clip(fb_mouse[0] / max(width, 1), 0.0, 1.0))
             elif self._dragging == "orbit" and (dx or dy):
                 self.control.orbit(dx, dy)
             elif self._dragging == "pan" and (dx or dy):

@@ -59,6 +59,7 @@ class StudioSync:
         p.region_in_engine = self.engine_region if self.bridge is not None else ""
         width, height = self._view_size
         p.region_outline = self._region_outline(width, height)
+        p.selection_outline = self._selection_outline(width, height)
         self._poll_video()
         if self.bridge is None:
             p.running, p.paused = False, False
@@ -75,7 +76,7 @@ class StudioSync:
             p.phase = "done" if st.done else str(rep.get("phase", "-"))
             p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
             p.eta_seconds = (st.step_seconds / max(st.reports_received, 1) * max(p.total_steps - p.step, 0)
-                             if st.reports_received and not st.done else None)
+                             if st.reports_received and not st.done and not st.paused else None)  # paused: no ETA
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             p.status = f"resumed the last session at step {st.resumed.get('step')}"

@@ -39,6 +39,19 @@ class TakesView:
         """Compare view: stylized left, the original right (no take)."""
         self.compare_with_take = False
         self.view_mode = "compare"
+        self.panel.status = "comparing with the original"
+
+    def set_view_mode(self, mode: str) -> None:
+        """A view mode from the radio buttons or C: "compare" compares with the original (T compares with the
+        takes); "take" shows the take loaded, else the newest one."""
+        if mode == "compare":
+            self.compare_with_original()
+        elif mode == "take" and self.takes.takes and self.take_shown is None:
+            self.show_take(0, compare=False)
+        else:
+            if self.panel.status.startswith(("comparing with", "showing")):
+                self.panel.status = ""  # "comparing with take N" no longer holds
+            self.view_mode = mode
 
     def forget_take(self, index: int) -> None:
         """Take a take off the shelf (its file stays); the view leaves it if it was shown."""

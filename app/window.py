@@ -9,7 +9,7 @@ from __future__ import annotations
 import ctypes
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 # isort: off
@@ -19,6 +19,8 @@ import moderngl
 # isort: on
 
 from gstyle_core.errors import GStyleError
+
+from .on_demand import EventCounter
 
 
 class DisplayUnavailableError(GStyleError):
@@ -37,6 +39,7 @@ class Window:
     handle: Any
     ctx: moderngl.Context
     headless: bool
+    counter: EventCounter = field(default_factory=EventCounter)  # its events (render on demand, app/on_demand.py)
 
     @property
     def framebuffer_size(self) -> tuple[int, int]:
@@ -120,9 +123,11 @@ def open_window(width: int, height: int, title: str = "G-Style Studio", headless
     except ImportError:
         pass
     imgui.get_io().set_ini_filename("")
+    counter = EventCounter()
+    counter.install(glfw, handle)  # first: ImGui's backend chains its callbacks to these
     imgui.backends.glfw_init_for_opengl(ctypes.cast(handle, ctypes.c_void_p).value, True)
     imgui.backends.opengl3_init("#version 330")
-    return Window(handle, ctx, headless)
+    return Window(handle, ctx, headless, counter)
 
 
 def _attach_moderngl() -> moderngl.Context:

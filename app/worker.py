@@ -23,6 +23,9 @@ from .engine_host import worker_main
 SNAPSHOT_CREDITS = 2
 
 
+STEP_KEY = "step"  # in each ``WorkerState.loss_history`` entry: the engine step its losses were recorded at
+
+
 # ====================================================================== messages (child -> UI)
 @dataclass
 class WorkerState:
@@ -219,7 +222,9 @@ class WorkerBridge:
             st.reports_received += 1
             st.step_seconds += float(payload.get("seconds") or 0.0)
             st.done = bool(payload.get("done"))
-            st.loss_history.append(dict(payload.get("losses") or {}))
+            losses = dict(payload.get("losses") or {})
+            if losses:  # each with the step it was recorded at (the plot's x axis)
+                st.loss_history.append({STEP_KEY: float(payload.get("step", len(st.loss_history))), **losses})
         elif kind == "snapshot":
             credit, payload = payload
             if credit:

@@ -9,6 +9,11 @@ stylize steps and the fast refit steps after a split).
 
     .venv/bin/python bench/ui.py [--scene PATH] [--seconds 24] [--size 800x600] [--fps 60] [--no-pacing]
 
+``--idle``: instead, the idle CPU share (issue #27 item 7): the studio in a real window (``$DISPLAY``, else a private
+Xvfb) with ``--no-engine``, left alone (camera still, nothing changing); its process's CPU time over ``--idle-seconds``
+after ``--settle`` seconds, once rendering on demand (the default) and once with ``--always-draw``. Prints
+``RESULT idle_cpu_share=… always_draw_cpu_share=…`` (fractions of one core; target ≤ 0.05).
+
 Frame time = interval between consecutive frame starts (what the user sees), each frame ending with
 ``ctx.finish()`` (a real window's swap waits for the rasteriser the same way). Prints a table, then
 ``RESULT ui_fps=… ui_p95_ms=… worker_steps_per_s=… worker_share=…``.
@@ -157,6 +162,41 @@ def summary(ms: list[float]) -> tuple[float, float, float]:
     return float(1e3 / np.median(a)), float(np.percentile(a, 95)), float(a.max())
 
 
+def idle_share(args, *extra: str) -> float:
+    """CPU share of one core the studio's process uses while nothing changes (see the module docstring)."""
+    import subprocess
+
+    env, xvfb = dict(os.environ), None
+    if not env.get("DISPLAY"):
+        env["DISPLAY"] = ":91"
+        xvfb = subprocess.Popen(["Xvfb", ":91", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        time.sleep(1.0)
+    argv = [sys.executable, "-m", "app.main", *([args.scene] if args.scene else []), "--no-engine", "--size",
+            f"{args.size[0]}x{args.size[1]}", "--output-dir", str(ROOT / "out" / "bench_ui"), *extra]
+    proc = subprocess.Popen(argv, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        time.sleep(args.settle)
+        t0, c0 = time.monotonic(), stat_cpu_seconds(f"/proc/{proc.pid}/stat")
+        time.sleep(args.idle_seconds)
+        return (stat_cpu_seconds(f"/proc/{proc.pid}/stat") - c0) / (time.monotonic() - t0)
+    finally:
+        proc.terminate()
+        proc.wait(60)
+        if xvfb is not None:
+            xvfb.terminate()
+            xvfb.wait(10)
+
+
+def idle_report(args) -> None:
+    """``--idle``: the idle CPU share, rendering on demand and drawing every frame."""
+    on_demand, always = idle_share(args), idle_share(args, "--always-draw")
+    print(f"studio idle ({args.scene or 'bundled demo'}, {args.size[0]}x{args.size[1]}, --no-engine, "
+          f"{args.idle_seconds:g} s after {args.settle:g} s): {100 * on_demand:.1f} % of a core rendering on demand, "
+          f"{100 * always:.1f} % drawing every frame")
+    print(f"RESULT idle_cpu_share={on_demand:.3f} always_draw_cpu_share={always:.3f}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--scene", default=None, help="scene (default: the bundled demo, 40k Gaussians)")
@@ -171,7 +211,13 @@ def main() -> None:
     p.add_argument("--worker-nice", type=int, default=None, help="niceness added to the worker (default: the app's)")
     p.add_argument("--worker", choices=["process", "thread"], default="process",
                    help="run the engine in a spawned process (the app's choice) or in a thread of the UI process")
+    p.add_argument("--idle", action="store_true", help="measure the idle CPU share instead (module docstring)")
+    p.add_argument("--idle-seconds", type=float, default=5.0)
+    p.add_argument("--settle", type=float, default=10.0, help="--idle: seconds from start to the measurement")
     args = p.parse_args()
+    if args.idle:
+        idle_report(args)
+        return
     if args.gl_threads is not None:
         os.environ["LP_NUM_THREADS"] = str(args.gl_threads)  # read by Mesa when the GL context is created
     if args.worker_nice is not None:

@@ -47,10 +47,10 @@ def turntable_cameras(scene: GaussianScene, count: int, width: int = TURNTABLE_S
 
 
 def cameras_up(cameras: Sequence[Camera]) -> np.ndarray:
-    """The world direction the cameras hold as image-up (mean of their -y axes), to orbit the way they stand."""
-    up = -np.mean([c.cam_to_world[:3, 1] for c in cameras], axis=0)
-    norm = float(np.linalg.norm(up))
-    return up / norm if norm > 1e-6 else np.array([0.0, -1.0, 0.0])
+    """The scene's up axis from its cameras (``cameras.up.estimate_up``), to orbit the way they stand."""
+    from .cameras.up import estimate_up
+
+    return estimate_up(cameras)
 
 
 def frame_iterator(scene: GaussianScene, cameras: Sequence[Camera], backend: str = "fast",

@@ -82,10 +82,12 @@ class FakeEngine:
         }
 
     def state_dict(self) -> dict:
-        return {"steps": self.steps, "means": self.means.copy(), "params": dict(self.params)}
+        return {"steps": self.steps, "means": self.means.copy(), "params": dict(self.params),
+                "resumed_at": getattr(self, "resumed_at", None)}
 
     def load_state_dict(self, state: dict) -> None:
         self.steps = state["steps"]
+        self.resumed_at = int(state["steps"])  # the step this engine continued from (tests check resumes)
         self.means = state["means"].copy()
         self.params = dict(state["params"])
 

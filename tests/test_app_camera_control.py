@@ -84,7 +84,52 @@ def test_snap_to_scene_camera_reproduces_its_view():
     cam = ctl.camera(640, 480)
     assert np.allclose(cam.world_to_cam, w2c, atol=1e-9)
     assert np.isclose(cam.fy, 500.0)
-    assert np.allclose(ctl.world_up, -scene_cam.cam_to_world[:3, 1])
+    assert np.allclose(ctl.world_up, [0.0, -1.0, 0.0])  # the scene's up, not this camera's
+
+
+def screen_up_angle_deg(ctl: CameraControl, width: int = 640, height: int = 480) -> float:
+    """Angle between the image's vertical and the scene's up axis through the target, as drawn."""
+    cam = ctl.camera(width, height)
+    a, b = project(cam, ctl.target), project(cam, ctl.target + 0.1 * ctl.pose.distance * ctl.world_up)
+    return math.degrees(math.atan2(abs(b[0] - a[0]), a[1] - b[1]))
+
+
+def test_turntable_orbit_keeps_the_scene_up_vertical_after_a_tilted_scene_camera():
+    """R then a horizontal drag: the subject must not lean (issue #27, item 1). The home pose is a scene camera
+    looking down 20 degrees at the subject; the orbit turns about the scene's up, not that camera's image-up."""
+    from gstyle_core.cameras.generate import generate_cameras
+    from gstyle_core.cameras.up import estimate_up
+
+    cams = generate_cameras(np.random.default_rng(0).normal(size=(300, 3)), kind="orbit", count=8).cameras
+    ctl = CameraControl()
+    ctl.snap_to(cams[0], float(np.linalg.norm(cams[0].position)))
+    ctl.home = ctl.pose.copy()
+    ctl.set_up(estimate_up(cams))
+    ctl.reset()
+    for dx, dy in [(300, 0), (-120, 0), (0, 60), (200, -30)]:
+        ctl.orbit(dx, dy)
+        assert screen_up_angle_deg(ctl) < 0.01
+        assert abs(ctl.pose.rotation[:, 0] @ ctl.world_up) < 1e-9  # no roll
+
+
+def test_orbit_levels_a_rolled_scene_camera():
+    w2c = np.eye(4)
+    w2c[:3, :3] = axis_rotation([0.0, 0.0, 1.0], 0.3).T  # rolled 17 degrees about its view axis
+    w2c[:3, 3] = [0.0, 0.0, 3.0]
+    ctl = CameraControl()
+    ctl.snap_to(Camera(640, 480, 500.0, 500.0, 320.0, 240.0, w2c), 3.0)
+    assert screen_up_angle_deg(ctl) > 10
+    ctl.orbit(5, 0)
+    assert screen_up_angle_deg(ctl) < 0.01
+
+
+def test_portrait_view_spans_the_fov_across_its_width():
+    ctl = CameraControl()
+    ctl.frame(np.zeros(3), 1.0)
+    narrow = ctl.camera(220, 480)
+    assert np.isclose(2 * math.degrees(math.atan(110 / narrow.fx)), ctl.pose.fov_y_deg)
+    side = np.cross(ctl.world_up, ctl.pose.rotation[:, 2])  # the sphere's edge across the view
+    assert 0 <= project(narrow, side)[0] <= 220 and 0 <= project(narrow, -side)[0] <= 220
 
 
 @pytest.mark.parametrize("fov", [1.0, 45.0, 500.0])

@@ -1,5 +1,6 @@
 """Every studio control does what it says (issue #17): clicked headless through the real ImGui panel."""
 
+import numpy as np
 import pytest
 
 pytest.importorskip("imgui_bundle")
@@ -92,8 +93,21 @@ def test_coarse_substitute_is_named_so_on_slider_tooltip_and_plot(panel):
     slider = driver.recorder.find(f"lambda_clip/lambda {COARSE_NAME}")
     assert "coarse (CLIP substitute)" in slider.tooltip and "no CLIP ViT-B/32 weights" in slider.tooltip
     history = [{"clip": 1.0, "nnfm": 2.0, "multiscale": 3.0, "content": 0.0}]
-    assert [label for label, _ in loss_series(history, COARSE_NAME)] == [COARSE_NAME, "broad strokes", "NNFM"]
+    assert [label for label, *_ in loss_series(history, COARSE_NAME)] == [COARSE_NAME, "broad strokes", "NNFM"]
     # (content: weight 0, never computed, no line in the plot)
+
+
+def test_loss_plot_lines_are_named_at_their_steps_and_joined_across_other_steps():
+    """Issue #27 item 6: terms recorded only on some steps (content, NNFM on stylize steps; refit on the refit
+    steps between them) are continuous lines at the steps they were recorded at; a term switched off is left out."""
+    history = [{"step": 10.0 + i, **({"refit": 0.5} if i % 3 else {"nnfm": 2.0 + i, "content": 1.0, "clip": 0.3})}
+               for i in range(12)]
+    series = {label: (xs, ys) for label, xs, ys in loss_series(history, COARSE_NAME)}
+    assert sorted(series) == sorted([COARSE_NAME, "NNFM", "content", "refit"])
+    xs, ys = series["NNFM"]
+    assert np.array_equal(xs, [10, 13, 16, 19]) and np.array_equal(ys, [2, 5, 8, 11])
+    assert len(series["refit"][0]) == 8
+    assert COARSE_NAME not in [label for label, *_ in loss_series(history, COARSE_NAME, frozenset({"clip"}))]
 
 
 def test_studio_names_the_clip_term_by_the_weights_found(window, no_clip_weights, tmp_path):
@@ -135,3 +149,15 @@ def test_strength_slider_reaches_the_engine(window, monkeypatch, tmp_path):
         assert BUILT[-1].settings.strength == pytest.approx(asked)
     finally:
         app.close()
+
+
+def test_a_long_status_does_not_move_the_controls_below(panel):
+    """Issue #27 item 9: after an export the status wraps to two lines; the buttons below stay where they were."""
+    driver, state = panel
+    where = []
+    for status in ("", "exported /a/rather/long/output/folder/stylized_20261126_020001.ply (kept as take 3)",
+                   "x " * 400):
+        state.status = status
+        driver.frame()
+        where.append(driver.recorder.find("Reset view").rect)
+    assert where[0] == where[1] == where[2]

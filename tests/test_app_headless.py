@@ -44,11 +44,11 @@ def test_headless_run_writes_png(tmp_path, synthetic_loader, capsys):
 
 def test_headless_compare_with_panel(tmp_path, synthetic_loader):
     out = tmp_path / "ui.png"
-    assert main(["--headless", "--frames", "3", "--size", "400x300", "--screenshot", str(out),
+    assert main(["--headless", "--frames", "3", "--size", "900x300", "--screenshot", str(out),
                  "--view", "compare", "--camera", "2", "--output-dir", str(tmp_path)]) == 0
     img = read_png(out)
-    assert img.shape == (300, 400, 3)
-    assert (img[:8, 199:201] > 240).all()  # divider line above the panel
+    assert img.shape == (300, 900, 3)
+    assert (img[:8, 659:661] > 240).all()  # the divider in the middle of the view beside the 420-px panel
 
 
 def test_no_display_stylizes_headless_and_writes_before_after(tmp_path, synthetic_loader, monkeypatch, capsys):

@@ -68,3 +68,51 @@ def test_ctrl_c_saves_the_session_and_exits_with_one_line(tmp_path, monkeypatch)
                                 "continues it)"]
     state, meta = read_checkpoint(saved)
     assert meta["kind"] == "studio" and meta["style"] == str(style) and state["steps"] >= 5
+
+
+def _studio(tmp_path, *extra: str) -> subprocess.Popen:
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env.update(GSTYLE_CACHE=str(tmp_path / "cache"), GSTYLE_TEST_STEPPED=str(tmp_path / "stepped"))
+    argv = [sys.executable, "-c", STUDIO, str(TESTS), str(tmp_path / "scene.ply"), "--style", str(tmp_path / "s.png"),
+            "--headless", "--engine", "--frames", "1000000", "--size", "160x120", "--output-dir", str(tmp_path / "o"),
+            *extra]
+    return subprocess.Popen(argv, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+def _terminate_after(proc: subprocess.Popen, ready) -> str:
+    """``kill -TERM`` the studio alone (as a logout or a closing terminal does) once ``ready()``; its stderr."""
+    try:
+        deadline = time.monotonic() + 180
+        while not ready() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert ready(), f"the engine never got there (exit status {proc.poll()})"
+        os.kill(proc.pid, signal.SIGTERM)
+        return proc.communicate(timeout=120)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def test_sigterm_saves_the_session_and_resume_continues_from_the_step_reached(tmp_path, monkeypatch):
+    """Issue #27 item 5: SIGTERM (logout, a closing terminal) saves the session as closing the window does, and
+    ``--resume`` continues from the step it reached, not from step 0."""
+    from PIL import Image
+
+    _headless_window_or_skip()
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    save_scene(blob_scene(80), tmp_path / "scene.ply")
+    Image.fromarray(np.random.default_rng(1).integers(0, 255, (16, 16, 3), dtype=np.uint8)).save(tmp_path / "s.png")
+    saved = studio_checkpoint_path(str(tmp_path / "scene.ply"), str(tmp_path / "s.png"))
+    err = _terminate_after(_studio(tmp_path), (tmp_path / "stepped").exists)
+    assert f"session saved to {saved}" in err, err
+    reached = read_checkpoint(saved)[0]["steps"]
+    assert reached >= 5
+    mtime = saved.stat().st_mtime_ns
+    proc = _studio(tmp_path, "--resume")
+    time.sleep(2.0)  # the engine process starts (it saves on quit whether or not it stepped again)
+    err = _terminate_after(proc, lambda: True)
+    assert f"session saved to {saved}" in err and saved.stat().st_mtime_ns != mtime, err
+    state, _meta = read_checkpoint(saved)
+    assert state["resumed_at"] == reached and state["steps"] >= reached

@@ -90,7 +90,9 @@ def test_compare_divider_shows_both_sources_and_can_be_dragged(window, tmp_path)
     assert right[2] > 200 and right[0] < 30  # original (blue) on the right
     assert img[H // 2, W // 2 - 1].min() > 240  # the divider line
 
-    # drag the divider from the middle to a quarter of the width with injected mouse events
+    # drag the divider from the middle to a quarter of the width with injected mouse events (panel hidden: the view
+    # is the whole window)
+    app.show_ui = False
     frame(window, app, lambda io: io.add_mouse_pos_event(W / 2, H / 2))
     frame(window, app, lambda io: io.add_mouse_button_event(0, True))
     frame(window, app, lambda io: io.add_mouse_pos_event(W / 4, H / 2))

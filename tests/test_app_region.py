@@ -1,6 +1,7 @@
 """The studio's selection tool (issue #15 item 4): the panel turns it on, the box is placed with its numbers, a
-Shift + drag rectangle in the view selects the Gaussians whose centres fall in it, the selection is drawn
-highlighted, and the engine starts with it (headless GL window, real small engine in a worker thread)."""
+Shift + drag rectangle in the view selects the Gaussians whose centres fall in it, the selection is outlined in
+the view (no tint on the splats), and the engine starts with it (headless GL window, real small engine in a worker
+thread)."""
 
 import numpy as np
 import pytest
@@ -66,8 +67,9 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         assert [c.args for c in commands if c.name == "region_enable"] == [{"on": True}]
         assert driver.recorder.find("select a region").tooltip  # the control explains itself
         driver.frame()
-        # on: the box starts as the scene's bounds, every Gaussian selected, drawn highlighted with its outline
-        assert app.region_mask().all() and app.stylized.highlight and app.original.highlight
+        # on: the box starts as the scene's bounds, every Gaussian selected, outlined (not tinted) with its box
+        assert app.region_mask().all() and not app.stylized.highlight and not app.original.highlight
+        assert app.panel.selection_outline
         assert any("150 of 150 Gaussians selected by the box" in t for t in driver.recorder.texts)
         assert len(app.panel.region_outline) == 12
         assert orange_share(read_rgb(window.ctx.screen)) > orange_share(plain) + 10
@@ -80,7 +82,7 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         # Alt + drag moves the box in the view (its centre follows the mouse), Alt + wheel resizes it
         def centre_pixel():
             box = np.asarray(app.region_box)
-            cam = app.control.camera(W, H)
+            cam = app.control.camera(*app._view_size)
             p = np.asarray(cam.world_to_cam)[:3, :3] @ ((box[:3] + box[3:]) / 2) + np.asarray(cam.world_to_cam)[:3, 3]
             return np.array([cam.fx * p[0] / p[2] + cam.cx, cam.fy * p[1] / p[2] + cam.cy])
 
@@ -106,7 +108,9 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         assert app.panel.region_drag is not None  # the rectangle is drawn while dragging
         driver.frame(lambda io: io.add_mouse_button_event(0, False))
         driver.frame(lambda io: io.add_key_event(imgui.Key.mod_shift, False))
-        expected = rect_mask(scene.means, app.control.camera(W, H), rect)
+        left = app.panel.view_rect[0]  # the view starts right of the docked panel
+        expected = rect_mask(scene.means, app.control.camera(*app._view_size),
+                             (rect[0] - left, rect[1], rect[2] - left, rect[3]))
         assert 0 < expected.sum() < 150
         assert np.array_equal(app.region_mask(), expected) and app.panel.region_mode == "rectangle"
         # the engine starts with the selection; its snapshot's selection keeps the highlight after the start

@@ -12,6 +12,7 @@ pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
 from fakes import make_fake_engine  # noqa: E402
+from imgui_bundle import imgui  # noqa: E402
 from imgui_driver import studio_driver  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
@@ -81,6 +82,14 @@ def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_p
         commands = driver.click("take1/compare")  # the older take, beside the current run
         assert [c.name for c in commands] == ["show_take"]
         assert app.view_mode == "compare" and app.compare_with_take and app.take_shown == str(exported[0])
+        # C after T compares with the original (stylized left, original right, as its tooltip says); C again leaves
+        for expected in (("compare", False, "comparing with the original"), ("stylized", False, "")):
+            driver.frame(lambda io: io.add_key_event(imgui.Key.c, True))
+            driver.frame(lambda io: io.add_key_event(imgui.Key.c, False))
+            assert (app.view_mode, app.compare_with_take, app.panel.status) == expected
+        driver.frame()
+        assert not app.panel.compare_with_take
+        app.execute(Command("show_take", {"index": 1, "compare": True}))
         app.execute(Command("rename_take", {"index": 1, "name": "first try"}))
         assert TakeShelf(tmp_path).takes[1].name == "first try"
 

@@ -23,8 +23,9 @@ def shortcut_commands(state: PanelState) -> list[Command]:
     pressed = imgui.is_key_pressed
     if pressed(imgui.Key.space, False):
         out.append(Command("resume" if state.paused else "pause"))
-    if pressed(imgui.Key.c, False) and not io.key_ctrl:
-        out.append(Command("view_mode", {"mode": "stylized" if state.view_mode == "compare" else "compare"}))
+    if pressed(imgui.Key.c, False) and not io.key_ctrl:  # compare with the original (from a take's too), or back
+        with_original = state.view_mode == "compare" and not state.compare_with_take
+        out.append(Command("view_mode", {"mode": "stylized" if with_original else "compare"}))
     if pressed(imgui.Key.s, False) and io.key_ctrl:
         out.append(Command("export"))
     if pressed(imgui.Key.f12, False):
@@ -47,13 +48,27 @@ def shortcut_commands(state: PanelState) -> list[Command]:
 def draw_panel(state: PanelState) -> list[Command]:
     """Draw the control panel window and return the commands the user issued this frame."""
     out = shortcut_commands(state)
-    imgui.set_next_window_pos(imgui.ImVec2(10, 10), imgui.Cond_.first_use_ever)
-    # As tall as its content (sections come and go: a second style, takes, a video's progress) but never taller
-    # than the window: beyond that it scrolls.
+    # Docked to the window's left edge, full height (it scrolls when taller); the scene is laid out beside it
+    # (``StudioApp.view_rect``) and takes the whole window while the panel is collapsed (its title bar's arrow).
     viewport = imgui.get_main_viewport()
-    imgui.set_next_window_size_constraints(imgui.ImVec2(PANEL_WIDTH, 0),
-                                           imgui.ImVec2(PANEL_WIDTH, max(100.0, viewport.size.y - 20)))
-    imgui.begin("G-Style Studio", None, imgui.WindowFlags_.always_auto_resize)
+    imgui.set_next_window_pos(viewport.pos, imgui.Cond_.always)
+    imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, viewport.size.y), imgui.Cond_.always)
+    opened = imgui.begin("G-Style Studio", None, imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize)[0]
+    pos, size = imgui.get_window_pos(), imgui.get_window_size()
+    state.panel_rect = None if imgui.is_window_collapsed() else (pos.x, pos.y, pos.x + size.x, pos.y + size.y)
+    if opened:
+        _sections(state, out)
+    imgui.end()
+    if state.view_mode == "compare":
+        compare_labels(state)
+    region_overlay(state)
+    if state.show_help:
+        help_overlay(state)
+    return out
+
+
+def _sections(state: PanelState, out: list[Command]) -> None:
+    """The panel's sections, top to bottom."""
     files_section(state, out)
     progress_section(state, out)
     decisions_section(state)
@@ -62,10 +77,3 @@ def draw_panel(state: PanelState) -> list[Command]:
     region_section(state, out)
     output_section(state, out)
     takes_section(state, out)
-    imgui.end()
-    if state.view_mode == "compare":
-        compare_labels(state)
-    region_overlay(state)
-    if state.show_help:
-        help_overlay()
-    return out

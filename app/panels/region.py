@@ -1,4 +1,5 @@
-"""The panel's selected-region section and its overlay in the view (the box's edges, the rectangle being dragged)."""
+"""The panel's selected-region section and its overlay in the view (the selection's outline, the box's edges, the
+rectangle being dragged)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ REGION_TOOLTIP = (
     "Stylize only part of the scene: the Gaussians whose centres are in the box (it is drawn in the view: Alt + drag "
     "moves it, Alt + wheel resizes it, the numbers set it exactly), or, with Shift held, drag a rectangle in the view "
     "to select the Gaussians "
-    "whose centres fall in it. The selection is drawn highlighted. Only the selected Gaussians are pre-processed, "
+    "whose centres fall in it. The selection is outlined in every view. Only the selected Gaussians are pre-processed, "
     "split and stylized, the losses see only them, and every other Gaussian is exported untouched (SH included). "
     "It applies when the run (re)starts (--region x0,y0,z0,x1,y1,z1). Shortcut: B.")
 
@@ -57,13 +58,21 @@ def region_section(state: PanelState, out: list[Command]) -> None:
 
 def region_overlay(state: PanelState) -> None:
     """The region box's edges and the rectangle being dragged, over the scene view."""
-    if not state.region_enabled or not (state.region_outline or state.region_drag):
+    if not state.region_enabled or not (state.region_outline or state.region_drag or state.selection_outline):
         return
     draw = imgui.get_background_draw_list()
     colour = imgui.get_color_u32(imgui.ImVec4(1.0, 0.62, 0.1, 0.9))
+    shadow = imgui.get_color_u32(imgui.ImVec4(0.0, 0.0, 0.0, 0.8))
+    ox, oy, width, height = state.view_rect
+    draw.push_clip_rect(imgui.ImVec2(ox, oy), imgui.ImVec2(ox + width, oy + height))
+    for x0, y0, x1, y1 in state.selection_outline:  # what is selected: a gold line on a dark one, any background
+        a, b = imgui.ImVec2(ox + x0, oy + y0), imgui.ImVec2(ox + x1, oy + y1)
+        draw.add_line(a, b, shadow, 3.0)
+        draw.add_line(a, b, colour, 1.5)
     for x0, y0, x1, y1 in state.region_outline:
-        draw.add_line(imgui.ImVec2(x0, y0), imgui.ImVec2(x1, y1), colour, 1.5)
+        draw.add_line(imgui.ImVec2(ox + x0, oy + y0), imgui.ImVec2(ox + x1, oy + y1), colour, 1.5)
     if state.region_drag is not None:
         x0, y0, x1, y1 = state.region_drag
-        draw.add_rect(imgui.ImVec2(min(x0, x1), min(y0, y1)), imgui.ImVec2(max(x0, x1), max(y0, y1)), colour,
-                      rounding=0.0, thickness=1.5)
+        draw.add_rect(imgui.ImVec2(ox + min(x0, x1), oy + min(y0, y1)),
+                      imgui.ImVec2(ox + max(x0, x1), oy + max(y0, y1)), colour, rounding=0.0, thickness=1.5)
+    draw.pop_clip_rect()

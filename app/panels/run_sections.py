@@ -71,9 +71,23 @@ def progress_section(state: PanelState, out: list[Command]) -> None:
         imgui.push_style_color(imgui.Col_.text, imgui.ImVec4(1.0, 0.35, 0.3, 1.0))
         imgui.text_wrapped(f"Error: {state.error}")
         imgui.pop_style_color()
-    if state.status:
-        imgui.text_wrapped(state.status)
-    loss_plot(state.loss_history, state.clip_name)
+    status_box(state.status)
+    loss_plot(state)
+
+
+STATUS_LINES = 2
+
+
+def status_box(text: str) -> None:
+    """The status in a box of a fixed ``STATUS_LINES`` lines (empty or long, the controls below never move under
+    the mouse); a longer one is cut there and shown whole in its tooltip."""
+    height = STATUS_LINES * imgui.get_text_line_height_with_spacing()
+    flags = imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_scroll_with_mouse
+    imgui.begin_child("##status", imgui.ImVec2(-1, height), 0, flags)
+    imgui.text_wrapped(text)
+    imgui.end_child()
+    if text:
+        tooltip(text)
 
 
 def format_eta(seconds: float | None) -> str:
@@ -92,32 +106,44 @@ def term_name(key: str, clip_name: str = "CLIP") -> str:
     return clip_name if key == "clip" else term_label(key)
 
 
-def loss_series(history: list[dict[str, float]], clip_name: str = "CLIP") -> list[tuple[str, np.ndarray]]:
-    """(legend label, values) per loss key in ``history``; missing or non-positive values are NaN (log axis); a
-    term never computed (no positive value: switched off) has no series."""
+def loss_series(history: list[dict[str, float]], clip_name: str = "CLIP", off: frozenset[str] = frozenset()
+                ) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(legend label, steps, values) per loss term in ``history``, only the points where the term was recorded
+    (positive: a log axis), at their steps (an entry's ``"step"``, else its index). Terms never computed or in
+    ``off`` (switched off now) have no series."""
+    steps = np.array([h.get("step", i) for i, h in enumerate(history)], np.float64)
     series = []
-    for key in sorted({k for h in history for k in h}):
+    for key in sorted({k for h in history for k in h} - {"step"} - set(off)):
         ys = np.array([h.get(key, np.nan) for h in history], np.float64)
-        if not np.any(ys > 0):
-            continue
-        series.append((term_name(key, clip_name), np.where(ys > 0, ys, np.nan)))
+        recorded = np.isfinite(ys) & (ys > 0)
+        if recorded.any():
+            series.append((term_name(key, clip_name), steps[recorded], ys[recorded]))
     return series
 
 
-def loss_plot(history: list[dict[str, float]], clip_name: str) -> None:
-    """The losses so far on a log axis (nothing without implot or history)."""
-    series = loss_series(history, clip_name)
+def switched_off_terms(state: PanelState) -> frozenset[str]:
+    """Loss terms whose λ is 0 now (switched off, or set so): left out of the plot."""
+    return frozenset(name.removeprefix("lambda_") for name, value in state.params.items()
+                     if name.startswith("lambda_") and value == 0)
+
+
+def loss_plot(state: PanelState) -> None:
+    """The losses so far on a log axis against the step, one named line per term, the legend below the plot
+    (nothing without implot or history)."""
+    series = loss_series(state.loss_history, state.clip_name, switched_off_terms(state))
     if not series:
         return
     try:
         from imgui_bundle import implot
     except ImportError:
         return
-    if implot.begin_plot("Losses", imgui.ImVec2(-1, 140)):
+    legend_rows = (len(series) + 2) // 3
+    if implot.begin_plot("Losses", imgui.ImVec2(-1, 150 + 18 * legend_rows)):
         implot.setup_axes("step", "loss", implot.AxisFlags_.auto_fit, implot.AxisFlags_.auto_fit)
         implot.setup_axis_scale(implot.ImAxis_.y1, implot.Scale_.log10)
-        for label, ys in series:
-            implot.plot_line(label, np.arange(len(ys), dtype=np.float64), ys)
+        implot.setup_legend(implot.Location_.south, implot.LegendFlags_.outside | implot.LegendFlags_.horizontal)
+        for label, xs, ys in series:
+            implot.plot_line(label, xs, ys)
         implot.end_plot()
 
 

@@ -72,5 +72,8 @@ class PanelState:
     region_selected: int = 0  # Gaussians of the input scene in the selection
     region_total: int = 0
     region_in_engine: str = ""  # what the running engine was started with ("" : the whole scene)
-    region_outline: list[tuple[float, float, float, float]] = field(default_factory=list)  # box edges on screen
-    region_drag: tuple[float, float, float, float] | None = None  # the rectangle being dragged (screen pixels)
+    region_outline: list[tuple[float, float, float, float]] = field(default_factory=list)  # box edges (view px)
+    selection_outline: list[tuple[float, float, float, float]] = field(default_factory=list)  # selected (view px)
+    region_drag: tuple[float, float, float, float] | None = None  # the rectangle being dragged (view pixels)
+    panel_rect: tuple[float, float, float, float] | None = None  # the docked panel (x0, y0, x1, y1); None: collapsed
+    view_rect: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0)  # the scene's part (x, y, width, height)

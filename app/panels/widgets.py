@@ -14,10 +14,19 @@ def param_slider(label: str, value: float, low: float, high: float, fmt: str = "
     return imgui.slider_float(label, float(value), low, high, fmt, flags)
 
 
+TOOLTIP_WIDTH = 420.0  # pixels of text per tooltip line at most
+
+
 def tooltip(text: str) -> None:
-    """Tooltip of the last item, shown on hover even when the item is disabled."""
+    """Tooltip of the last item, shown on hover even when the item is disabled; wrapped to fit the window (a long
+    one is not cut at the window's edge)."""
     if imgui.is_item_hovered(imgui.HoveredFlags_.for_tooltip | imgui.HoveredFlags_.allow_when_disabled):
-        imgui.set_tooltip(text)
+        width = imgui.get_main_viewport().size.x
+        imgui.begin_tooltip()
+        imgui.push_text_wrap_pos(max(min(TOOLTIP_WIDTH, width - 40.0), 120.0))
+        imgui.text_wrapped(text)
+        imgui.pop_text_wrap_pos()
+        imgui.end_tooltip()
 
 
 def button(label: str, tip: str, small: bool = False) -> bool:

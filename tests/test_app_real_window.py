@@ -1,0 +1,208 @@
+"""The studio in a real X window (Xvfb) driven by real input events (xdotool), as an artist uses it (issue #27):
+a horizontal orbit keeps the scene upright, a small window shows the whole scene beside the panel, a selection
+shows in the stylized view, and C after T compares with the original. Screenshots are the studio's own (F12).
+Skipped without Xvfb or xdotool."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("imgui_bundle")
+pytest.importorskip("moderngl")
+
+from gstyle_core.io import save_scene  # noqa: E402
+from gstyle_core.scene import GaussianScene, logit, rgb_to_sh_dc  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+PANEL = 420  # app.panels.PANEL_WIDTH
+DISPLAY = ":96"
+
+
+@pytest.fixture(scope="module")
+def display():
+    """A private 1280x800 Xvfb server, killed by PID afterwards."""
+    if shutil.which("Xvfb") is None or shutil.which("xdotool") is None:
+        pytest.skip("needs Xvfb and xdotool (apt-get install xvfb xdotool)")
+    proc = subprocess.Popen(["Xvfb", DISPLAY, "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    lock = Path(f"/tmp/.X11-unix/X{DISPLAY[1:]}")
+    deadline = time.monotonic() + 10
+    while not lock.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if proc.poll() is not None or not lock.exists():
+        proc.kill()
+        pytest.skip("Xvfb did not start")
+    yield DISPLAY
+    proc.terminate()
+    proc.wait(5)
+
+
+def pole_and_ring() -> GaussianScene:
+    """A red pole along the scene's up axis (-y) standing in a ring of green Gaussians (the generated cameras look
+    down at it 20 degrees: the case where the old orbit leaned)."""
+    t = np.linspace(0.0, 1.2, 40)
+    pole = np.column_stack([np.zeros_like(t), -t, np.zeros_like(t)])
+    a = np.linspace(0, 2 * np.pi, 240, endpoint=False)
+    ring = np.column_stack([np.cos(a), np.zeros_like(a), np.sin(a)])
+    means = np.concatenate([pole, ring]).astype(np.float32)
+    rgb = np.concatenate([np.tile([1.0, 0.0, 0.0], (40, 1)), np.tile([0.0, 0.8, 0.0], (240, 1))]).astype(np.float32)
+    n = len(means)
+    return GaussianScene(means, np.full((n, 3), np.log(0.03), np.float32),
+                         np.tile(np.array([1, 0, 0, 0], np.float32), (n, 1)), logit(np.full(n, 0.95)),
+                         rgb_to_sh_dc(rgb))
+
+
+class Studio:
+    """``gstyle-studio`` in a window on the test's X display, with xdotool input and F12 screenshots."""
+
+    def __init__(self, display: str, tmp: Path, scene: Path, size: str, *extra: str) -> None:
+        self.env = {**os.environ, "DISPLAY": display, "GSTYLE_CACHE": str(tmp / "cache")}
+        self.out = tmp / "out"
+        argv = [sys.executable, "-m", "app.main", str(scene), "--no-engine", "--size", size, "--output-dir",
+                str(self.out), *extra]
+        self.proc = subprocess.Popen(argv, cwd=ROOT, env=self.env, stdout=subprocess.DEVNULL,
+                                     stderr=subprocess.PIPE, text=True)
+        found = self.xdo("search", "--sync", "--onlyvisible", "--name", "G-Style Studio", timeout=60)
+        self.window = found.split()[0]
+        time.sleep(3.0)  # the first frames (shader compilation)
+        self.move(5, 5)  # no window manager: the keyboard goes to the window under the pointer; focus it too
+        subprocess.run(["xdotool", "windowfocus", self.window], env=self.env, capture_output=True, timeout=20)
+
+    def xdo(self, *args: str, timeout: float = 20) -> str:
+        return subprocess.run(["xdotool", *args], env=self.env, capture_output=True, text=True, timeout=timeout,
+                              check=True).stdout
+
+    def key(self, *keys: str) -> None:
+        self.xdo("key", "--delay", "60", *keys)
+        time.sleep(0.4)
+
+    def move(self, x: float, y: float) -> None:
+        self.xdo("mousemove", "--window", self.window, str(int(x)), str(int(y)))
+        time.sleep(0.1)
+
+    def drag(self, start: tuple[float, float], end: tuple[float, float], button: int = 1, hold: str = "") -> None:
+        """Press at ``start``, move in steps to ``end``, release (with key ``hold`` held throughout)."""
+        self.move(*start)
+        if hold:
+            self.xdo("keydown", hold)
+        self.xdo("mousedown", str(button))
+        time.sleep(0.2)
+        for f in np.linspace(0, 1, 7)[1:]:
+            self.move(start[0] + f * (end[0] - start[0]), start[1] + f * (end[1] - start[1]))
+        self.xdo("mouseup", str(button))
+        if hold:
+            self.xdo("keyup", hold)
+        time.sleep(0.5)
+
+    def screenshot(self) -> np.ndarray:
+        """F12: the studio writes the window (panel included) to its output folder; that image, RGB."""
+        from PIL import Image
+
+        before = set(self.out.glob("screenshot_*.png")) if self.out.is_dir() else set()
+        time.sleep(1.05)  # one file name per second
+        self.key("F12")
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            new = set(self.out.glob("screenshot_*.png")) - before if self.out.is_dir() else set()
+            if new:
+                time.sleep(0.2)
+                return np.asarray(Image.open(new.pop()).convert("RGB"))
+            time.sleep(0.1)
+        raise AssertionError("F12 wrote no screenshot")
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            self.proc.communicate(timeout=60)
+
+
+@pytest.fixture
+def scene_file(tmp_path) -> Path:
+    path = tmp_path / "pole.ply"
+    save_scene(pole_and_ring(), path)
+    return path
+
+
+def pole_angle_deg(img: np.ndarray) -> float:
+    """Angle of the red pole's pixels from the image's vertical (principal axis of their positions)."""
+    red = (img[..., 0] > 140) & (img[..., 1] < 90) & (img[..., 2] < 90)
+    red[:, :PANEL] = False
+    ys, xs = np.nonzero(red)
+    assert len(xs) > 30, "the pole is not in the view"
+    pts = np.column_stack([xs, ys]).astype(np.float64)
+    _, _, axes = np.linalg.svd(pts - pts.mean(0), full_matrices=False)
+    return float(np.degrees(np.arctan2(abs(axes[0][0]), abs(axes[0][1]))))
+
+
+def test_horizontal_orbit_keeps_the_scene_upright(display, tmp_path, scene_file):
+    studio = Studio(display, tmp_path, scene_file, "1000x640")
+    try:
+        studio.key("r")
+        assert pole_angle_deg(studio.screenshot()) < 2.0
+        studio.drag((560, 320), (860, 320))  # 300 px to the right
+        img = studio.screenshot()
+        assert pole_angle_deg(img) < 2.0
+        studio.drag((860, 320), (660, 320))
+        assert pole_angle_deg(studio.screenshot()) < 2.0
+    finally:
+        studio.close()
+
+
+def test_small_window_shows_the_whole_scene_beside_the_panel(display, tmp_path, scene_file):
+    studio = Studio(display, tmp_path, scene_file, "640x480")
+    try:
+        img = studio.screenshot()
+        assert img.shape == (480, 640, 3)
+        lit = img.astype(np.int32).sum(-1) > 60
+        view = lit[:, PANEL:]
+        ys, xs = np.nonzero(view)
+        assert view.sum() > 500, "the scene is not in the view beside the panel"
+        assert xs.min() > 2 and xs.max() < view.shape[1] - 3 and ys.min() > 2 and ys.max() < 477  # nothing cut off
+    finally:
+        studio.close()
+
+
+def test_selection_shows_in_the_stylized_view(display, tmp_path, scene_file):
+    studio = Studio(display, tmp_path, scene_file, "1000x640")
+    try:
+        before = studio.screenshot()
+        studio.key("b")
+        studio.drag((600, 200), (960, 450), hold="shift")
+        after = studio.screenshot()
+        changed = np.abs(after[:, PANEL + 10:].astype(np.int32) - before[:, PANEL + 10:]).sum(-1) > 60
+        assert changed.sum() > 200, "the selection is not visible in the stylized view"
+    finally:
+        studio.close()
+
+
+def test_c_after_t_compares_with_the_original(display, tmp_path, scene_file):
+    from app.takes import TakeShelf
+
+    take = tmp_path / "out" / "blue.ply"
+    take.parent.mkdir()
+    blue = pole_and_ring()
+    blue.sh_dc[:] = rgb_to_sh_dc(np.tile([0.1, 0.2, 1.0], (blue.count, 1)).astype(np.float32))
+    save_scene(blue, take)
+    TakeShelf(take.parent).add(take, blue.count)
+    studio = Studio(display, tmp_path, scene_file, "1000x640")
+    try:
+        def blue_right() -> float:  # share of the lit pixels right of the divider that are blue
+            img = studio.screenshot()[:, PANEL + (1000 - PANEL) // 2 + 4:].astype(np.int32)
+            lit = img.sum(-1) > 60
+            return float((img[..., 2] > img[..., 0] + 60)[lit].mean()) if lit.any() else 0.0
+
+        studio.key("t")
+        assert blue_right() > 0.5  # T: the take (blue) right of the divider
+        studio.key("c")
+        assert blue_right() < 0.05  # C: the original right of the divider
+    finally:
+        studio.close()
+
