@@ -1,9 +1,10 @@
-"""A labelled grid of the pictures ``bench/tradeoff.py --sweep scale --pictures DIR`` saved: the input, then one row
-per broad-strokes setting (on, off) and one column per stroke size.
+"""A labelled grid of the pictures ``bench/tradeoff.py --sweep scale --pictures DIR`` saved: one row per
+broad-strokes setting (on, off), one column per stroke size, the input first.
 
     .venv/bin/python bench/stroke_grid.py DIR/biker_starry --out docs/stroke_size_biker.jpg [--crop 0.5]
 
-``--crop F`` keeps the central F of each picture's width and height (strokes at full size in a page-wide figure).
+``--crop F`` keeps the central F of each picture's width and height (strokes at full size in a page-wide figure);
+``--zoom Z`` enlarges each picture Z times (nearest neighbour: every rendered pixel stays a visible block).
 """
 
 from __future__ import annotations
@@ -37,16 +38,23 @@ def labelled(img: Image.Image, text: str) -> Image.Image:
     return out
 
 
-def grid(folder: Path, crop: float) -> Image.Image:
-    """Input alone on the first row, then the stroke sizes with the term on and off."""
+def grid(folder: Path, crop: float, zoom: int = 1) -> Image.Image:
+    """The input, then the stroke sizes with the term on; below, the same with it off (the sizes that were run)."""
     def tile(name: str, text: str) -> Image.Image:
         path = folder / f"{name}.png"
         if not path.is_file():
             raise SystemExit(f"{path} not found: run bench/tradeoff.py --sweep scale --pictures first")
-        return labelled(central_crop(Image.open(path).convert("RGB"), crop), text)
+        img = central_crop(Image.open(path).convert("RGB"), crop)
+        if zoom > 1:
+            img = img.resize((img.width * zoom, img.height * zoom), Image.NEAREST)
+        return labelled(img, text)
 
-    rows = [[tile("input", "input")]]
-    rows += [[tile(f"stroke_{s}{suffix}", f"stroke size {s}, {text}") for s in SIZES] for suffix, text in ROWS]
+    source = tile("input", "input")
+    blank = Image.new("RGB", source.size, "black")
+    rows = [[source if not suffix else blank] + [tile(f"stroke_{s}{suffix}", f"stroke size {s}, {text}")
+                                                 for s in SIZES if (folder / f"stroke_{s}{suffix}.png").is_file()]
+            for suffix, text in ROWS]
+    rows = [row for row in rows if len(row) > 1]
     w = max(sum(t.width for t in row) for row in rows)
     h = sum(max(t.height for t in row) for row in rows)
     canvas = Image.new("RGB", (w, h), "black")
@@ -65,8 +73,9 @@ def main() -> None:
     p.add_argument("folder", help="a DIR/<scene>_<style> folder of bench/tradeoff.py --pictures")
     p.add_argument("--out", required=True, help="the JPEG to write")
     p.add_argument("--crop", type=float, default=1.0, help="keep the central fraction of each picture")
+    p.add_argument("--zoom", type=int, default=1, help="enlarge each picture this many times")
     args = p.parse_args()
-    image = grid(Path(args.folder), args.crop)
+    image = grid(Path(args.folder), args.crop, args.zoom)
     from gstyle_core.atomic import atomic_write
 
     with atomic_write(Path(args.out), "wb") as fh:
