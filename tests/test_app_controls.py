@@ -20,8 +20,8 @@ W, H = 700, 1100  # tall enough for the whole panel
 
 
 def panel_state(**kw) -> PanelState:
-    params = ui_params(resolve_settings("preview", "forward", 4, clip_available=False))  # as on a machine without
-    # CLIP weights: the CLIP term off, the broad-strokes term on
+    params = ui_params(resolve_settings("preview", "360", 4, clip_available=False))  # a 360° scene on a machine
+    # without CLIP weights: the CLIP term off, the broad-strokes term on
     return PanelState(params=dict(params), defaults=dict(params), **kw)
 
 

@@ -97,11 +97,14 @@ def test_the_table_gives_each_presets_values(preset, kind):
     assert values["split_rate"] == s.split_rate and values["keep_colours"] == 0.0 and values["style_mix"] == 0.0
     assert values["lambda_multiscale"] == 0.0  # CLIP keeps its place: no broad-strokes term
     without_clip = preset_values(preset, kind, 20, clip_available=False)
-    assert without_clip["lambda_multiscale"] == without_clip["lambda_nnfm"] and without_clip["lambda_clip"] == 0.0
+    if kind == "360":  # calibrated 360° defaults without CLIP weights: broad strokes at λ_NNFM, no substitute
+        assert without_clip["lambda_multiscale"] == without_clip["lambda_nnfm"] and without_clip["lambda_clip"] == 0.0
+    else:  # forward-facing: the paper's values with the substitute either way
+        assert without_clip == values
     if (preset, kind) == ("preview", "forward"):  # the rows' own defaults are this preset's (the panel's start),
-        # the broad-strokes term's as it is without CLIP weights (a term's row default is what "on" restores)
+        # but for the broad-strokes term's: a term's row default is what "on" restores when the preset has it off
         assert values == {row.name: row.default for row in controls.CONTROLS} | {"lambda_multiscale": 0.0}
-        assert without_clip["lambda_multiscale"] == controls.control("lambda_multiscale").default
+        assert controls.control("lambda_multiscale").default == values["lambda_nnfm"]
 
 
 def test_a_change_is_checked_whole_before_anything_changes():

@@ -131,7 +131,7 @@ def test_cli_names_the_coarse_substitute_before_stepping(tiny_scene, tmp_path, m
 def test_engine_names_the_clip_term_by_the_weights_found(small_engine, no_clip_weights, tmp_path, monkeypatch):
     from gstyle_core.style import clip as clip_module
 
-    engine = small_engine(lambda_clip=10.0)  # off by default without CLIP weights: the broad-strokes term instead
+    engine = small_engine(lambda_clip=10.0)  # on 360° scenes it is off by default without CLIP weights
     assert engine.clip_name == clip_module.COARSE_NAME and "not found" in engine.decisions["clip"]
     weights = tmp_path / "ViT-B-32.pt"
     weights.write_bytes(b"x")  # only looked up, never loaded, for the name
@@ -167,6 +167,7 @@ class GrowingEngine:
 
 class NoCheckpoints:
     path = "none"
+    failures, failed = 0, None  # as RunCheckpointer's when every checkpoint was written
 
     def after_step(self) -> None:
         pass
@@ -270,7 +271,7 @@ def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):
                       objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
     while engine.phase != "stylize":
         engine.step()
-    assert settings.weights.clip == 0.0 and "calibrated defaults" in engine.decisions["clip"]
+    assert settings.weights.clip == 0.0 and "calibrated 360° defaults" in engine.decisions["clip"]
     assert "in CLIP's place" in engine.decisions["broad_strokes"]
     report = engine.step()
     assert report.losses["clip"] == 0.0 and report.losses["nnfm"] > 0.0

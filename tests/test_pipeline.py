@@ -45,7 +45,7 @@ def _engine(**overrides):
 
 
 def test_settings_follow_the_paper_per_scene_kind():
-    ff = resolve_settings("final", "forward", 20, clip_available=True)
+    ff = resolve_settings("final", "forward", 20)
     s360 = resolve_settings("final", "360", 200, defaults="paper")
     assert (ff.weights.nnfm, s360.weights.nnfm) == (100.0, 10.0)
     assert (ff.weights.clip, ff.weights.content, ff.weights.tv, ff.weights.multiscale) == (10.0, 0.05, 1e-4, 0.0)
@@ -54,8 +54,7 @@ def test_settings_follow_the_paper_per_scene_kind():
     assert (ff.refit_iterations, s360.refit_iterations) == (2000, 1000 * 0 + max(5 * 200, 2000))
     assert ff.split_rate == 0.05 and s360.split_rate == 0.02 and s360.split_at == (0.2, 7 / 15)
     assert resolve_settings("preview", "360", 5, lambda_nnfm=3.0).weights.nnfm == 3.0
-    paper_ff = resolve_settings("final", "forward", 20, defaults="paper", clip_available=False)
-    assert replace(paper_ff, defaults="calibrated") == ff  # forward-facing: the paper's values when CLIP can run
+    assert replace(resolve_settings("final", "forward", 20, defaults="paper"), defaults="calibrated") == ff  # same
     with pytest.raises(ValueError):
         resolve_settings("nope", "forward", 5)
     with pytest.raises(ValueError):
@@ -64,8 +63,8 @@ def test_settings_follow_the_paper_per_scene_kind():
 
 def test_calibrated_360_defaults_and_the_clip_substitute():
     """360° scenes default to the values measured on this machine (settings.CALIBRATED_360); without CLIP weights the
-    calibrated defaults of either kind turn the coarse CLIP substitute off (unless λ_CLIP is given) and the
-    broad-strokes term on at λ_NNFM; the paper's defaults and real CLIP weights have no broad-strokes term."""
+    calibrated 360° defaults turn the coarse CLIP substitute off (unless λ_CLIP is given) and the broad-strokes term
+    on at λ_NNFM; the paper's defaults, real CLIP weights and forward-facing scenes have no broad-strokes term."""
     from gstyle_core.pipeline.settings import CALIBRATED_360
 
     paper = resolve_settings("preview", "360", 16, defaults="paper", clip_available=False)
@@ -78,7 +77,7 @@ def test_calibrated_360_defaults_and_the_clip_substitute():
     assert resolve_settings("preview", "360", 16, clip_available=False, lambda_clip=2.0).weights.clip == 2.0
     assert cal.working_width == 256 and resolve_settings("preview", "forward", 16).working_width == 192
     forward = resolve_settings("preview", "forward", 16, clip_available=False)
-    assert (forward.weights.clip, forward.weights.multiscale) == (0.0, forward.weights.nnfm)
+    assert (forward.weights.clip, forward.weights.multiscale) == (10.0, 0.0)  # the paper's, with the substitute
     assert cal.weights.multiscale == cal.weights.nnfm and paper.weights.multiscale == 0.0
     with_clip = resolve_settings("preview", "360", 16, clip_available=True)
     assert with_clip.weights.multiscale == 0.0

@@ -32,8 +32,9 @@ def sh_note(degree: int, from_photos: bool, used_degree: int, views: int) -> str
 def note_planned_clip(decisions: Decisions, s: StylizeSettings) -> None:
     """Before the objective is built: what its CLIP term will be (weights found, or the coarse substitute)."""
     decisions["clip"] = clip_status(s.clip_weights) if s.weights.clip > 0 else CLIP_OFF
-    if s.weights.clip == 0 and s.defaults == "calibrated" and clip_term_name(s.clip_weights) != "CLIP":
-        decisions["clip"] = ("off: no CLIP weights, and the calibrated defaults leave the coarse substitute off "
+    if s.weights.clip == 0 and s.scene_kind == "360" and s.defaults == "calibrated" \
+            and clip_term_name(s.clip_weights) != "CLIP":
+        decisions["clip"] = ("off: no CLIP weights, and the calibrated 360° defaults leave the coarse substitute off "
                              "(it cost style and structure; README); --lambda-clip turns it on")
 
 
