@@ -4,6 +4,7 @@ renames, forgets and compares side by side with the current run; the list surviv
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -93,7 +94,13 @@ def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_p
         app.execute(Command("rename_take", {"index": 1, "name": "first try"}))
         assert TakeShelf(tmp_path).takes[1].name == "first try"
 
-        # the compare view: the current run left of the divider, the take right of it
+        # the compare view: the current run left of the divider, the take right of it. First every snapshot the
+        # worker sent before it paused is applied (on a loaded machine the last one can arrive after the pause).
+        last = -1
+        while bridge.state.snapshots_received != last:
+            last = bridge.state.snapshots_received
+            time.sleep(0.5)
+            driver.frame()
         app.progressive = False
         fbo = window.ctx.simple_framebuffer((160, 120))
         app.divider = 0.5
