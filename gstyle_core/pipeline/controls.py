@@ -169,11 +169,11 @@ CONTROLS: tuple[Control, ...] = (
     Control("style_scale", "stroke size", 1.0, 0.25, 4.0, True,
             "Stroke size: the scale at which the painting's brush strokes are matched (its image resized to this "
             "times the working width before its VGG features are taken): 2 matches the painting at twice that size, "
-            "0.5 at half; at the preview's 256 px the visible change is subtle (README). "
+            "0.5 at half; the broad-strokes term makes the change visible (docs/texture-scale.md). "
             "Changing it re-extracts the painting's features from the next step on (--style-scale).",
             Effect.STYLE_FEATURES, read=lambda s: s.style_scale, write=_write_style_scale,
             cli=CliOption("stroke size: the painting is matched at S × the working width (2: at twice that size, "
-                          "0.5: half; subtle at the preview's 256 px, README); default 1",
+                          "0.5: half; visible with the broad-strokes term, docs/texture-scale.md); default 1",
                           type=style_scale_arg, metavar="S")),
     Control("keep_colours", "keep colours", 0.0, 0.0, 1.0, False,
             "Keep the scene's colours: it keeps its hues and takes only the painting's light and dark pattern "
