@@ -1,9 +1,9 @@
 """Why the added texture does not follow the stroke size: one stylization per variant, measured (docs/texture-scale.md).
 
-Each run builds the engine as ``gstyle stylize`` does (``build_stylizer``), changes one thing, runs it to the end and
-writes ``OUT_before.png`` / ``OUT_after.png`` and ``OUT.json`` with the CLI's quality figures (NNFM drop, structure:
-``evaluate_run``), the texture-scale figure (``style/texture_scale.py``, masked by the evaluation views' alpha) and
-the time per stylization step. Variants (prototypes only; the engine is not changed):
+Each run builds the engine as ``gstyle stylize`` does (``build.build_stylizer`` of ``cli.build_request``), changes one
+thing, runs it to the end and writes ``OUT_before.png`` / ``OUT_after.png`` and ``OUT.json`` with the CLI's quality
+figures (NNFM drop, structure and the texture-scale figure, masked by the evaluation views' alpha: ``evaluate_run``)
+and the time per stylization step. Variants (prototypes only; the engine is not changed):
 
 * ``--optim global``: Adam's per-colour normalisation replaced by one shared one (momentum as Adam's β1, the second
   moment averaged over all visible colours): every colour moves in proportion to its own gradient, with the same
@@ -11,12 +11,17 @@ the time per stylization step. Variants (prototypes only; the engine is not chan
 * ``--coherent-px P``: each colour gradient diffused over its neighbours in the scene in the optimiser step (repeated
   averaging over the 16 nearest Gaussians until it has spread over σ = P px × stroke size × the pixel footprint at
   the scene's median distance).
-* ``--multiscale L``: the multi-scale term (``style/multiscale.py``) added to the objective with weight L × strength.
-* ``--epochs-factor``, ``--no-crop`` and the CLI's own options (``--lambda-content``, ``--working-width``,
-  ``--style-scale`` ...).
+  Both patch the Stylize phase's optimiser start (``engine.stylize._start_optimiser``), which optimises the active
+  rows of c_s (``run_state.active.gather``).
+* ``--multiscale L``: the broad-strokes term (multi-scale NNFM, ``style/multiscale.py``, now part of the engine) at
+  weight L: the setting ``lambda_multiscale`` (same as ``--lambda-multiscale L``; strength applies). Without it the
+  engine's own default holds (λ_NNFM when no CLIP weights are found, 0 with them); ``--multiscale 0`` switches it
+  off (the "today" rows of docs/texture-scale.md were measured without the term).
+* ``--epochs-factor``, ``--no-crop``, ``--seed`` and the CLI's own options (``--lambda-content``,
+  ``--working-width``, ``--style-scale`` ...).
 
-    python bench/scale_causes.py --tag base --style ../shared/data/styles/starry_night_vangogh.jpg
-    python bench/scale_causes.py --tag global --optim global --style ...
+    python bench/scale_causes.py --tag base --multiscale 0 --style ../shared/data/styles/starry_night_vangogh.jpg
+    python bench/scale_causes.py --tag global --optim global --multiscale 0 --style ...
 """
 
 from __future__ import annotations
@@ -32,12 +37,10 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_stylizer, evaluate_run  # noqa: E402
+from gstyle_core.pipeline.build import build_stylizer, style_paths  # noqa: E402
+from gstyle_core.pipeline.cli import add_stylize_arguments, build_request, evaluate_run, texture_scale_line  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
-from gstyle_core.render_cli import render_scene_image, save_png  # noqa: E402
-from gstyle_core.style.texture_scale import matched_side, texture_scale  # noqa: E402
-
-EVAL_WIDTH = 256  # evaluate_run's width
+from gstyle_core.render_cli import save_png  # noqa: E402
 
 
 class GlobalNormAdam(VisibleAdam):
@@ -100,19 +103,21 @@ def neighbour_operator(points: np.ndarray, k: int = 16) -> tuple[torch.Tensor, f
 
 
 def patch_optimiser(engine, optim: str, coherent_px: float) -> dict:
-    """Replace the engine's colour optimiser start by a variant; returns a dict the patch fills with notes."""
+    """Wrap the Stylize phase's optimiser start (``engine.stylize._start_optimiser``: at its first step and after
+    every split's refit) so that it starts a variant; returns a dict the patch fills with notes."""
     notes: dict = {}
-    original = engine._start_colour_optimiser
+    stylize, run = engine.stylize, engine.run_state
+    original = stylize._start_optimiser
 
-    def start(ids):
-        original(ids)
+    def start():
+        original()
+        c_opt = stylize.c_opt  # the optimised copy of the active rows of c_s
         if optim == "global":
-            engine._opt = GlobalNormAdam(engine._c_opt, lr=engine._lr())
+            stylize.optimiser = GlobalNormAdam(c_opt, lr=stylize.lr())
         elif optim == "eps":
-            engine._opt = FirstRmsEpsAdam(engine._c_opt, lr=engine._lr())
+            stylize.optimiser = FirstRmsEpsAdam(c_opt, lr=stylize.lr())
         if coherent_px > 0:
-            pos = engine.params["means"].detach()
-            pos = (pos if ids is None else pos[ids]).numpy()
+            pos = run.active.gather(engine.params["means"].detach()).numpy()
             sigma = coherent_px * engine.settings.style_scale * pixel_footprint(engine)
             t0 = time.perf_counter()
             op, spread = neighbour_operator(pos)
@@ -120,46 +125,52 @@ def patch_optimiser(engine, optim: str, coherent_px: float) -> dict:
             notes.setdefault("neighbour_seconds", []).append(round(time.perf_counter() - t0, 2))
             notes.update(sigma_scene_units=sigma, passes=passes, one_pass_rms=spread ** 0.5)
 
-            param, plain_step = engine._c_opt, engine._opt.step
+            plain_step = stylize.optimiser.step
 
             def smoothed_step():  # once per optimiser step, after the split ranking has read the raw gradient
-                g = param.grad
+                g = c_opt.grad
                 if g is not None:
                     for _ in range(passes):
                         g = torch.sparse.mm(op, g)
-                    param.grad = g
+                    c_opt.grad = g
                 return plain_step()
 
-            engine._opt.step = smoothed_step
+            stylize.optimiser.step = smoothed_step
 
-    engine._start_colour_optimiser = start
+    stylize._start_optimiser = start
     return notes
 
 
-class WithMultiScale:
-    """The engine's StyleObjective plus λ·(multi-scale term) on the same (cropped) render."""
+def time_multiscale(engine) -> dict:
+    """Seconds spent in the broad-strokes term's forward passes (``objective.loss.multiscale_term``), accumulated from
+    the first stylization step on in the returned dict's ``seconds`` (0 while the term is off)."""
+    timer = {"seconds": 0.0, "hooked": None}
+    stylize = engine.stylize
+    start = stylize._start_optimiser  # the objective is built right after the optimiser starts: build it here
 
-    def __init__(self, objective, weight: float, factors: tuple[float, ...]) -> None:
-        from gstyle_core.style.multiscale import MultiScaleStyleLoss
+    def before(_module, _inputs):
+        timer["t0"] = time.perf_counter()
 
-        self.inner = objective
-        self.weight = weight
-        self.term = MultiScaleStyleLoss(objective.vgg, objective._styles_small, factors=factors,
-                                        style_weights=objective._style_weights())
-        self.seconds = 0.0
+    def after(_module, _inputs, _output):
+        timer["seconds"] += time.perf_counter() - timer.pop("t0", time.perf_counter())
 
-    def __getattr__(self, name):
-        return getattr(self.inner, name)
+    def start_and_hook():
+        start()
+        term = engine.build_objective().loss.multiscale_term
+        if term is not None and term is not timer["hooked"]:  # (re)built: a new module to time
+            term.register_forward_pre_hook(before)
+            term.register_forward_hook(after)
+            timer["hooked"] = term
 
-    def __call__(self, image, content, view, coverage=None):
-        total, terms = self.inner(image, content, view, coverage=coverage)
-        t0 = time.perf_counter()
-        box = self.inner.network_box(view, coverage)
-        img, cov = (image, coverage) if box is None else (image[box], coverage[box])
-        ms = self.term(img.permute(2, 0, 1)[None], cov)
-        self.seconds += time.perf_counter() - t0
-        strength = float(self.inner._settings.strength)
-        return total + self.weight * strength * ms, {**terms, "multiscale": float(ms.detach())}
+    stylize._start_optimiser = start_and_hook
+    return timer
+
+
+def build(args: argparse.Namespace, overrides: dict):
+    """The engine ``gstyle stylize`` builds for ``args``, with ``overrides`` (``StylizeSettings`` fields) on top."""
+    request = build_request(args)
+    request.overrides.update(overrides)
+    return build_stylizer(request)
 
 
 def run(args: argparse.Namespace, extra: argparse.Namespace) -> dict:
@@ -169,53 +180,36 @@ def run(args: argparse.Namespace, extra: argparse.Namespace) -> dict:
         overrides["crop_to_scene"] = False
     if extra.seed is not None:
         overrides["seed"] = extra.seed
-    engine, scene, _, _, style = build_stylizer(args, **overrides)
+    if extra.multiscale is not None:
+        overrides["lambda_multiscale"] = extra.multiscale
+    engine, scene, _, _, style = build(args, overrides)
     if extra.epochs_factor != 1:
         overrides["epochs"] = engine.settings.epochs * extra.epochs_factor
-        engine, scene, _, _, style = build_stylizer(args, **overrides)
+        engine, scene, _, _, style = build(args, overrides)
     notes = patch_optimiser(engine, extra.optim, extra.coherent_px)
-    wrapper: list[WithMultiScale] = []
-    if extra.multiscale > 0:
-        from gstyle_core.pipeline.objective import StyleObjective
-
-        factors = tuple(float(f) for f in extra.factors.split(","))
-
-        def factory(style_in, settings):
-            wrapper.append(WithMultiScale(StyleObjective(style_in, settings), extra.multiscale, factors))
-            return wrapper[-1]
-
-        engine._objective_factory = factory
+    multiscale = time_multiscale(engine)
     t0 = time.perf_counter()
     engine.run()
     seconds = time.perf_counter() - t0
     q = evaluate_run(engine, scene, style)
     before, after = q.pop("images")
     s = engine.settings
-    from gstyle_core.pipeline.stylizer import choose_views
-
-    cams = [engine.full_cameras[i].resized_to_width(EVAL_WIDTH) for i in choose_views(engine.full_cameras, 3)]
-    alpha = np.concatenate([render_scene_image(scene, c, with_alpha=True)[1] for c in cams], axis=1)
-    styles = style if isinstance(style, list) else [style]
-    fig = texture_scale(before, after, alpha.reshape(before.shape[:2]), styles,
-                        matched_side(s.working_width, s.style_scale, EVAL_WIDTH), s.style_weights or None)
     stem = Path(extra.out_dir) / extra.tag
     stem.parent.mkdir(parents=True, exist_ok=True)
     save_png(f"{stem}_before.png", before)
     save_png(f"{stem}_after.png", after)
     steps = engine.stylize_steps
-    from gstyle_core.pipeline.cli import style_paths
-
     out = {"tag": extra.tag, "scene": args.scene or "demo", "style": args.style, "variant": vars(extra),
            "styles": [{"path": p, "weight": w} for p, w in zip(style_paths(args.style), s.style_weights, strict=True)],
-           "nnfm_drop": q["nnfm_drop"], "structure": q["structure"], "texture_scale": fig.to_dict(),
+           "nnfm_drop": q["nnfm_drop"], "structure": q["structure"], "texture_scale": q["texture_scale"],
            "seconds_total": round(seconds, 1), "seconds_stylize": round(engine.timings.get("stylize", 0.0), 1),
            "stylize_steps": steps, "seconds_per_step": round(engine.timings.get("stylize", 0.0) / max(1, steps), 3),
-           "multiscale_seconds": round(wrapper[-1].seconds, 1) if wrapper else 0.0,
+           "multiscale_seconds": round(multiscale["seconds"], 1),
            "gaussians": engine.gaussian_count, "settings": s.to_dict(), "notes": notes, "quality": q}
     Path(f"{stem}.json").write_text(json.dumps(out, indent=1, default=str))
     print(f"{extra.tag}: NNFM drop {100 * q['nnfm_drop']:.1f} %, structure {q['structure']:.3f}, "
           f"{out['seconds_per_step']:.2f} s/step, {seconds:.0f} s (shared machine)")
-    print(fig.line())
+    print(texture_scale_line(q["texture_scale"]))
     return out
 
 
@@ -226,13 +220,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out-dir", default="/tmp/scale")
     p.add_argument("--optim", choices=("adam", "global", "eps"), default="adam")
     p.add_argument("--coherent-px", type=float, default=0.0)
-    p.add_argument("--multiscale", type=float, default=0.0, help="λ of the multi-scale term (0: off)")
-    p.add_argument("--factors", default="2,4", help="its downsampling factors")
+    p.add_argument("--multiscale", type=float, default=None,
+                   help="λ of the broad-strokes term, i.e. --lambda-multiscale (default: the engine's; 0: off)")
     p.add_argument("--epochs-factor", type=float, default=1.0)
     p.add_argument("--no-crop", action="store_true")
     p.add_argument("--seed", type=int, default=None, help="the engine's seed (default: the settings')")
     args = p.parse_args(argv)
-    names = ("tag", "out_dir", "optim", "coherent_px", "multiscale", "factors", "epochs_factor", "no_crop", "seed")
+    if args.multiscale is not None and args.lambda_multiscale is not None \
+            and args.multiscale != args.lambda_multiscale:
+        p.error("--multiscale and --lambda-multiscale set the same weight: give one")
+    names = ("tag", "out_dir", "optim", "coherent_px", "multiscale", "epochs_factor", "no_crop", "seed")
     extra = argparse.Namespace(**{n: getattr(args, n) for n in names})
     if args.threads:
         torch.set_num_threads(args.threads)

@@ -10,8 +10,13 @@ shares (``style/texture_scale.py``, over the view's coverage, at the working wid
 * ``adam_step``: Adam's first update rendered (lr·sign(g): every colour moves by the same amount),
 * ``shared_step``: the same step under one shared normalisation (g / RMS(g)).
 
-``time``: one view's render + objective + backward with and without the multi-scale term, alternated in one process
-(a shared machine's load drifts over both alike); medians.
+Each term alone: the engine's objective (``engine.build_objective()``) with that term's weight 1 and the others 0
+(``objective.set_weights``; the broad-strokes term is built on demand), on ``engine.render(view, colours)`` of every
+Gaussian's colour.
+
+``time``: one view's render + objective + backward with the broad-strokes (multi-scale) term on (at the settings'
+``lambda_multiscale``, or ``--multiscale``; λ_NNFM when the settings have it off) and off (0), the same objective
+alternated in one process (a shared machine's load drifts over both alike); medians and their ratio.
 
     python bench/scale_step.py spectrum --style ../shared/data/styles/starry_night_vangogh.jpg
     python bench/scale_step.py time ../shared/data/scenes/playcanvas/biker.spz --style ...
@@ -23,108 +28,110 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from scale_causes import WithMultiScale  # noqa: E402
-
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_stylizer  # noqa: E402
-from gstyle_core.style.multiscale import MultiScaleStyleLoss  # noqa: E402
+from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
+from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.style.losses import StyleWeights  # noqa: E402
 from gstyle_core.style.texture_scale import band_energies, shares  # noqa: E402
 
 KINDS = ("dL_dimage", "render_grad", "adam_step", "shared_step")
+TERMS = tuple(StyleWeights.__dataclass_fields__)  # clip, nnfm, content, tv, multiscale
 
 
 def engine_at_stylize(args: argparse.Namespace):
     """The engine built as ``gstyle stylize`` builds it, stepped to its first stylization step."""
-    engine, *_ = build_stylizer(args)
+    engine = build_stylizer(build_request(args)).engine
     while engine.phase != "stylize":
         engine.step()
     return engine
 
 
-def term_loss(engine, objective, term: str, multiscale, image: torch.Tensor, view: int) -> torch.Tensor:
-    """One term's loss of a render of ``view`` (the others' weights 0)."""
-    coverage = engine.objective_coverage(view)
-    if term == "multiscale":
-        box = objective.network_box(view, coverage)
-        img, cov = (image, coverage) if box is None else (image[box], coverage[box])
-        return multiscale(img.permute(2, 0, 1)[None], cov)
-    loss, _ = objective(image, engine.content_images[view], view, coverage=coverage)
+def alone(term: str) -> StyleWeights:
+    """Weights with ``term`` at 1 and every other term at 0."""
+    return StyleWeights(**{name: float(name == term) for name in TERMS})
+
+
+def term_loss(engine, objective, image: torch.Tensor, view: int) -> torch.Tensor:
+    """The objective's loss of a render of ``view`` (at the weights it has now)."""
+    loss, _ = objective(image, engine.content_images[view], view, coverage=engine.objective_coverage(view))
     return loss
 
 
 def spectrum(args: argparse.Namespace, views: list[int], scales: list[float]) -> list[dict]:
     """Band shares of each term's gradient and first steps (see the module docstring)."""
     engine = engine_at_stylize(args)
-    objective = engine._objective_fn()
-    ids = engine._seen()
-    weights = dict(objective.loss.weights.__dict__)
+    objective = engine.build_objective()
+    weights = engine.settings.weights
     default_scale = engine.settings.style_scale
     rows = []
     for scale in scales:
         engine.settings.style_scale = scale
         objective.refresh_style()
-        multiscale = MultiScaleStyleLoss(objective.vgg, objective._styles_small)
         terms = ("nnfm", "content", "tv", "multiscale") if scale == default_scale else ("nnfm", "multiscale")
         for term in terms:
-            if term != "multiscale":
-                objective.loss.weights = {k: (v if k == term else 0.0) for k, v in weights.items()}
+            objective.set_weights(alone(term))  # the broad-strokes term is built the first time it is asked for
             energy = {k: np.zeros(3) for k in KINDS}
             for view in views:
-                colours = (engine.c_s if ids is None else engine.c_s[ids]).clone().requires_grad_(True)
-                image = engine._render_cs(view, colours)
+                colours = engine.c_s.clone().requires_grad_(True)
+                image = engine.render(view, colours)
                 image.retain_grad()
-                term_loss(engine, objective, term, multiscale, image, view).backward()
-                g = colours.grad.detach()
+                term_loss(engine, objective, image, view).backward()
+                g = colours.grad.detach()  # zero on the Gaussians no training view sees
                 mask = engine.objective_coverage(view)
                 mask = None if mask is None else mask.numpy()
                 visible = g.abs().amax(1) > 0
                 with torch.no_grad():
                     energy["dL_dimage"] += band_energies(image.grad.numpy(), mask)
-                    energy["render_grad"] += band_energies(engine._render_cs(view, g).numpy(), mask)
-                    energy["adam_step"] += band_energies(engine._render_cs(view, torch.sign(g)).numpy(), mask)
+                    energy["render_grad"] += band_energies(engine.render(view, g).numpy(), mask)
+                    energy["adam_step"] += band_energies(engine.render(view, torch.sign(g)).numpy(), mask)
                     rms = g[visible].pow(2).mean().sqrt().clamp_min(1e-30)
-                    energy["shared_step"] += band_energies(engine._render_cs(view, g / rms).numpy(), mask)
-            objective.loss.weights = weights
+                    energy["shared_step"] += band_energies(engine.render(view, g / rms).numpy(), mask)
             row = {"S": scale, "term": term, **{k: [round(float(v), 3) for v in shares(e)] for k, e in energy.items()}}
             print(json.dumps(row), flush=True)
             rows.append(row)
+    objective.set_weights(weights)
     return rows
 
 
-def step_time(args: argparse.Namespace, rounds: int, weight: float) -> dict:
-    """Median seconds of one view's render + objective + backward, without and with the multi-scale term."""
+def step_time(args: argparse.Namespace, rounds: int, weight: float | None) -> dict:
+    """Median seconds of one view's render + objective + backward, without and with the broad-strokes term (the
+    same objective, its weight switched: ``weight``, default the settings' λ, or λ_NNFM when that is 0)."""
     engine = engine_at_stylize(args)
-    objective = engine._objective_fn()
-    wrapped = WithMultiScale(objective, weight, (2.0, 4.0))
-    ids = engine._seen()
+    objective = engine.build_objective()
+    base = engine.settings.weights
+    if weight is None:
+        weight = base.multiscale if base.multiscale > 0 else base.nnfm
+    with_term, without = replace(base, multiscale=float(weight)), replace(base, multiscale=0.0)
 
-    def one(fn, view: int) -> float:
-        colours = (engine.c_s if ids is None else engine.c_s[ids]).clone().requires_grad_(True)
+    def one(weights: StyleWeights, view: int) -> float:
+        objective.set_weights(weights)
+        colours = engine.c_s.clone().requires_grad_(True)
         t0 = time.perf_counter()
-        image = engine._render_cs(view, colours)
-        loss, _ = fn(image, engine.content_images[view], view, coverage=engine.objective_coverage(view))
-        loss.backward()
+        image = engine.render(view, colours)
+        term_loss(engine, objective, image, view).backward()
         return time.perf_counter() - t0
 
     times: dict[str, list[float]] = {"nnfm": [], "nnfm+multiscale": []}
     n = len(engine.cameras)
     for view in {(r * 5) % n for r in range(rounds)}:  # warm-up: content features are cached per view
-        one(objective, view)
-    one(wrapped, 0)
+        one(without, view)
+    one(with_term, 0)  # builds the term if the settings had it off
     for r in range(rounds):
         view = (r * 5) % n
-        pair = [("nnfm", objective), ("nnfm+multiscale", wrapped)]
-        for name, fn in pair if r % 2 == 0 else pair[::-1]:  # alternate which goes first
-            times[name].append(one(fn, view))
+        pair = [("nnfm", without), ("nnfm+multiscale", with_term)]
+        for name, weights in pair if r % 2 == 0 else pair[::-1]:  # alternate which goes first
+            times[name].append(one(weights, view))
+    objective.set_weights(base)
     out = {k: round(float(np.median(v)), 4) for k, v in times.items()}
     out["ratio"] = round(out["nnfm+multiscale"] / out["nnfm"], 3)
+    out["lambda_multiscale"] = float(weight)
     out["gaussians"] = engine.gaussian_count
     print(json.dumps(out), flush=True)
     return out
@@ -137,7 +144,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--views", default="0,5,10", help="spectrum: training views to sum over")
     p.add_argument("--scales", default="0.5,1,2", help="spectrum: stroke sizes")
     p.add_argument("--rounds", type=int, default=12, help="time: alternations")
-    p.add_argument("--multiscale", type=float, default=200.0, help="time: the term's λ")
+    p.add_argument("--multiscale", type=float, default=None,
+                   help="time: the term's λ when on (default: the settings' lambda_multiscale, or λ_NNFM if that is 0)")
     args = p.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
