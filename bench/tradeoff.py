@@ -94,7 +94,8 @@ FULL_SWEEP += STRENGTH_SWEEP
 SCALE_SWEEP = [(f"stroke {s:g}{suffix}", "shipped", {"style_scale": s, **extra})
                for suffix, extra in (("", {}), (" no broad strokes", {"lambda_multiscale": 0.0}))
                for s in (0.5, 1.0, 2.0)]
-SCALE_SWEEP += [("balanced as shipped", "balanced", {}), ("final as shipped", "final", {})]
+SCALE_SWEEP += [("balanced as shipped", "balanced", {}), ("final as shipped", "final", {}),
+                ("broad strokes 100", "shipped", {"lambda_multiscale": 100.0})]  # half the 360° default
 SHORT_SWEEP = [p for p in FULL_SWEEP if p[0] in ("preview", "width 128", "width 256", "epochs 3", "epochs 12")]
 SHORT_SWEEP += STRENGTH_SWEEP
 QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5}),
