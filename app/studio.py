@@ -86,7 +86,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._last_mouse: tuple[float, float] | None = None
         self._scene_fbo: moderngl.Framebuffer | None = None
         self._style_textures: list[moderngl.Texture | None] = [None, None]  # thumbnails of the first and second style
-        self._dialog: tuple[str, Any] | None = None
+        self._dialog: tuple[str, Any, str, float] | None = None  # a native file dialog (app/open_files.py)
         self._frame_times: list[float] = []
         self._last_frame = time.perf_counter()
         self._snapshots_seen = 0
