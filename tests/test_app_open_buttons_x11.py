@@ -89,9 +89,9 @@ class Studio:
         x, y = self.origin
         return self.server.screenshot()[y:y + SIZE[1], x:x + SIZE[0]]
 
-    def buttons(self) -> list:
+    def buttons(self, shot: np.ndarray | None = None) -> list:
         """The panel's buttons as seen on the screen (window coordinates), top to bottom."""
-        return find_buttons(self.shot(), (0, 0, int(PANEL_WIDTH) + 20, SIZE[1]))
+        return find_buttons(self.shot() if shot is None else shot, (0, 0, int(PANEL_WIDTH) + 20, SIZE[1]))
 
     def click_button(self, index: int) -> None:
         """Click the panel's ``index``-th button (0: Open scene..., 1: Open style...)."""
@@ -117,9 +117,13 @@ class Studio:
             last = now
         return last
 
-    def thumbnail_colour(self) -> np.ndarray:
-        """Mean colour of the painting's thumbnail: between the Open buttons and Mix in a second style..."""
-        shot, boxes = self.shot(), self.buttons()
+    def thumbnail_colour(self) -> np.ndarray | None:
+        """Mean colour of the painting's thumbnail: between the Open buttons and Mix in a second style... (None
+        while the panel does not look like that, e.g. a browser window is still over it)."""
+        shot = self.shot()
+        boxes = self.buttons(shot)
+        if len(boxes) < 3 or boxes[2][1] - boxes[0][3] < 60:
+            return None
         top, bottom = boxes[0][3] + 20, boxes[2][1] - 4
         return shot[top:bottom, boxes[0][0] + 2:boxes[0][0] + 100].reshape(-1, 3).mean(axis=0)
 
@@ -149,21 +153,33 @@ def open_with_studio_browser(studio: Studio, button: int, path: Path) -> None:
 
 
 def open_with_zenity(studio: Studio, button: int, title: str, path: Path) -> None:
-    """Click an Open button, then in zenity's dialog: Ctrl+L, the path, Enter (again if the path completion ate
-    it)."""
+    """Click an Open button, then in zenity's dialog: Ctrl+L, the path (replacing what the location field holds),
+    Enter; again, from the focus on, when the dialog is still there (it was not ready for the keys, or the path
+    completion took the Enter)."""
     server = studio.server
     studio.click_button(button)
     dialog = server.find_window(f"^{title}$", timeout=20)
     assert dialog, f"zenity's {title!r} dialog did not appear; {studio.output()}"
-    server.xdotool("windowfocus", "--sync", dialog)
-    server.key("ctrl+l")
-    server.type(str(path))
+
+    def gone() -> bool:
+        return not server.xdotool("search", "--name", f"^{title}$")
+
+    wait_for(lambda: server.xdotool("search", "--onlyvisible", "--name", f"^{title}$"), 10)
+    time.sleep(0.8)  # mapped is not yet ready for keys
     for _ in range(3):
+        server.xdotool("windowfocus", "--sync", dialog)
+        server.key("ctrl+l")
+        time.sleep(0.3)
+        server.key("ctrl+a")
+        server.type(str(path))
         time.sleep(0.6)
-        server.key("Return")
-        if wait_for(lambda: not server.xdotool("search", "--name", f"^{title}$"), 3):
-            return
-    pytest.fail(f"zenity's dialog did not take the path; {studio.output()}")
+        for _ in range(2):
+            server.key("Return")
+            if wait_for(gone, 3):
+                return
+    Image.fromarray(server.screenshot()).save(studio.log.with_name("zenity.png"))
+    pytest.fail(f"zenity's dialog did not take the path (screen: {studio.log.with_name('zenity.png')}); "
+                f"{studio.output()}")
 
 
 def check_scene_and_style(studio: Studio, inputs: dict, open_file) -> None:
@@ -175,13 +191,13 @@ def check_scene_and_style(studio: Studio, inputs: dict, open_file) -> None:
     after = studio.settled_shot()
     assert scene_area_changed(before, after) > 2.0, "the window still shows the old scene"
     red = studio.thumbnail_colour()
-    assert red[0] > red[1] + 60, f"the first painting's thumbnail is not red: {red}"
+    assert red is not None and red[0] > red[1] + 60, f"the first painting's thumbnail is not red: {red}"
     open_file(1, "Open style image", inputs["style"])
     studio.wait_line(rf"opened {re.escape(inputs['style'].name)} as the style")
 
     def green() -> bool:
         colour = studio.thumbnail_colour()
-        return bool(colour[1] > colour[0] + 60)
+        return colour is not None and bool(colour[1] > colour[0] + 60)
 
     assert wait_for(green, 5), f"the thumbnail did not turn green: {studio.thumbnail_colour()}"
 
