@@ -182,24 +182,28 @@ def open_with_zenity(studio: Studio, button: int, title: str, path: Path) -> Non
                 f"{studio.output()}")
 
 
+def thumbnail_is(studio: Studio, colour: str) -> bool:
+    """The painting's thumbnail is mostly red or mostly green."""
+    mean = studio.thumbnail_colour()
+    high, low = (0, 1) if colour == "red" else (1, 0)
+    return mean is not None and bool(mean[high] > mean[low] + 60)
+
+
 def check_scene_and_style(studio: Studio, inputs: dict, open_file) -> None:
     """Open the scene, then the painting, with ``open_file(button, title, path)``; check the window shows both."""
+    assert wait_for(lambda: thumbnail_is(studio, "red"), 10), f"no red thumbnail: {studio.thumbnail_colour()}"
     before = studio.settled_shot()
     open_file(0, "Open scene", inputs["scene"])
     opened = studio.wait_line(rf"opened {re.escape(inputs['scene'].name)} \(([\d,]+) Gaussians\)")
     assert int(opened.group(1).replace(",", "")) == inputs["count"]
+    # the panel of the frame that opened the file was drawn before: wait for one that shows the studio again
+    assert wait_for(lambda: studio.thumbnail_colour() is not None, 15), "the panel did not come back"
     after = studio.settled_shot()
     assert scene_area_changed(before, after) > 2.0, "the window still shows the old scene"
-    red = studio.thumbnail_colour()
-    assert red is not None and red[0] > red[1] + 60, f"the first painting's thumbnail is not red: {red}"
     open_file(1, "Open style image", inputs["style"])
     studio.wait_line(rf"opened {re.escape(inputs['style'].name)} as the style")
-
-    def green() -> bool:
-        colour = studio.thumbnail_colour()
-        return colour is not None and bool(colour[1] > colour[0] + 60)
-
-    assert wait_for(green, 5), f"the thumbnail did not turn green: {studio.thumbnail_colour()}"
+    assert wait_for(lambda: thumbnail_is(studio, "green"), 15), \
+        f"the thumbnail did not turn green: {studio.thumbnail_colour()}"
 
 
 def test_open_buttons_with_the_studio_file_browser(xserver, tmp_path, inputs):
