@@ -184,3 +184,23 @@ def test_a_native_dialog_that_ends_at_once_without_an_answer_hands_over_to_the_s
     dialog.answer = []
     studio._poll_dialog()
     assert studio.panel.browser is None and studio.panel.status == "no file chosen"
+
+
+def test_typed_characters_imgui_has_not_handed_on_keep_the_studio_drawing(window, monkeypatch, studio):
+    """ImGui takes one key or character change a frame: a path typed faster than that must not wait for the next
+    window event when the studio renders on demand (app/on_demand.py)."""
+    from app.studio_input import imgui_input_pending
+
+    studio.progressive = False  # full frames at once: the view is not still building
+    driver = studio_driver(window, monkeypatch, studio)
+    for _ in range(20):
+        driver.frame()
+    assert not imgui_input_pending() and not studio.busy()
+    for ch in "/tmp":
+        imgui.get_io().add_key_event(imgui.Key.a, True)  # as glfw queues them: key down, character, key up
+        imgui.get_io().add_input_character(ord(ch))
+        imgui.get_io().add_key_event(imgui.Key.a, False)
+    assert imgui_input_pending() and studio.busy()
+    for _ in range(20):
+        driver.frame()
+    assert not imgui_input_pending() and not studio.busy()

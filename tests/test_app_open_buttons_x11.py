@@ -102,7 +102,10 @@ class Studio:
         """The first output line matching ``pattern`` (fails with the output when none comes)."""
         found = wait_for(lambda: next((m for m in map(re.compile(pattern).search, log_lines(self.log)) if m), None),
                          timeout)
-        assert found, f"no line matching {pattern!r} in the studio's output:\n{self.output()}"
+        if not found:
+            picture = self.log.with_name("screen.png")
+            Image.fromarray(self.server.screenshot()).save(picture)
+            pytest.fail(f"no line matching {pattern!r} in the studio's output (screen: {picture}):\n{self.output()}")
         return found
 
     def settled_shot(self, timeout: float = 8.0) -> np.ndarray:
