@@ -1,17 +1,64 @@
-"""Opening files in the studio: a scene (with its cameras) or a painting, dropped on the window or chosen in a file
-dialog. ``OpenFiles`` is a mixin of ``StudioApp`` (it uses the app's panel, scene, style and engine methods)."""
+"""Opening files in the studio: a scene (with its cameras) or a painting, dropped on the window or chosen with the
+panel's buttons. The buttons open the desktop's file dialog where there is one (Windows, macOS; on Linux zenity,
+kdialog, matedialog or qarma) and the studio's own file browser otherwise (``app/file_browser.py``), saying so.
+``GSTYLE_FILE_DIALOG=studio`` always uses the studio's browser. ``OpenFiles`` is a mixin of ``StudioApp`` (it uses
+the app's panel, scene, style and engine methods)."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import sys
+import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.errors import GStyleError
+from gstyle_core.images import IMAGE_SUFFIXES
+from gstyle_core.io import SCENE_SUFFIXES
 from gstyle_core.scene import GaussianScene
 
-SCENE_SUFFIXES = (".ply", ".splat", ".spz")
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
+from .file_browser import FileBrowser, has_suffix, load_recent, recent_folders_file, save_recent, with_recent
+
+DIALOG_ENV = "GSTYLE_FILE_DIALOG"  # "studio": the studio's browser always; "auto" (default): native where there is one
+DIALOG_PROGRAMS = ("zenity", "kdialog", "matedialog", "qarma")  # what portable_file_dialogs runs on Linux
+NO_PROGRAM = "no file dialog program found (zenity, kdialog, matedialog or qarma; e.g. apt-get install zenity)"
+QUICK_EXIT_S = 1.0  # a native dialog that ends sooner without an answer did not open (nobody cancels that fast)
+
+
+@dataclass(frozen=True)
+class FileKind:
+    """What an open button asks for: the dialog's title, its filter's name and the accepted suffixes."""
+
+    title: str
+    filter_name: str
+    suffixes: tuple[str, ...]
+    style_slot: int = 0
+
+
+FILE_KINDS = {
+    "open_scene": FileKind("Open scene", "Gaussian scenes", SCENE_SUFFIXES),
+    "open_style": FileKind("Open style image", "Images", IMAGE_SUFFIXES),
+    "open_style2": FileKind("Open second style image", "Images", IMAGE_SUFFIXES, style_slot=1),
+}
+
+
+def native_dialog(platform: str | None = None, which: Callable[[str], str | None] | None = None,
+                  env: Mapping[str, str] | None = None) -> tuple[str | None, str]:
+    """(the native file dialog to use, or None; why none): Windows and macOS always have one, Linux needs a dialog
+    program (``which``: ``shutil.which``); ``GSTYLE_FILE_DIALOG=studio`` asks for none."""
+    env = os.environ if env is None else env
+    platform = sys.platform if platform is None else platform
+    which = shutil.which if which is None else which
+    if env.get(DIALOG_ENV, "auto").strip().lower() == "studio":
+        return None, f"{DIALOG_ENV}=studio"
+    if platform.startswith(("win", "darwin")):
+        return "system", ""
+    found = next((p for p in DIALOG_PROGRAMS if which(p)), None)
+    return (found, "") if found else (None, NO_PROGRAM)
 
 
 @dataclass
@@ -37,7 +84,11 @@ def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) ->
 
 
 class OpenFiles:
-    """``StudioApp``'s file opening; the open dialog's state lives on the app (``_dialog``)."""
+    """``StudioApp``'s file opening; the native dialog's state lives on the app (``_dialog``: kind, dialog, program,
+    start time), the studio's browser in ``panel.browser`` (its kind in ``_browser_kind``)."""
+
+    recent_file: Path | None = None  # where the recent folders are kept (None: the cache folder's file)
+    _browser_kind = "open_scene"
 
     def on_drop(self, paths) -> None:
         """glfw drop callback: open the first dropped file (a scene or a style image); more files are ignored."""
@@ -47,42 +98,126 @@ class OpenFiles:
             if len(paths) > 1:
                 self.panel.status += f" ({len(paths) - 1} more dropped file(s) ignored)"
 
-    def open_path(self, path: str, style_slot: int = 0) -> None:
-        """Open a dropped or chosen file: a scene (.ply/.splat/.spz) or a style image (``style_slot`` 1: as the second
-        painting of a mix)."""
-        suffix = Path(path).suffix.lower()
+    def open_path(self, path: str, style_slot: int = 0) -> bool:
+        """Open a dropped or chosen file: a scene (.ply/.compressed.ply/.splat/.spz) or a style image (``style_slot``
+        1: as the second painting of a mix). True when it opened; the status line (and the terminal) says what
+        happened either way."""
+        name = Path(path).name
         try:
-            if suffix in SCENE_SUFFIXES and style_slot == 0:
+            if has_suffix(name, SCENE_SUFFIXES) and style_slot == 0:
                 self.set_scene(load_scene_with_cameras(path, None))
-            elif suffix in IMAGE_SUFFIXES:
+                self._say(f"opened {name} ({self.panel.gaussians:,} Gaussians)")
+            elif has_suffix(name, IMAGE_SUFFIXES):
                 self.set_style(path, style_slot)
+                self._say(f"opened {name} as the {'second ' if style_slot else ''}style")
             else:
-                self.panel.status = f"not a scene or image: {Path(path).name}"
-                return
+                self._say(f"not a scene or image: {name}")
+                return False
         except GStyleError as exc:
-            self.panel.status = f"could not open {Path(path).name}: {exc}"
-            return
-        self.panel.status = f"opened {Path(path).name}"
+            self._say(f"could not open {name}: {exc}")
+            return False
+        self._remember_folder(Path(path).parent)
         if self.bridge is not None:
             self.start_engine()
+        return True
+
+    def _say(self, message: str) -> None:
+        """The status line, and the same line in the terminal."""
+        self.panel.status = message
+        print(f"gstyle-studio: {message}", flush=True)
+
+    # ------------------------------------------------------------------ recent folders
+    def _recent_file(self) -> Path:
+        return self.recent_file if self.recent_file is not None else recent_folders_file()
+
+    def _recent_folders(self) -> list[Path]:
+        return load_recent(self._recent_file())
+
+    def _remember_folder(self, folder: Path) -> None:
+        save_recent(self._recent_file(), with_recent(self._recent_folders(), folder))
+
+    # ------------------------------------------------------------------ commands
+    def _file_command(self, name: str, args: dict[str, Any]) -> bool:
+        """Open buttons, the studio browser's answer or cancel, and "use the studio's browser" instead of a native
+        dialog."""
+        if name in FILE_KINDS:
+            self._open_dialog(name)
+        elif name == "browser_open":
+            self._browser_answer(str(args["path"]))
+        elif name == "browser_cancel":
+            self.panel.browser = None
+            self._say("no file chosen")
+        elif name == "use_browser":
+            kind = self._dialog[0] if self._dialog is not None else self._browser_kind
+            self._drop_native_dialog()
+            self._open_browser(kind, "")
+        else:
+            return False
+        return True
 
     def _open_dialog(self, kind: str) -> None:
-        try:
-            from imgui_bundle import portable_file_dialogs as pfd
-        except ImportError:
-            self.panel.status = "file dialogs unavailable; drop a file on the window"
-            return
-        if kind == "open_scene":
-            dialog = pfd.open_file("Open scene", "", ["Gaussian scenes", "*.ply *.splat *.spz"])
-        else:
-            title = "Open second style image" if kind == "open_style2" else "Open style image"
-            dialog = pfd.open_file(title, "", ["Images", "*.png *.jpg *.jpeg *.webp *.bmp"])
-        self._dialog = (kind, dialog)
+        """The native dialog where there is one, else the studio's browser (the status line says why)."""
+        program, why_not = native_dialog()
+        if program is not None:
+            try:
+                self._open_native(kind, program)
+                return
+            except Exception as exc:  # noqa: BLE001 - an ImportError or the dialog failing to start: fall back
+                why_not = f"the {program} file dialog failed ({type(exc).__name__}: {exc})"
+        self._open_browser(kind, why_not)
+
+    def _open_native(self, kind: str, program: str) -> None:
+        from imgui_bundle import portable_file_dialogs as pfd
+
+        spec = FILE_KINDS[kind]
+        recent = self._recent_folders()
+        start = f"{recent[0]}{os.sep}" if recent else ""
+        patterns = " ".join(f"*{s}" for s in spec.suffixes)
+        self._drop_native_dialog()
+        dialog = pfd.open_file(spec.title, start, [spec.filter_name, patterns])
+        self._dialog = (kind, dialog, program, time.monotonic())
+        self.panel.browser = None
+        self.panel.dialog_note = f"Waiting for the {program} file dialog ({spec.title})."
+        self._say(f"{spec.title}: choose a file in the {program} file dialog")
+
+    def _drop_native_dialog(self) -> None:
+        if self._dialog is not None:
+            try:
+                self._dialog[1].kill()
+            except Exception:  # noqa: BLE001 - it may have ended already
+                pass
+        self._dialog = None
+        self.panel.dialog_note = ""
+
+    def _open_browser(self, kind: str, why_not_native: str) -> None:
+        spec = FILE_KINDS[kind]
+        self._browser_kind = kind
+        browser = FileBrowser(spec.title, spec.suffixes, recent=self._recent_folders())
+        browser.note = f"Not the desktop's file dialog: {why_not_native}." if why_not_native else ""
+        self.panel.browser = browser
+        reason = f"{why_not_native}; " if why_not_native else ""
+        self._say(f"{reason}{spec.title}: choose a file in the studio's file browser")
+
+    def _browser_answer(self, path: str) -> None:
+        """The studio's browser chose ``path``: open it; on failure the browser stays open and shows why."""
+        browser = self.panel.browser
+        if self.open_path(path, style_slot=FILE_KINDS[self._browser_kind].style_slot):
+            self.panel.browser = None
+        elif browser is not None:
+            browser.error = self.panel.status
 
     def _poll_dialog(self) -> None:
+        """A native dialog's answer, once it is ready: open the file; a dialog that ended at once without one did not
+        open, so the studio's browser takes over."""
         if self._dialog is None or not self._dialog[1].ready(0):
             return
-        kind, dialog = self._dialog
+        kind, dialog, program, started = self._dialog
         self._dialog = None
-        for path in dialog.result()[:1]:
-            self.open_path(path, style_slot=1 if kind == "open_style2" else 0)
+        self.panel.dialog_note = ""
+        chosen = list(dialog.result() or [])[:1]
+        for path in chosen:
+            self.open_path(path, style_slot=FILE_KINDS[kind].style_slot)
+        if not chosen and time.monotonic() - started < QUICK_EXIT_S:
+            self._open_browser(kind, f"the {program} file dialog did not open")
+        elif not chosen:
+            self._say("no file chosen")

@@ -28,7 +28,7 @@ from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_s
 from .scene_view import SceneView, ViewPass
 from .splat_data import scene_arrays
 from .studio_commands import StudioCommands
-from .studio_input import StudioInput
+from .studio_input import StudioInput, imgui_input_pending
 from .studio_sync import StudioSync
 from .takes import TakeShelf
 from .takes_view import TakesView
@@ -86,7 +86,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._last_mouse: tuple[float, float] | None = None
         self._scene_fbo: moderngl.Framebuffer | None = None
         self._style_textures: list[moderngl.Texture | None] = [None, None]  # thumbnails of the first and second style
-        self._dialog: tuple[str, Any] | None = None
+        self._dialog: tuple[str, Any, str, float] | None = None  # a native file dialog (app/open_files.py)
         self._frame_times: list[float] = []
         self._last_frame = time.perf_counter()
         self._snapshots_seen = 0
@@ -370,14 +370,16 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
 
     def busy(self) -> bool:
         """Something needs frames although no input arrived (render on demand, ``app/on_demand.py``): news from
-        the engine, a view still building its full-resolution image, a video, an open dialog, a screenshot."""
+        the engine, a view still building its full-resolution image, a video, an open dialog, a screenshot, input
+        ImGui has not handed on yet."""
         news = False
         if self.bridge is not None:
             news = bool(self.bridge.poll())
             key = (self.bridge.state.alive, self.bridge.state.error)
             news, self._bridge_seen = news or key != self._bridge_seen, key
         video = self.video_job is not None
-        return news or video or self.view.building or self._dialog is not None or bool(self.screenshot_requests)
+        return (news or video or self.view.building or self._dialog is not None or bool(self.screenshot_requests)
+                or imgui_input_pending())
 
     def _original_layer(self) -> str:
         return SH_LAYER if SH_LAYER in self.original.layers else DIFFUSE_LAYER

@@ -28,8 +28,7 @@ class StudioCommands:
         for group in (self._engine_command, self._view_command, self._output_command, self._take_command):
             if group(cmd.name, cmd.args):
                 return
-        if cmd.name in ("open_scene", "open_style", "open_style2"):
-            self._open_dialog(cmd.name)
+        self._file_command(cmd.name, cmd.args)  # open buttons and the file browser (app/open_files.py)
 
     def _engine_command(self, name: str, args: dict[str, Any]) -> bool:
         """Pause, resume, step, restart, resume the session, set parameters, drop the second painting."""

@@ -10,6 +10,13 @@ BOX_WHEEL_STEP = 1.1  # Alt + one wheel notch resizes the region box by this fac
 DIVIDER_GRAB_PIXELS = 6
 
 
+def imgui_input_pending() -> bool:
+    """ImGui still holds queued input: it hands on one key or character change a frame, so a typed path (or a fast
+    double-click) needs frames after the window's events stopped."""
+    ctx = imgui.get_current_context()
+    return ctx is not None and len(ctx.input_events_queue) > 0
+
+
 class StudioInput:
     """``StudioApp``'s input handling; the drag state lives on the app (``_dragging``, ``_last_mouse``,
     ``_rect_start``)."""

@@ -30,6 +30,8 @@ DEFAULT_MAX_SIDE = 1024
 DEFAULT_MIN_SIDE = 64
 DEFAULT_MAX_PIXELS = 100_000_000
 UNIFORM_TOLERANCE = 1.0 / 255.0
+# The usual names of the image files ``load_style_image`` reads (it opens whatever Pillow can): what file dialogs offer.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
 
 
 class UniformStyleWarning(UserWarning):

@@ -1,22 +1,44 @@
 #!/usr/bin/env bash
-# Set up G-Style Studio on a fresh Debian/Ubuntu machine: system GL libraries (Mesa EGL, Xvfb) and a venv in .venv.
+# Set up G-Style Studio on a fresh Debian/Ubuntu machine: system GL libraries (Mesa EGL, Xvfb), a file dialog
+# (zenity) and xdotool with apt where there is apt, and a venv in .venv.
 # Idempotent: a second run only checks what is there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 need_pkgs=(libegl1 libegl-mesa0 libgl1 libglx-mesa0 libgl1-mesa-dri libopengl0 libx11-6 libx11-xcb1 libxext6
            libxrandr2 libxinerama1 libxcursor1 libxi6 libxrender1 libxfixes3 xvfb xauth)
-missing=()
-if command -v dpkg-query >/dev/null 2>&1; then
-  for p in "${need_pkgs[@]}"; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+# The desktop's file dialog for the studio's Open buttons (without one the studio uses its own file browser) and
+# real X input events for the test that clicks them: wanted, not required.
+desktop_pkgs=(zenity xdotool)
+
+missing_of() {  # the packages of "$@" that dpkg does not list as installed
+  local p
+  for p in "$@"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || echo "$p"
   done
-fi
-if ((${#missing[@]})); then
-  echo "setup: installing system packages: ${missing[*]}"
+}
+
+if command -v apt-get >/dev/null 2>&1 && command -v dpkg-query >/dev/null 2>&1; then
+  mapfile -t missing < <(missing_of "${need_pkgs[@]}")
+  mapfile -t missing_desktop < <(missing_of "${desktop_pkgs[@]}")
   if [[ $(id -u) == 0 ]]; then SUDO=""; else SUDO="sudo"; fi
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  if ((${#missing[@]} + ${#missing_desktop[@]})); then
+    $SUDO apt-get update -qq || echo "setup: apt-get update failed; trying the package lists there are"
+  fi
+  if ((${#missing[@]})); then
+    echo "setup: installing system packages: ${missing[*]}"
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  fi
+  if ((${#missing_desktop[@]})); then
+    echo "setup: installing a file dialog and xdotool: ${missing_desktop[*]}"
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing_desktop[@]}" \
+      >/dev/null || echo "setup: warning: could not install ${missing_desktop[*]}; the studio's Open buttons use" \
+                         "its own file browser, and the test that clicks them with xdotool fails without xdotool"
+  fi
+else
+  echo "setup: no apt-get here: install the Mesa EGL/GL libraries, Xvfb, xdotool and a file dialog program" \
+       "(zenity, kdialog, matedialog or qarma) with your package manager; without a dialog program the studio's" \
+       "Open buttons use its own file browser"
 fi
 
 PY=${PYTHON:-python3}

@@ -11,7 +11,7 @@ from typing import Any
 from imgui_bundle import imgui
 
 WIDGETS = ("button", "small_button", "checkbox", "radio_button", "slider_float", "begin_combo", "selectable",
-           "collapsing_header")
+           "collapsing_header", "input_text_with_hint")
 
 
 @dataclass

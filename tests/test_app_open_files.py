@@ -22,6 +22,7 @@ def studio(window, tmp_path):
     loaded = LoadedScene(str(tmp_path / "first.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), W, H)])
     app = StudioApp(window.ctx, loaded=loaded, style_path=None, engine_factory=None, engine_config={},
                     output_dir=tmp_path / "out")
+    app.recent_file = tmp_path / "recent.json"
     yield app
     app.close()
 
@@ -72,15 +73,18 @@ class _FakeDialog:
     def result(self):
         return self.answer
 
+    def kill(self):
+        pass
+
 
 def test_a_dialog_answer_is_opened_when_ready_and_a_cancel_changes_nothing(studio, tmp_path):
     style = _style_png(tmp_path / "chosen.jpg", (30, 90, 200))
-    studio._dialog = ("open_style", _FakeDialog([str(style)]))
+    studio._dialog = ("open_style", _FakeDialog([str(style)]), "zenity", 0.0)
     studio._poll_dialog()
     assert studio.panel.style_path != str(style)  # not ready yet
     studio._poll_dialog()
     assert studio.panel.style_path == str(style) and studio._dialog is None
-    studio._dialog = ("open_scene", _FakeDialog([]))  # cancelled
+    studio._dialog = ("open_scene", _FakeDialog([]), "zenity", 0.0)  # cancelled (long after it opened)
     studio._poll_dialog()
     studio._poll_dialog()
     assert studio._dialog is None and studio.stylized.count == 50

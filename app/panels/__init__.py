@@ -1,7 +1,8 @@
 """ImGui control panel: reads a ``PanelState``, returns a list of ``Command``s. No GL or rendering code here.
 
 ``draw.py`` lays the window out from its sections (``run_sections``, ``view``, ``sliders``, ``region``, ``output``),
-which share ``widgets``; ``params.py`` is the table of engine parameters the sliders show."""
+which share ``widgets``, and the studio's file browser window (``file_browser``); ``params.py`` is the table of engine
+parameters the sliders show."""
 
 from .draw import PANEL_WIDTH, draw_panel, shortcut_commands
 from .params import Param, param_rows

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
+from .file_browser import file_browser_window
 from .output import output_section, takes_section
 from .region import region_overlay, region_section
 from .run_sections import decisions_section, files_section, progress_section
@@ -59,6 +60,8 @@ def draw_panel(state: PanelState) -> list[Command]:
     if opened:
         _sections(state, out)
     imgui.end()
+    if state.browser is not None:
+        file_browser_window(state.browser, out)
     if state.view_mode == "compare":
         compare_labels(state)
     region_overlay(state)

@@ -18,11 +18,17 @@ from .widgets import button, button_row, thumbnail, tooltip
 def files_section(state: PanelState, out: list[Command]) -> None:
     """The scene and the painting(s): their paths, thumbnails and open buttons."""
     imgui.text_wrapped(f"Scene: {state.scene_path or '(none)'}")
-    if button("Open scene...", "Open a Gaussian scene (.ply, .splat, .spz); dropping a file on the window works too."):
+    if button("Open scene...", "Open a Gaussian scene (.ply, .compressed.ply, .splat, .spz); dropping a file on the "
+                               "window works too."):
         out.append(Command("open_scene"))
     imgui.same_line()
     if button("Open style...", "Open a style image (the painting); dropping it on the window works too."):
         out.append(Command("open_style"))
+    if state.dialog_note:
+        imgui.text_wrapped(state.dialog_note)
+        if button("Use the studio's browser", "Choose the file in the studio instead (when the desktop's dialog "
+                                               "does not show up)."):
+            out.append(Command("use_browser"))
     imgui.text_wrapped(f"Style: {state.style_path or '(none)'}")
     thumbnail(state.style_texture, state.style_size)
     second_style(state, out)

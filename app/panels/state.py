@@ -77,3 +77,5 @@ class PanelState:
     region_drag: tuple[float, float, float, float] | None = None  # the rectangle being dragged (view pixels)
     panel_rect: tuple[float, float, float, float] | None = None  # the docked panel (x0, y0, x1, y1); None: collapsed
     view_rect: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0)  # the scene's part (x, y, width, height)
+    browser: Any = None  # the studio's file browser (app/file_browser.FileBrowser) while it is open
+    dialog_note: str = ""  # a native file dialog is open: what it is for (the panel offers the studio's browser)

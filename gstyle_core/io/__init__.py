@@ -5,9 +5,9 @@
 applies the checks every loader's output goes through.
 """
 
-from .loader import load_scene
+from .loader import SCENE_SUFFIXES, load_scene
 from .report import LoadReport
 from .saver import save_scene
 from .validate import validate_and_repair
 
-__all__ = ["LoadReport", "load_scene", "save_scene", "validate_and_repair"]
+__all__ = ["SCENE_SUFFIXES", "LoadReport", "load_scene", "save_scene", "validate_and_repair"]

@@ -18,6 +18,9 @@ from .splat import looks_like_splat, read_splat
 from .spz import is_spz, read_spz
 from .validate import validate_and_repair
 
+# The file names these readers are made for (the format itself is told from the content): what file dialogs offer.
+SCENE_SUFFIXES = (".ply", ".compressed.ply", ".splat", ".spz")
+
 
 def _decode(data: bytes, path: Path) -> tuple[GaussianScene, int, str, list[str], list[str]]:
     """Return (scene, count in file, format name, loader repairs, warnings)."""
