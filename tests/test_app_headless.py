@@ -105,27 +105,17 @@ def test_real_scene_file(tmp_path):
 
 @pytest.fixture
 def xvfb_display(monkeypatch):
-    """A private Xvfb server (killed by PID afterwards); skipped when Xvfb is not installed."""
-    import shutil
-    import subprocess
-    import time
+    """A private 640x480 Xvfb server on a free display (``xsession.start_xvfb``), stopped afterwards; skipped when
+    Xvfb is not installed."""
+    from xsession import start_xvfb
 
-    if shutil.which("Xvfb") is None:
-        pytest.skip("Xvfb is not installed (apt-get install xvfb)")
-    display = ":97"
-    proc = subprocess.Popen(["Xvfb", display, "-screen", "0", "640x480x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    lock = Path(f"/tmp/.X11-unix/X{display[1:]}")
-    deadline = time.monotonic() + 10
-    while not lock.exists() and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    if proc.poll() is not None or not lock.exists():
-        proc.kill()
-        pytest.skip("Xvfb did not start")
-    monkeypatch.setenv("DISPLAY", display)
-    yield display
-    proc.terminate()
-    proc.wait(5)
+    try:
+        server = start_xvfb((640, 480))
+    except RuntimeError as exc:
+        pytest.skip(str(exc))
+    monkeypatch.setenv("DISPLAY", server.display)
+    yield server.display
+    server.stop()
 
 
 def test_real_window_under_xvfb(tmp_path, synthetic_loader, xvfb_display):

@@ -23,26 +23,21 @@ from gstyle_core.scene import GaussianScene, logit, rgb_to_sh_dc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PANEL = 420  # app.panels.PANEL_WIDTH
-DISPLAY = ":96"
 
 
 @pytest.fixture(scope="module")
 def display():
-    """A private 1280x800 Xvfb server, killed by PID afterwards."""
-    if shutil.which("Xvfb") is None or shutil.which("xdotool") is None:
-        pytest.skip("needs Xvfb and xdotool (apt-get install xvfb xdotool)")
-    proc = subprocess.Popen(["Xvfb", DISPLAY, "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    lock = Path(f"/tmp/.X11-unix/X{DISPLAY[1:]}")
-    deadline = time.monotonic() + 10
-    while not lock.exists() and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    if proc.poll() is not None or not lock.exists():
-        proc.kill()
-        pytest.skip("Xvfb did not start")
-    yield DISPLAY
-    proc.terminate()
-    proc.wait(5)
+    """A private 1280x800 Xvfb server on a free display (``xsession.start_xvfb``), stopped afterwards."""
+    from xsession import start_xvfb
+
+    if shutil.which("xdotool") is None:
+        pytest.skip("needs xdotool (apt-get install xdotool; scripts/setup.sh does)")
+    try:
+        server = start_xvfb((1280, 800))
+    except RuntimeError as exc:
+        pytest.skip(str(exc))
+    yield server.display
+    server.stop()
 
 
 def pole_and_ring() -> GaussianScene:
