@@ -68,11 +68,13 @@ class StyleTarget:
     """Style image → unit-normalised VGG feature matrix [C, M] (computed once), optionally at several
     scales of the style image (features of all scales are pooled into one set of candidates)."""
 
-    def __init__(self, matrix: torch.Tensor, scales: tuple[float, ...] = (1.0,)) -> None:
+    def __init__(self, matrix: torch.Tensor, scales: tuple[float, ...] = (1.0,),
+                 search_dtype: torch.dtype = torch.float32) -> None:
         if matrix.ndim != 2:
             raise ValueError(f"style feature matrix must be [C, M], got {tuple(matrix.shape)}")
         self.matrix = matrix.detach()
         self.scales = scales
+        self.search_matrix = self.matrix.to(search_dtype)  # what the NNFM search multiplies (style/precision.py)
 
     @classmethod
     def from_image(cls, vgg: nn.Module, style_image: torch.Tensor, scales: Iterable[float] = (1.0,),
@@ -93,7 +95,8 @@ class StyleTarget:
         if max_vectors is not None and matrix.shape[1] > max_vectors:
             keep = torch.randperm(matrix.shape[1], generator=generator)[:max_vectors]
             matrix = matrix[:, keep]
-        return cls(normalise_vectors(matrix.float(), dim=0), scales)
+        return cls(normalise_vectors(matrix.float(), dim=0), scales,
+                   search_dtype=getattr(vgg, "compute_dtype", torch.float32))  # a bf16 network: a bf16 search
 
     @classmethod
     def from_features(cls, style_feats: torch.Tensor) -> StyleTarget:
@@ -163,8 +166,10 @@ def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chu
     ``style`` a :class:`StyleTarget`, raw features [C,hs,ws] or a normalised matrix [C,M]. The
     nearest-neighbour search runs in chunks of ``chunk`` render vectors, without gradients.
     ``weights`` [B,1,h,w] (:func:`feature_weights`) make it a weighted mean over the scene's feature vectors.
-    ``reduction="none"`` returns the distance of every render vector, [B, h, w]."""
+    ``reduction="none"`` returns the distance of every render vector, [B, h, w]. The search runs in the dtype of
+    a :class:`StyleTarget`'s ``search_matrix`` (bf16 for a target taken with a bf16 network); distances are fp32."""
     style_matrix = _style_matrix(style).to(render_feats.device)
+    search_matrix = style.search_matrix.to(render_feats.device) if isinstance(style, StyleTarget) else style_matrix
     if render_feats.ndim != 4 or render_feats.shape[1] != style_matrix.shape[0]:
         raise ValueError(f"render features {tuple(render_feats.shape)} do not match style channels "
                          f"{style_matrix.shape[0]}")
@@ -174,8 +179,8 @@ def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chu
         raise ValueError(f"the render has no feature vectors (features {tuple(render_feats.shape)})")
     render_vectors = normalise_vectors(render_feats.float().permute(0, 2, 3, 1).flatten(0, 2), dim=1)  # [N, C]
     with torch.no_grad():
-        nearest = torch.cat([(block @ style_matrix).argmax(dim=1)
-                             for block in render_vectors.detach().split(max(1, chunk))])
+        queries = render_vectors.detach().to(search_matrix.dtype)
+        nearest = torch.cat([(block @ search_matrix).argmax(dim=1) for block in queries.split(max(1, chunk))])
     matched = style_matrix.t()[nearest]  # [N, C], constant
     distances = 1.0 - (render_vectors * matched).sum(dim=1)
     if reduction == "none":
