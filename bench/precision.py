@@ -9,10 +9,12 @@
 2. ``gstyle stylize SCENE --style starry_night --preset preview --precision P`` for each scene and precision, one
    after the other in alternating order (``--repeats`` rounds), each in its own process; from each OUT.json: the
    stylize phase's seconds, the whole run's, the NNFM drop and the structure figure (both measured in fp32 whatever
-   the run's precision), and what ``decisions.precision`` says (``auto`` names what it picked and why).
-The table gives each precision's figures and, against fp32 in the same run, the stylize-phase speed-up, the NNFM drop
-difference in points and the structure difference. The machine's load (``os.getloadavg``) is printed beside every
-run: on a shared machine timings scatter. Last line: ``RESULT`` with the speed-ups and differences per scene.
+   the run's precision), and what ``decisions.precision`` says (``auto`` names what it picked and why); besides, the
+   stylize phase's CPU seconds (all threads): with ``--threads 1`` they hardly move with other load, where wall
+   seconds on a shared machine scatter by 2× (with two threads both figures suffer from a busy core).
+The table gives each precision's figures (medians over the rounds) and, against fp32 in the same run, the stylize
+phase's speed-up (wall and CPU seconds), the NNFM drop difference in points and the structure difference. The
+machine's load (``os.getloadavg``) is printed beside every run. Last line: ``RESULT`` with them per scene.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ def floor_ms(repeats: int) -> dict[str, dict[str, float]]:
 
     from gstyle_core.images import load_style_image
     from gstyle_core.pipeline.objective import resize_long_side, to_bchw
-    from gstyle_core.style.losses import StyleTarget, concat_features, normalise_vectors
+    from gstyle_core.style.losses import StyleTarget, concat_features, nearest_indices, normalise_vectors
     from gstyle_core.style.vgg import load_vgg
 
     nets = {p: load_vgg(dtype=d, channels_last=p == "bf16")
@@ -67,7 +69,7 @@ def floor_ms(repeats: int) -> dict[str, dict[str, float]]:
     def search(p: str) -> None:
         m = targets[p].search_matrix
         with torch.no_grad():
-            (queries[p].to(m.dtype) @ m).argmax(dim=1)
+            nearest_indices(queries[p].to(m.dtype) @ m)
 
     times: dict[str, dict[str, list[float]]] = {p: {"vgg": [], "search": []} for p in nets}
     for i in range(repeats + 1):  # the first round warms up
@@ -80,20 +82,47 @@ def floor_ms(repeats: int) -> dict[str, dict[str, float]]:
     return {p: {part: statistics.median(ts) for part, ts in parts.items()} for p, parts in times.items()}
 
 
+def child(argv: list[str]) -> None:
+    """``gstyle stylize argv`` as the CLI runs it, plus the CPU seconds of each phase (all the process's threads;
+    ``time.process_time``) written to OUT.cpu.json: with one thread they do not grow with the machine's load."""
+    from gstyle_core.pipeline.cli import add_stylize_arguments, stylize_command
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    cpu: dict[str, float] = {}
+    step = Stylizer.step
+
+    def timed_step(self):
+        t0 = time.process_time()
+        rep = step(self)
+        cpu[rep.phase] = cpu.get(rep.phase, 0.0) + time.process_time() - t0
+        return rep
+
+    Stylizer.step = timed_step
+    parser = argparse.ArgumentParser()
+    add_stylize_arguments(parser)
+    args = parser.parse_args(argv)
+    stylize_command(args)
+    Path(args.out).with_suffix(".cpu.json").write_text(json.dumps(cpu))
+
+
 def stylize(scene: str, precision: str, out_dir: Path, threads: int | None, tag: str) -> dict:
-    """One ``gstyle stylize`` run in its own process; its OUT.json's figures."""
+    """One ``gstyle stylize`` run in its own process (``--threads``: torch's, numba's and OpenMP's); the figures of its
+    OUT.json and the stylize phase's CPU seconds."""
     out = out_dir / f"{scene}_{precision}_{tag}.ply"
-    cmd = [sys.executable, "-m", "gstyle_core.cli", "stylize", "--style", str(STYLE), "--preset", "preview",
-           "--precision", precision, "--out", str(out), "--force"]
+    cmd = [sys.executable, __file__, "--child", "--style", str(STYLE), "--preset", "preview", "--precision", precision,
+           "--out", str(out), "--force"]
     if SCENES[scene] is not None:
-        cmd.insert(4, str(SCENES[scene]))
+        cmd.insert(3, str(SCENES[scene]))
+    env = dict(os.environ)
     if threads:
         cmd += ["--threads", str(threads)]
+        env.update({k: str(threads) for k in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS", "MKL_NUM_THREADS")})
     before = load()
-    subprocess.run(cmd, check=True, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.run(cmd, check=True, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     summary = json.loads(out.with_suffix(".json").read_text())
     q = summary["quality"]
     return {"stylize_s": summary["seconds_per_phase"]["stylize"], "total_s": summary["seconds_total"],
+            "stylize_cpu": json.loads(out.with_suffix(".cpu.json").read_text())["stylize"],
             "drop": 100 * q["nnfm_drop"], "structure": q["structure"], "load": f"{before} → {load()}",
             "decision": summary["decisions"].get("precision", "?")}
 
@@ -107,6 +136,9 @@ def print_floor(floor: dict[str, dict[str, float]]) -> None:
 
 
 def main() -> None:
+    if sys.argv[1:2] == ["--child"]:
+        child(sys.argv[2:])
+        return
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--precisions", nargs="+", default=["fp32", "auto"], choices=["fp32", "bf16", "auto"])
     p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
@@ -133,7 +165,8 @@ def main() -> None:
             for precision in order:
                 res = stylize(scene, precision, out_dir, args.threads, f"r{r}")
                 runs.setdefault((scene, precision), []).append(res)
-                print(f"  {scene} {precision}: stylize {res['stylize_s']:.1f} s, total {res['total_s']:.0f} s, "
+                print(f"  {scene} {precision}: stylize {res['stylize_s']:.1f} s ({res['stylize_cpu']:.1f} CPU s), "
+                      f"total {res['total_s']:.0f} s, "
                       f"drop {res['drop']:.2f} %, structure {res['structure']:.3f} ({res['load']}); "
                       f"{res['decision']}", flush=True)
     print_runs(runs, args.scenes, args.precisions)
@@ -144,23 +177,24 @@ def print_runs(runs: dict[tuple[str, str], list[dict]], scenes: list[str], preci
     def med(scene: str, precision: str, key: str) -> float:
         return statistics.median(r[key] for r in runs[(scene, precision)])
 
-    print(f"{'scene':<7} {'precision':<16} {'stylize s':>9} {'total s':>8} {'NNFM drop':>9} {'structure':>9} "
-          f"{'speed-up':>8} {'Δ drop':>7} {'Δ struct':>8}")
+    print(f"{'scene':<7} {'precision':<16} {'stylize s':>9} {'CPU s':>7} {'total s':>8} {'NNFM drop':>9} "
+          f"{'structure':>9} {'speed-up':>8} {'CPU s-up':>8} {'Δ drop':>7} {'Δ struct':>8}")
     result = []
     for scene in scenes:
         for precision in precisions:
             picked = runs[(scene, precision)][0]["decision"].split(" ")[0].split(":")[0]
             name = precision if precision != "auto" else f"auto → {picked}"
-            s, d, st = (med(scene, precision, k) for k in ("stylize_s", "drop", "structure"))
+            s, c, d, st = (med(scene, precision, k) for k in ("stylize_s", "stylize_cpu", "drop", "structure"))
             cells = ""
             if precision != "fp32" and "fp32" in precisions:
-                speed = med(scene, "fp32", "stylize_s") / s
+                speed, cpu_speed = med(scene, "fp32", "stylize_s") / s, med(scene, "fp32", "stylize_cpu") / c
                 dd, ds = d - med(scene, "fp32", "drop"), st - med(scene, "fp32", "structure")
-                cells = f"{speed:>8.2f} {dd:>+7.2f} {ds:>+8.3f}"
-                result.append(f"{scene}_{precision}_speedup={speed:.2f} {scene}_{precision}_drop_diff={dd:+.2f} "
-                              f"{scene}_{precision}_structure_diff={ds:+.3f}")
-            print(f"{scene:<7} {name:<16} {s:>9.1f} {med(scene, precision, 'total_s'):>8.0f} {d:>9.2f} {st:>9.3f} "
-                  f"{cells}")
+                cells = f"{speed:>8.2f} {cpu_speed:>8.2f} {dd:>+7.2f} {ds:>+8.3f}"
+                key = f"{scene}_{precision}"
+                result.append(f"{key}_speedup={speed:.2f} {key}_cpu_speedup={cpu_speed:.2f} "
+                              f"{key}_drop_diff={dd:+.2f} {key}_structure_diff={ds:+.3f}")
+            print(f"{scene:<7} {name:<16} {s:>9.1f} {c:>7.1f} {med(scene, precision, 'total_s'):>8.0f} {d:>9.2f} "
+                  f"{st:>9.3f} {cells}")
     print("RESULT " + " ".join(result))
 
 

@@ -165,6 +165,15 @@ def test_a_bf16_search_finds_a_neighbour_as_near_as_fp32s():
     assert torch.allclose(fp32.flatten(), brute, atol=1e-6)  # fp32: the exact nearest neighbour
 
 
+def test_the_bf16_search_takes_the_first_of_equal_scores_as_fp32s_does():
+    from gstyle_core.style.losses import nearest_indices
+
+    scores = torch.tensor([[0.5, 0.75, 0.75, 0.1], [0.2, 0.2, 0.2, 0.2], [0.9, 0.3, 0.9, 0.0]])
+    assert nearest_indices(scores).tolist() == [1, 0, 0] == nearest_indices(scores.bfloat16()).tolist()
+    many = torch.randn(300, 500, generator=torch.Generator().manual_seed(2)).bfloat16()  # rounding makes ties
+    assert torch.equal(nearest_indices(many), many.float().argmax(dim=1))
+
+
 def test_a_style_target_searches_in_its_networks_precision():
     torch.manual_seed(0)
     painting = torch.rand(1, 3, 24, 24)
@@ -235,3 +244,11 @@ def test_the_cli_and_the_studio_take_the_option():
     with pytest.raises(SystemExit):
         parser.parse_args(["--precision", "fp16"])
     assert "precision" in ENGINE_OPTIONS and build_parser().parse_args(["--precision", "fp32"]).precision == "fp32"
+
+
+def test_gstyle_cache_names_the_file(tmp_path, monkeypatch):
+    from gstyle_core.cache_cli import list_cache
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path))
+    choose(tmp_path, FakeTimer(0.2, 0.1))
+    assert any(CACHE_FILE in line and "--precision auto" in line for line in list_cache())

@@ -160,6 +160,12 @@ def _style_matrix(style: StyleTarget | torch.Tensor) -> torch.Tensor:
     return StyleTarget.from_features(style).matrix
 
 
+def nearest_indices(scores: torch.Tensor) -> torch.Tensor:
+    """Each row's index of its largest score (the first of equal ones); bf16 through ``max``, as fast as fp32's
+    ``argmax`` where bf16's ``argmax`` is ~5× slower on CPUs."""
+    return scores.argmax(dim=1) if scores.dtype == torch.float32 else scores.max(dim=1).indices
+
+
 def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chunk: int = 4096,
               reduction: str = "mean", weights: torch.Tensor | None = None) -> torch.Tensor:
     """Mean over render vectors of min over style vectors of (1 − cos). ``render_feats`` [B,C,h,w];
@@ -180,8 +186,9 @@ def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chu
     render_vectors = normalise_vectors(render_feats.float().permute(0, 2, 3, 1).flatten(0, 2), dim=1)  # [N, C]
     with torch.no_grad():
         queries = render_vectors.detach().to(search_matrix.dtype)
-        nearest = torch.cat([(block @ search_matrix).argmax(dim=1) for block in queries.split(max(1, chunk))])
-    matched = style_matrix.t()[nearest]  # [N, C], constant
+        nearest = torch.cat([nearest_indices(block @ search_matrix) for block in queries.split(max(1, chunk))])
+    matched = style_matrix.index_select(1, nearest).t().contiguous()  # [N, C], constant (a gather of whole columns:
+    # ~6× faster than indexing the transposed view's rows, the same values)
     distances = 1.0 - (render_vectors * matched).sum(dim=1)
     if reduction == "none":
         b, _, h, w = render_feats.shape

@@ -118,7 +118,7 @@ class ProbeTimer:
     def __call__(self, precision: str, size: tuple[int, int]) -> float:
         import torch
 
-        from .losses import concat_features, normalise_vectors
+        from .losses import concat_features, nearest_indices, normalise_vectors
         from .vgg import VGGFeatures
 
         dtype = torch_dtype(precision)
@@ -135,7 +135,7 @@ class ProbeTimer:
         feats.square().mean().backward()
         with torch.no_grad():
             vectors = feats.detach().permute(0, 2, 3, 1).flatten(0, 2).to(dtype)
-            (vectors @ self._matrices[size].to(dtype)).argmax(dim=1)
+            nearest_indices(vectors @ self._matrices[size].to(dtype))
         return time.perf_counter() - start
 
 
