@@ -65,7 +65,7 @@ def test_auto_picks_bf16_where_it_is_faster_and_remembers_it(tmp_path):
     timer = FakeTimer(fp32=0.20, bf16=0.09)
     which, why = choose(tmp_path, timer)
     assert which == "bf16" and "measured now" in why and "fp32/bf16 = 2.22" in why and "remembered in" in why
-    assert len(timer.calls) == 2 + 2 * precision.TIMED_ROUNDS and {s for _, s in timer.calls} == {SIZE}
+    assert len(timer.calls) == 2 + 2 and {s for _, s in timer.calls} == {SIZE}  # warm-ups, one decisive round
     saved = json.loads((tmp_path / CACHE_FILE).read_text())
     entry = saved["choices"][machine_key(AMX)]
     assert saved["format"] == CACHE_FORMAT and entry["precision"] == "bf16" and entry["size"] == list(SIZE)
@@ -130,16 +130,23 @@ def test_other_machines_entries_are_kept_and_an_unwritable_cache_costs_only_a_ti
     assert which == "bf16" and "not remembered" in why
 
 
-def test_measure_warms_up_then_interleaves_and_keeps_the_best():
-    times = iter([9.0, 9.0, 0.3, 0.2, 0.25, 0.1])
-    calls = []
+def _scripted(times: list[float], calls: list[str]):
+    seconds = iter(times)
 
     def timer(which, size):
         calls.append(which)
-        return next(times)
+        return next(seconds)
 
-    assert measure(timer, SIZE, rounds=2) == {"fp32": 0.25, "bf16": 0.1}
+    return timer
+
+
+def test_measure_warms_up_then_interleaves_and_keeps_the_best():
+    calls: list[str] = []
+    assert measure(_scripted([9.0, 9.0, 0.3, 0.25, 0.22, 0.1], calls), SIZE, rounds=2) == {"fp32": 0.22, "bf16": 0.1}
     assert calls == ["fp32", "bf16", "fp32", "bf16", "fp32", "bf16"]
+    calls.clear()  # a lopsided first round decides alone: on a CPU where bf16 is emulated that saves a slow run
+    assert measure(_scripted([9.0, 9.0, 0.1, 0.8], calls), SIZE, rounds=2) == {"fp32": 0.1, "bf16": 0.8}
+    assert calls == ["fp32", "bf16", "fp32", "bf16"]
 
 
 def test_the_probe_leaves_the_runs_random_state_alone():

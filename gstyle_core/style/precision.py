@@ -11,8 +11,8 @@ emulated and several times slower. ``auto`` decides, in this order:
 2. the choice remembered for this CPU model and torch version in ``<cache folder>/precision.json``;
 3. fp32 without timing on an x86 CPU whose flags say it has no native bf16;
 4. otherwise both are timed at the working size (VGG forward+backward and one NNFM search: a warm-up, then the best
-   of ``TIMED_ROUNDS`` interleaved runs each, well under a second), bf16 is picked only when it takes at most
-   ``BF16_MARGIN`` of fp32's time, and the choice is remembered.
+   of ``TIMED_ROUNDS`` interleaved runs each, one when the first is lopsided; about a second in all), bf16 is picked
+   only when it takes at most ``BF16_MARGIN`` of fp32's time, and the choice is remembered.
 
 A corrupt cache file is ignored and rewritten (atomically); an unwritable cache folder only costs a timing next
 time. Torch-free at import (the studio reads ``PRECISIONS`` at start).
@@ -38,6 +38,7 @@ CACHE_FILE = "precision.json"
 CACHE_FORMAT = "gstyle-precision/1"
 BF16_MARGIN = 0.9  # bf16 must take at most this fraction of fp32's time (it rounds: a tie is not worth it)
 TIMED_ROUNDS = 2
+DECISIVE = 1.5  # a first round this lopsided decides without a second one
 NATIVE_BF16_FLAGS = ("avx512_bf16", "amx_bf16")
 COVERS = "VGG-16 (channels_last) and the NNFM search in bf16; colours, content targets and the optimiser in fp32"
 
@@ -140,13 +141,16 @@ class ProbeTimer:
 
 
 def measure(timer: Timer, size: tuple[int, int], rounds: int = TIMED_ROUNDS) -> dict[str, float]:
-    """Best time of each precision over ``rounds`` interleaved runs, after one warm-up run each."""
+    """Best time of each precision over ``rounds`` interleaved runs, after one warm-up run each; the first round
+    alone when one precision took under ``1 / DECISIVE`` of the other's time (no second look can change that)."""
     for precision in ("fp32", "bf16"):
         timer(precision, size)
     best = {"fp32": float("inf"), "bf16": float("inf")}
     for _ in range(rounds):
         for precision in best:
             best[precision] = min(best[precision], float(timer(precision, size)))
+        if max(best.values()) >= DECISIVE * min(best.values()):
+            break
     return best
 
 
