@@ -128,6 +128,8 @@ CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0)}  # str
 # the parent's footprint (fern, measured: Mandelbrot −30.4 % / structure 0.49 at 1/16, −35.9 % / 0.55 at 1/1.6,
 # −38.0 % / 0.56 without the split; The Starry Night −31.1 % / 0.58 and −31.4 % / 0.62).
 FORWARD_PRESETS = {"preview": dict(split_scale_divisor=1.6)}
+# The settings that take one of a few words, and the words.
+CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS}
 
 
 def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_views: int = 1,
@@ -175,8 +177,7 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     apply_controls(s, live)  # checked and set as the studio's controls are (controls.py)
     if broad_strokes and live.get("lambda_multiscale") is None:  # tied to λ_NNFM, the given one included
         s.weights = replace(s.weights, multiscale=s.weights.nnfm * BROAD_STROKES["multiscale_per_nnfm"])
-    for name, allowed in (("optimizer", ("adam", "visible_adam")), ("view_order", ("orbit", "random")),
-                          ("precision", PRECISIONS)):
+    for name, allowed in CHOICES.items():
         if getattr(s, name) not in allowed:
             raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {getattr(s, name)!r}")
     s.style_weights = tuple(float(w) for w in s.style_weights)
