@@ -27,10 +27,13 @@ import time
 from collections.abc import Callable, Mapping
 from datetime import date
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..machine import CpuInfo, cpu_info
 from ..paths import cache_dir as default_cache_dir
+
+if TYPE_CHECKING:
+    import torch
 
 PRECISIONS = ("auto", "fp32", "bf16")
 PRECISION_ENV = "GSTYLE_PRECISION"
@@ -45,7 +48,7 @@ COVERS = "VGG-16 (channels_last) and the NNFM search in bf16; colours, content t
 Timer = Callable[[str, tuple[int, int]], float]  # (precision, (height, width)) -> seconds of one timed run
 
 
-def torch_dtype(precision: str):
+def torch_dtype(precision: str) -> torch.dtype:
     """``torch.bfloat16`` for ``"bf16"``, ``torch.float32`` for ``"fp32"``."""
     import torch
 
