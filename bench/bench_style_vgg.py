@@ -1,4 +1,5 @@
-"""Time VGG-16 conv1_1…relu3_3 forward+backward (fp32 vs bf16 channels_last) and the NNFM loss on this CPU.
+"""Time VGG-16 conv1_1…relu3_3 forward+backward (fp32 vs bf16 channels_last) and the NNFM loss on this CPU (its
+search in bf16 in the bf16 mode, as ``--precision bf16`` runs it; ``bench/precision.py`` compares whole runs).
 
 Usage: .venv/bin/python bench/bench_style_vgg.py [--sizes 256 512] [--threads 2 1] [--repeats 5] [--modes fp32 ...]
 Prints a table and one RESULT line (median seconds).
@@ -12,6 +13,7 @@ import time
 
 import torch
 
+from gstyle_core.machine import cpu_description
 from gstyle_core.style.losses import StyleTarget, concat_features, nnfm_loss
 from gstyle_core.style.vgg import load_vgg
 
@@ -40,6 +42,7 @@ def main() -> None:
     vgg = load_vgg()
     style = StyleTarget.from_image(vgg, torch.rand(1, 3, 256, 256))
     results = {}
+    print(f"cpu: {cpu_description()}")
     print(f"weights: {vgg.weights_source} ({vgg.convention})")
     print(f"{'threads':>7} {'size':>5} {'mode':>6} {'fwd+bwd s':>10} {'+nnfm s':>8}")
     for threads in args.threads:
@@ -49,11 +52,12 @@ def main() -> None:
             for mode in args.modes:
                 dtype, channels_last = MODES[mode]
                 vgg.set_compute_mode(dtype, channels_last)
+                target = StyleTarget(style.matrix, search_dtype=dtype)
 
-                def step(with_nnfm: bool = False, img: torch.Tensor = img) -> None:
+                def step(with_nnfm: bool = False, img: torch.Tensor = img, target: StyleTarget = target) -> None:
                     x = img.clone().requires_grad_(True)
                     feats = vgg(x)
-                    loss = nnfm_loss(concat_features(feats), style) if with_nnfm else feats["relu3_3"].mean()
+                    loss = nnfm_loss(concat_features(feats), target) if with_nnfm else feats["relu3_3"].mean()
                     loss.backward()
 
                 vgg_s = _time(step, args.repeats)

@@ -1,8 +1,11 @@
 """Benchmark the CPU rasterizer: fast vs reference backend, colour-only cache, and the ratio to VGG-16.
 
-Run: ``.venv/bin/python bench/raster.py [--threads 2] [--quick]``. Prints a table and, last, the line
-``RESULT speedup_vs_reference=X raster_over_vgg=Y`` measured side by side on a fixed-seed random 50k subset
-of shared/data/scenes/splat/winter_fountain.cropped.splat seen whole at 256x256, forward+backward.
+Run: ``.venv/bin/python bench/raster.py [--threads 2] [--quick]``. Prints where it ran (the CPU's model and flags,
+the threads, the precision ``--precision auto`` picks here and why), a table and, last, the line
+``RESULT speedup_vs_reference=X raster_over_vgg=Y raster_over_vgg_bf16=Z precision=P`` measured side by side on a
+fixed-seed random 50k subset of shared/data/scenes/splat/winter_fountain.cropped.splat seen whole at 256x256,
+forward+backward. The floor is VGG-16 conv1_1…relu3_3 forward+backward at both precisions: fp32 (``Y``, the figure
+of earlier rounds) and bf16 channels_last as ``--precision bf16`` runs it (``Z``).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from gstyle_core.machine import cpu_description  # noqa: E402
 from gstyle_core.raster import ColourCache, rasterize  # noqa: E402
+from gstyle_core.style.precision import choose_precision, working_size  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 SPLAT = DATA / "scenes" / "splat" / "winter_fountain.cropped.splat"
@@ -147,13 +151,17 @@ def vgg_slice() -> torch.nn.Sequential:
     return net
 
 
-def vgg_fn(size: int) -> Callable[[], None]:
-    """Forward+backward to the input image (the stylization case: frozen weights)."""
+def vgg_fn(size: int, bf16: bool = False) -> Callable[[], None]:
+    """Forward+backward to the input image (the stylization case: frozen weights); ``bf16``: the network in bfloat16,
+    channels_last, the fp32 image cast on the way in and its gradient fp32 (as ``--precision bf16`` runs it)."""
     net = vgg_slice()
+    if bf16:
+        net = net.to(torch.bfloat16, memory_format=torch.channels_last)
     image = torch.rand(1, 3, size, size, requires_grad=True)
 
     def run() -> None:
-        net(image).sum().backward()
+        x = image.to(torch.bfloat16).contiguous(memory_format=torch.channels_last) if bf16 else image
+        net(x).float().sum().backward()
         image.grad = None
 
     return run
@@ -177,6 +185,36 @@ def colour_cache_times(g, viewmat, K, size: int, repeats: int) -> tuple[float, f
     return build, median_time(run, repeats), int(cache.weights.values().shape[0])
 
 
+def synthetic_table(repeats: int) -> None:
+    """The synthetic table: fast and reference backends and the colour-only cache, 10k/50k random Gaussians."""
+    rows = []
+    viewmat = torch.eye(4)
+    viewmat[2, 3] = 3.0
+    for n in (10_000, 50_000):
+        g = random_gaussians(n)
+        for size in (128, 256, 512):
+            K = torch.tensor([[size * 1.2, 0, size / 2], [0, size * 1.2, size / 2], [0, 0, 1]])
+            row = {"N": n, "res": size}
+            row["fast_fwd"] = median_time(render_fn(g, viewmat, K, size, "fast", False), repeats)
+            row["fast_fb"] = median_time(render_fn(g, viewmat, K, size, "fast", True), repeats)
+            if n * size * size <= 50_000 * 256 * 256:
+                row["ref_fwd"] = median_time(render_fn(g, viewmat, K, size, "reference", False), 2)
+                row["ref_fb"] = median_time(render_fn(g, viewmat, K, size, "reference", True), 2)
+            row["cc_build"], row["cc_fb"], row["nnz"] = colour_cache_times(
+                g, viewmat, K, size, repeats
+            )
+            rows.append(row)
+    cols = ["N", "res", "fast_fwd", "fast_fb", "ref_fwd", "ref_fb", "cc_build", "cc_fb", "nnz"]
+    print("times in seconds (median); fb = forward+backward; cc = colour-only cache")
+    print(" ".join(f"{c:>9}" for c in cols))
+    for row in rows:
+        cells = []
+        for c in cols:
+            v = row.get(c)
+            cells.append(f"{'-':>9}" if v is None else f"{v:>9}" if isinstance(v, int) else f"{v:>9.4f}")
+        print(" ".join(cells))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--threads", type=int, default=2, help="torch and numba threads")
@@ -187,34 +225,11 @@ def main() -> None:
     numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))
     print(f"cpu: {cpu_description()}")
     print(f"threads: torch {torch.get_num_threads()}, numba {numba.get_num_threads()}")
+    precision, why = choose_precision("auto", working_size(256))
+    print(f"precision (--precision auto at 256 px): {why}")
 
-    rows = []
     if not args.quick:
-        viewmat = torch.eye(4)
-        viewmat[2, 3] = 3.0
-        for n in (10_000, 50_000):
-            g = random_gaussians(n)
-            for size in (128, 256, 512):
-                K = torch.tensor([[size * 1.2, 0, size / 2], [0, size * 1.2, size / 2], [0, 0, 1]])
-                row = {"N": n, "res": size}
-                row["fast_fwd"] = median_time(render_fn(g, viewmat, K, size, "fast", False), args.repeats)
-                row["fast_fb"] = median_time(render_fn(g, viewmat, K, size, "fast", True), args.repeats)
-                if n * size * size <= 50_000 * 256 * 256:
-                    row["ref_fwd"] = median_time(render_fn(g, viewmat, K, size, "reference", False), 2)
-                    row["ref_fb"] = median_time(render_fn(g, viewmat, K, size, "reference", True), 2)
-                row["cc_build"], row["cc_fb"], row["nnz"] = colour_cache_times(
-                    g, viewmat, K, size, args.repeats
-                )
-                rows.append(row)
-        cols = ["N", "res", "fast_fwd", "fast_fb", "ref_fwd", "ref_fb", "cc_build", "cc_fb", "nnz"]
-        print("times in seconds (median); fb = forward+backward; cc = colour-only cache")
-        print(" ".join(f"{c:>9}" for c in cols))
-        for row in rows:
-            cells = []
-            for c in cols:
-                v = row.get(c)
-                cells.append(f"{'-':>9}" if v is None else f"{v:>9}" if isinstance(v, int) else f"{v:>9.4f}")
-            print(" ".join(cells))
+        synthetic_table(args.repeats)
 
     if not SPLAT.exists():
         print(f"RESULT skipped: {SPLAT} not found")
@@ -226,16 +241,16 @@ def main() -> None:
     viewmat, K = framing_camera(g["means"], size)
     fast = render_fn(g, viewmat, K, size, "fast", True)
     ref = render_fn(g, viewmat, K, size, "reference", True)
-    vgg = vgg_fn(size)
-    t_fast, t_ref, t_vgg = [], [], []
-    for fn in (fast, ref, vgg):
+    fns = (fast, ref, vgg_fn(size), vgg_fn(size, bf16=True))
+    times: list[list[float]] = [[] for _ in fns]
+    for fn in fns:
         fn()  # warm-up
-    for _ in range(args.repeats):  # interleaved, so machine load hits all three alike
-        for fn, acc in ((fast, t_fast), (ref, t_ref), (vgg, t_vgg)):
+    for _ in range(args.repeats):  # interleaved, so machine load hits all alike
+        for fn, acc in zip(fns, times, strict=True):
             t0 = time.perf_counter()
             fn()
             acc.append(time.perf_counter() - t0)
-    tf, tr, tv = (statistics.median(t) for t in (t_fast, t_ref, t_vgg))
+    tf, tr, tv, tb = (statistics.median(t) for t in times)
     out = rasterize(
         *(torch.from_numpy(g[k]) for k in ("means", "quats", "scales", "opacities", "colors")),
         viewmat,
@@ -245,9 +260,11 @@ def main() -> None:
     )
     print(
         f"winter_fountain 50k @256^2: {out.stats['visible']} visible, {out.stats['tile_pairs']} tile pairs; "
-        f"fast {tf:.4f}s, reference {tr:.4f}s, VGG {tv:.4f}s (forward+backward, median of {args.repeats})"
+        f"fast {tf:.4f}s, reference {tr:.4f}s, VGG {tv:.4f}s fp32 / {tb:.4f}s bf16 (forward+backward, median of "
+        f"{args.repeats})"
     )
-    print(f"RESULT speedup_vs_reference={tr / tf:.2f} raster_over_vgg={tf / tv:.3f}")
+    print(f"RESULT speedup_vs_reference={tr / tf:.2f} raster_over_vgg={tf / tv:.3f} raster_over_vgg_bf16={tf / tb:.3f} "
+          f"precision={precision}")
 
 
 if __name__ == "__main__":

@@ -1,11 +1,14 @@
 """Per-phase timing of a stylization run, and the stylize step against its floor (VGG + NNFM).
 
-Prints a per-phase table, a table of where the stylize step's time goes, and
+Prints where it ran (the CPU's model and the flags that decide its speed, torch threads), the run's precision
+(``--precision``, default auto, with the reason), the floor on a whole frame at both precisions (fp32 and bf16), a
+per-phase table, a table of where the stylize step's time goes, and
 ``RESULT step_over_floor=X same_pixels=Y``: X = mean stylization step time / (views per step × the time of a VGG-16
 (conv1_1…relu3_3) + NNFM forward+backward on a whole frame at the working resolution), measured in the same run;
 Y = the step against its floor on the same pixels: VGG + NNFM forward+backward on exactly what the step's networks
 saw (for an object scene without photos, the box of each view that the scene covers, ``pipeline/scene_box.py``),
 summed over the step's views. ``--whole-frames`` switches the boxes off (``crop_to_scene = False``) to compare.
+Both floors are at the run's precision (the other precision's network is loaded only for its whole-frame floor).
 
     .venv/bin/python bench/stylize.py [SCENE] [--style IMAGE] [--preset preview] [--steps 60]
 """
@@ -30,7 +33,9 @@ from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noq
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.raster import colour_cache  # noqa: E402
 from gstyle_core.style import losses  # noqa: E402
-from gstyle_core.style.losses import concat_features, nnfm_loss  # noqa: E402
+from gstyle_core.style.losses import StyleTarget, WeightedTargets, concat_features, style_nnfm  # noqa: E402
+from gstyle_core.style.precision import torch_dtype  # noqa: E402
+from gstyle_core.style.vgg import load_vgg  # noqa: E402
 
 
 class PartTimer:
@@ -109,15 +114,37 @@ def instrument(engine) -> PartTimer:
 
 
 def floor_time(objective, height: int, width: int, repeats: int = 7) -> float:
-    """Median time of VGG forward+backward + NNFM on a [1, 3, H, W] image."""
+    """Median time of VGG forward+backward + NNFM on a [1, 3, H, W] image (``objective``: anything with ``vgg`` and
+    ``target``, e.g. the run's objective)."""
     times = []
     for _ in range(repeats + 2):
         img = torch.rand(1, 3, height, width, requires_grad=True)
         t0 = time.perf_counter()
-        loss = nnfm_loss(concat_features(objective.vgg(img)), objective.target)
+        loss = style_nnfm(concat_features(objective.vgg(img)), objective.target)
         loss.backward()
         times.append(time.perf_counter() - t0)
     return statistics.median(times[2:])
+
+
+class Networks:
+    """A VGG and a style target at one precision, for :func:`floor_time`."""
+
+    def __init__(self, vgg, target) -> None:
+        self.vgg, self.target = vgg, target
+
+
+def networks_at(engine, precision: str):
+    """The run's own networks at its precision; at the other, the same weights and painting features (the target's
+    search in that precision)."""
+    objective = engine.objective
+    if objective.precision == precision:
+        return objective
+    dtype = torch_dtype(precision)
+    vgg = load_vgg(engine.settings.vgg_weights, dtype=dtype, channels_last=precision == "bf16")
+    target = objective.target
+    parts = target.targets if isinstance(target, WeightedTargets) else [target]
+    copies = [StyleTarget(t.matrix, t.scales, search_dtype=dtype) for t in parts]
+    return Networks(vgg, WeightedTargets(copies, target.weights) if isinstance(target, WeightedTargets) else copies[0])
 
 
 def network_sizes(engine) -> list[tuple[int, int]]:
@@ -127,6 +154,47 @@ def network_sizes(engine) -> list[tuple[int, int]]:
         box = engine.objective.network_box(view, engine.objective_coverage(view))
         out.append((cam.height, cam.width) if box is None else (box[0].stop - box[0].start, box[1].stop - box[1].start))
     return out
+
+
+def run_timed(engine, steps: int) -> tuple[dict[str, list[float]], list[float], PartTimer | None, list[int]]:
+    """Step the engine to ``steps`` timed stylize steps (after 5 untimed ones): the seconds of every step per phase,
+    of every stylize step with losses, the part timer of the timed steps and the views of each timed step."""
+    phase_times: dict[str, list[float]] = {}
+    stylize_times: list[float] = []
+    timer: PartTimer | None = None
+    step_views: list[int] = []
+    while not engine.done and len(stylize_times) < steps + 5:
+        timed = engine.phase == "stylize" and len(stylize_times) >= 5
+        if timed and timer is None:
+            timer = instrument(engine)
+        if timed and engine.stylize.step_index not in engine.split_steps:
+            step_views += engine.stylize.views_of_step()
+        with timer.on() if timed else _nothing():
+            rep = engine.step()
+        phase_times.setdefault(rep.phase, []).append(rep.seconds)
+        if rep.phase == "stylize" and rep.losses:
+            stylize_times.append(rep.seconds)
+    if timer is not None:
+        timer.restore()
+    return phase_times, stylize_times, timer, step_views
+
+
+def print_parts(engine, timer: PartTimer, n: int, step: float, same_floor: float) -> None:
+    """Where a stylize step goes: the mean seconds inside each part over ``n`` timed steps."""
+    print(f"where a stylize step goes (mean over {n} steps; wall time inside each part; the backward pass "
+          "includes VGG's, NNFM's and the colour cache's backward):")
+    print(f"{'part':>36} {'s / step':>9} {'share':>7}")
+    for part in PARTS:
+        secs = timer.seconds.get(part, 0.0)
+        note = ""
+        if part == "CLIP / coarse substitute forward" and engine.objective.loss.clip_term is None:
+            note = "  (off: λ_CLIP = 0)"
+        elif part == "content features (once per view)" and secs == 0.0:
+            note = "  (cached before the timed steps)"
+        print(f"{part:>36} {secs / n:>9.4f} {100 * secs / n / step:>6.1f}%{note}")
+    other = step - sum(timer.seconds.values()) / n
+    print(f"{'rest (step bookkeeping, grad norms)':>36} {other:>9.4f} {100 * other / step:>6.1f}%")
+    print(f"{'floor on the same pixels':>36} {same_floor:>9.4f} {100 * same_floor / step:>6.1f}%")
 
 
 def main() -> None:
@@ -141,28 +209,14 @@ def main() -> None:
     request = build_request(args)
     request.overrides["crop_to_scene"] = not args.whole_frames
     engine, scene, _, cams, _ = build_stylizer(request)
-    phase_times: dict[str, list[float]] = {}
-    stylize_times: list[float] = []
-    timer: PartTimer | None = None
-    step_views: list[int] = []
-    while not engine.done and len(stylize_times) < args.steps + 5:
-        timed = engine.phase == "stylize" and len(stylize_times) >= 5
-        if timed and timer is None:
-            timer = instrument(engine)
-        if timed and engine.stylize.step_index not in engine.split_steps:
-            step_views += engine.stylize.views_of_step()
-        with timer.on() if timed else _nothing():
-            rep = engine.step()
-        phase_times.setdefault(rep.phase, []).append(rep.seconds)
-        if rep.phase == "stylize" and rep.losses:
-            stylize_times.append(rep.seconds)
-    if timer is not None:
-        timer.restore()
+    phase_times, stylize_times, timer, step_views = run_timed(engine, args.steps)
     cam = engine.cameras[0]
     sizes = network_sizes(engine)
     floors = {size: floor_time(engine.objective, *size) for size in sorted(set(sizes))}
     floor = statistics.mean(floors[size] for size in sizes)
     full_floor = floors.get((cam.height, cam.width)) or floor_time(engine.objective, cam.height, cam.width)
+    at = {p: full_floor if p == engine.objective.precision else floor_time(networks_at(engine, p), cam.height,
+                                                                            cam.width) for p in ("fp32", "bf16")}
     timed_steps = stylize_times[5:]
     step = statistics.mean(timed_steps) if timed_steps else float("nan")
     views_per_step = engine.settings.views_per_step
@@ -175,26 +229,17 @@ def main() -> None:
         print(f"{phase:>14} {len(ts):>6} {sum(ts):>9.2f} {statistics.mean(ts):>8.3f}")
     share = statistics.mean(h * w for h, w in sizes) / (cam.height * cam.width)
     print(f"VGG sees {100 * share:.0f} % of the frame's pixels on average ({engine.decisions.get('network_area')})")
+    print(f"precision: {engine.decisions.get('precision')}")
+    print(f"floor (VGG+NNFM fwd+bwd) on a whole frame at {cam.width}x{cam.height}: fp32 {at['fp32']:.3f} s, bf16 "
+          f"{at['bf16']:.3f} s (fp32/bf16 {at['fp32'] / at['bf16']:.2f}); the figures below are at "
+          f"{engine.objective.precision}")
     print(f"{'floor (VGG+NNFM fwd+bwd)':>30}: {full_floor:.3f} s a view at {cam.width}x{cam.height}, {floor:.3f} s a "
           f"view on the pixels VGG sees; stylize step mean {step:.3f} s ({views_per_step} view(s))")
     if timer is not None and timed_steps:
-        n = len(timed_steps)
-        print(f"where a stylize step goes (mean over {n} steps; wall time inside each part; the backward pass "
-              "includes VGG's, NNFM's and the colour cache's backward):")
-        print(f"{'part':>36} {'s / step':>9} {'share':>7}")
-        for part in PARTS:
-            secs = timer.seconds.get(part, 0.0)
-            note = ""
-            if part == "CLIP / coarse substitute forward" and engine.objective.loss.clip_term is None:
-                note = "  (off: λ_CLIP = 0)"
-            elif part == "content features (once per view)" and secs == 0.0:
-                note = "  (cached before the timed steps)"
-            print(f"{part:>36} {secs / n:>9.4f} {100 * secs / n / step:>6.1f}%{note}")
-        other = step - sum(timer.seconds.values()) / n
-        print(f"{'rest (step bookkeeping, grad norms)':>36} {other:>9.4f} {100 * other / step:>6.1f}%")
-        print(f"{'floor on the same pixels':>36} {same_floor:>9.4f} {100 * same_floor / step:>6.1f}%")
+        print_parts(engine, timer, len(timed_steps), step, same_floor)
     print(f"per-pixel: step / floor on the same pixels = {step / same_floor:.2f}")
-    print(f"RESULT step_over_floor={step / (views_per_step * full_floor):.2f} same_pixels={step / same_floor:.2f}")
+    print(f"RESULT step_over_floor={step / (views_per_step * full_floor):.2f} same_pixels={step / same_floor:.2f} "
+          f"precision={engine.objective.precision} floor_fp32={at['fp32']:.3f} floor_bf16={at['bf16']:.3f}")
 
 
 @contextmanager

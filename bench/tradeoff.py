@@ -82,7 +82,8 @@ FULL_SWEEP = [
 ]
 SLOW_POINTS = [  # --with-slow: measured once (see docs/tradeoffs.md), left out of the default sweep for its time
     ("width 320", "preview", {"working_width": 320}),
-    ("bf16 VGG", "preview", {"vgg_dtype": "bfloat16"}),  # 5-13x slower VGG on this CPU (no AVX512-BF16)
+    ("bf16 VGG", "preview", {"precision": "bf16"}),  # measured on a CPU without AVX512-BF16: 5-13x slower VGG there;
+    # about 2x faster on one with it (bench/precision.py)
     ("reference raster", "preview", {"raster_backend": "reference"}),  # pure-torch rasterizer for GT and refits
 ]
 # Style strength on the preview preset as shipped ("shipped": no BASE; on 360° scenes the calibrated defaults).
@@ -101,6 +102,7 @@ SHORT_SWEEP += STRENGTH_SWEEP
 QUICK_SWEEP = [("preview", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5}),
                ("width 128", "preview", {"epochs": 1.0, "min_steps": 4, "max_views": 4, "refit_iterations": 5,
                                           "working_width": 128})]
+POINT_PRECISION = "fp32"  # every point but "bf16 VGG" (``--precision``): the CSV's rows were measured in fp32
 EVAL_WIDTH = 256
 PICTURE_WIDTH = 1024  # --pictures: one view per point at this width (strokes can be judged; the gallery's at 512)
 MIN_STRUCTURE = 0.5  # edge correlation below which the scene is considered lost (issue #14's threshold)
@@ -158,6 +160,7 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
     from gstyle_core.pipeline.cli import evaluate_run
 
     kw = {**BASE, **overrides} if preset == "preview" else dict(overrides)
+    kw = {"precision": POINT_PRECISION, **kw}
     preset = "preview" if preset == "shipped" else preset
     if kw.get("preprocess_rounds") == "paper":
         kw.pop("preprocess_rounds")

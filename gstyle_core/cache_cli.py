@@ -34,10 +34,13 @@ def human_size(n: int) -> str:
 
 
 def _describe(entry: Path) -> str:
+    from .style import precision
     from .style.vgg import CACHE_FILE
 
     if entry.name == CACHE_FILE:
         return "converted VGG-16 weights"
+    if entry.name == precision.CACHE_FILE:
+        return "fp32 or bf16 per CPU model (--precision auto)"
     if entry.name == "checkpoints" and entry.is_dir():
         return "checkpoints of interrupted runs (gstyle stylize --resume, gstyle-studio --resume)"
     if entry.is_dir() and any(entry.rglob("*.nbi")):

@@ -6,6 +6,9 @@ failures kept in the ``.hypothesis`` database). The fuzz tests apply the profile
 keep hypothesis' defaults. Shared GL fixtures: ``ctx`` (standalone EGL context) and ``window`` (headless studio
 window of the module's W x H).
 
+Precision: ``GSTYLE_PRECISION=fp32`` is set for the whole suite, so ``--precision auto`` resolves to fp32 without
+timing anything (``gstyle_core/style/precision.py``).
+
 Thread count: ``GSTYLE_TEST_THREADS=N`` runs the suite with N torch threads (intra-op, set before each test, since
 a test may change it) and N numba threads (``NUMBA_NUM_THREADS``, read when numba is imported), and sets
 ``OMP_NUM_THREADS`` / ``MKL_NUM_THREADS`` for the subprocesses tests start. Unset: the libraries' own choice (one
@@ -21,6 +24,10 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 THREADS_ENV = "GSTYLE_TEST_THREADS"
+
+# ``--precision auto`` (the default) resolves to fp32 in the suite and in the runs it starts: no result depends on
+# whether the CPU does bf16 faster, and nothing is timed (tests/test_precision.py checks auto with a fake timer).
+os.environ["GSTYLE_PRECISION"] = "fp32"
 
 
 _THREADS_RAW = os.environ.get(THREADS_ENV, "").strip()

@@ -239,12 +239,18 @@ def _vgg_pair(kind: str) -> tuple[VGGFeatures, VGGFeatures]:
 
 @pytest.mark.parametrize("kind", ["random", "imagenet"])
 def test_bf16_losses_agree_with_fp32(kind):
-    """Each precision end to end as the pipeline runs it (style target and coarse statistics from its own VGG)."""
+    """Each precision end to end as the pipeline runs it (style target and coarse statistics from its own VGG; with
+    ImageNet weights the NNFM search in bf16 too, as ``--precision bf16`` runs it). Random weights make features that
+    all point alike, so a bf16 search (3 significant digits) flips close calls there that real features do not have
+    (measured over 6 image triples: gradient cosine 0.89-0.95, NNFM up to 1.0e-2 relative; with ImageNet weights
+    0.995-0.999 and <= 2.6e-4): with random weights the search stays fp32 and the network's rounding is compared."""
     style, render, gt = _painting(48, 48, 1), _painting(40, 40, 10), _painting(40, 40, 20)
     results = {}
     for name, vgg in zip(("fp32", "bf16"), _vgg_pair(kind), strict=True):
-        loss_fn = StyleLoss(vgg, StyleTarget.from_image(vgg, style), CoarseStyleLoss(vgg, style),
-                            weights=StyleWeights(tv=0.0))
+        target = StyleTarget.from_image(vgg, style)
+        if kind == "random":
+            target = StyleTarget(target.matrix)  # an fp32 search
+        loss_fn = StyleLoss(vgg, target, CoarseStyleLoss(vgg, style), weights=StyleWeights(tv=0.0))
         leaf = render.clone().requires_grad_(True)
         total, terms = loss_fn(leaf, gt)
         total.backward()

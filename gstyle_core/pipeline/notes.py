@@ -39,8 +39,9 @@ def note_planned_clip(decisions: Decisions, s: StylizeSettings) -> None:
 
 
 def note_networks(decisions: Decisions, objective: Any) -> None:
-    """The objective's word on its networks: where the VGG weights and the CLIP term (or substitute) came from."""
-    for key, attr in (("clip", "clip_status"), ("vgg", "vgg_status")):
+    """The objective's word on its networks: where the VGG weights and the CLIP term (or substitute) came from, and
+    the precision they run in (with the reason)."""
+    for key, attr in (("clip", "clip_status"), ("vgg", "vgg_status"), ("precision", "precision_status")):
         status = getattr(objective, attr, None)
         if status is not None:
             decisions[key] = status

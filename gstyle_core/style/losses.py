@@ -68,11 +68,13 @@ class StyleTarget:
     """Style image → unit-normalised VGG feature matrix [C, M] (computed once), optionally at several
     scales of the style image (features of all scales are pooled into one set of candidates)."""
 
-    def __init__(self, matrix: torch.Tensor, scales: tuple[float, ...] = (1.0,)) -> None:
+    def __init__(self, matrix: torch.Tensor, scales: tuple[float, ...] = (1.0,),
+                 search_dtype: torch.dtype = torch.float32) -> None:
         if matrix.ndim != 2:
             raise ValueError(f"style feature matrix must be [C, M], got {tuple(matrix.shape)}")
         self.matrix = matrix.detach()
         self.scales = scales
+        self.search_matrix = self.matrix.to(search_dtype)  # what the NNFM search multiplies (style/precision.py)
 
     @classmethod
     def from_image(cls, vgg: nn.Module, style_image: torch.Tensor, scales: Iterable[float] = (1.0,),
@@ -93,7 +95,8 @@ class StyleTarget:
         if max_vectors is not None and matrix.shape[1] > max_vectors:
             keep = torch.randperm(matrix.shape[1], generator=generator)[:max_vectors]
             matrix = matrix[:, keep]
-        return cls(normalise_vectors(matrix.float(), dim=0), scales)
+        return cls(normalise_vectors(matrix.float(), dim=0), scales,
+                   search_dtype=getattr(vgg, "compute_dtype", torch.float32))  # a bf16 network: a bf16 search
 
     @classmethod
     def from_features(cls, style_feats: torch.Tensor) -> StyleTarget:
@@ -157,14 +160,22 @@ def _style_matrix(style: StyleTarget | torch.Tensor) -> torch.Tensor:
     return StyleTarget.from_features(style).matrix
 
 
+def nearest_indices(scores: torch.Tensor) -> torch.Tensor:
+    """Each row's index of its largest score (the first of equal ones); bf16 through ``max``, as fast as fp32's
+    ``argmax`` where bf16's ``argmax`` is ~5× slower on CPUs."""
+    return scores.argmax(dim=1) if scores.dtype == torch.float32 else scores.max(dim=1).indices
+
+
 def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chunk: int = 4096,
               reduction: str = "mean", weights: torch.Tensor | None = None) -> torch.Tensor:
     """Mean over render vectors of min over style vectors of (1 − cos). ``render_feats`` [B,C,h,w];
     ``style`` a :class:`StyleTarget`, raw features [C,hs,ws] or a normalised matrix [C,M]. The
     nearest-neighbour search runs in chunks of ``chunk`` render vectors, without gradients.
     ``weights`` [B,1,h,w] (:func:`feature_weights`) make it a weighted mean over the scene's feature vectors.
-    ``reduction="none"`` returns the distance of every render vector, [B, h, w]."""
+    ``reduction="none"`` returns the distance of every render vector, [B, h, w]. The search runs in the dtype of
+    a :class:`StyleTarget`'s ``search_matrix`` (bf16 for a target taken with a bf16 network); distances are fp32."""
     style_matrix = _style_matrix(style).to(render_feats.device)
+    search_matrix = style.search_matrix.to(render_feats.device) if isinstance(style, StyleTarget) else style_matrix
     if render_feats.ndim != 4 or render_feats.shape[1] != style_matrix.shape[0]:
         raise ValueError(f"render features {tuple(render_feats.shape)} do not match style channels "
                          f"{style_matrix.shape[0]}")
@@ -174,9 +185,10 @@ def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chu
         raise ValueError(f"the render has no feature vectors (features {tuple(render_feats.shape)})")
     render_vectors = normalise_vectors(render_feats.float().permute(0, 2, 3, 1).flatten(0, 2), dim=1)  # [N, C]
     with torch.no_grad():
-        nearest = torch.cat([(block @ style_matrix).argmax(dim=1)
-                             for block in render_vectors.detach().split(max(1, chunk))])
-    matched = style_matrix.t()[nearest]  # [N, C], constant
+        queries = render_vectors.detach().to(search_matrix.dtype)
+        nearest = torch.cat([nearest_indices(block @ search_matrix) for block in queries.split(max(1, chunk))])
+    matched = style_matrix.index_select(1, nearest).t().contiguous()  # [N, C], constant (a gather of whole columns:
+    # ~6× faster than indexing the transposed view's rows, the same values)
     distances = 1.0 - (render_vectors * matched).sum(dim=1)
     if reduction == "none":
         b, _, h, w = render_feats.shape
