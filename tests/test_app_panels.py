@@ -133,3 +133,12 @@ def test_panel_widgets_emit_commands(window):
 
 def test_format_eta():
     assert format_eta(None) == "-" and format_eta(65) == "1:05" and format_eta(3725) == "1:02:05"
+
+
+def test_decisions_are_written_in_the_fonts_characters():
+    """ImGui's default font has Latin-1 only: λ, ≥, → and the like are spelled out, never drawn as "?"."""
+    from app.panels import decision_lines
+
+    lines = decision_lines({"clip": "CLIP term off (λ_CLIP = 0)", "note": "γ ≥ 1.1 → 2 px σ – done…"})
+    assert lines == ["clip: CLIP term off (lambda_CLIP = 0)", "note: gamma >= 1.1 -> 2 px sigma - done..."]
+    assert all(ord(c) < 256 for line in lines for c in line)

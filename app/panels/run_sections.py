@@ -153,8 +153,21 @@ def loss_plot(state: PanelState) -> None:
         implot.end_plot()
 
 
+# The panel's font (ImGui's default) has Latin-1 glyphs only: the engine's words outside it, spelled out.
+FONT_SPELLINGS = str.maketrans({"λ": "lambda", "σ": "sigma", "γ": "gamma", "≥": ">=", "≤": "<=", "→": "->",
+                                "–": "-", "—": "-", "…": "...", "≈": "~", "′": "'", "∂": "d", "‖": "|"})
+
+
+def font_safe(text: str) -> str:
+    """``text`` with the characters the panel's font lacks spelled out (``FONT_SPELLINGS``; others outside Latin-1
+    become "?" as the font would show them, so a test can see them)."""
+    text = text.translate(FONT_SPELLINGS)
+    return "".join(c if ord(c) < 256 else "?" for c in text)
+
+
 def decision_lines(decisions: dict[str, Any]) -> list[str]:
-    """One ``name: value`` line per engine decision (dicts as ``k=v`` lists, lists joined with ``;``)."""
+    """One ``name: value`` line per engine decision (dicts as ``k=v`` lists, lists joined with ``;``), in characters
+    the panel's font has (``font_safe``)."""
     lines = []
     for key, value in decisions.items():
         if isinstance(value, dict):
@@ -163,7 +176,7 @@ def decision_lines(decisions: dict[str, Any]) -> list[str]:
             text = "; ".join(str(v) for v in value)
         else:
             text = str(value)
-        lines.append(f"{key.replace('_', ' ')}: {text}")
+        lines.append(font_safe(f"{key.replace('_', ' ')}: {text}"))
     return lines
 
 
