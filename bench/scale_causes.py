@@ -17,6 +17,7 @@ and the time per stylization step. Variants (prototypes only; the engine is not 
   weight L: the setting ``lambda_multiscale`` (same as ``--lambda-multiscale L``; strength applies). Without it the
   engine's own default holds (λ_NNFM when no CLIP weights are found, 0 with them); ``--multiscale 0`` switches it
   off (the "today" rows of docs/texture-scale.md were measured without the term).
+* ``--factors 2,4``: the broad-strokes term's downsampling factors (``multiscale.DEFAULT_FACTORS``, shipped 2,4,8).
 * ``--epochs-factor``, ``--no-crop``, ``--seed`` and the CLI's own options (``--lambda-content``,
   ``--working-width``, ``--style-scale`` ...).
 
@@ -41,6 +42,7 @@ from gstyle_core.pipeline.build import build_stylizer, style_paths  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request, evaluate_run, texture_scale_line  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.render_cli import save_png  # noqa: E402
+from gstyle_core.style import multiscale  # noqa: E402
 
 
 class GlobalNormAdam(VisibleAdam):
@@ -222,6 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--coherent-px", type=float, default=0.0)
     p.add_argument("--multiscale", type=float, default=None,
                    help="λ of the broad-strokes term, i.e. --lambda-multiscale (default: the engine's; 0: off)")
+    p.add_argument("--factors", default=None, help="the broad-strokes term's downsampling factors, e.g. 2,4")
     p.add_argument("--epochs-factor", type=float, default=1.0)
     p.add_argument("--no-crop", action="store_true")
     p.add_argument("--seed", type=int, default=None, help="the engine's seed (default: the settings')")
@@ -229,7 +232,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.multiscale is not None and args.lambda_multiscale is not None \
             and args.multiscale != args.lambda_multiscale:
         p.error("--multiscale and --lambda-multiscale set the same weight: give one")
-    names = ("tag", "out_dir", "optim", "coherent_px", "multiscale", "epochs_factor", "no_crop", "seed")
+    if args.factors:
+        multiscale.DEFAULT_FACTORS = tuple(float(f) for f in args.factors.split(","))
+    names = ("tag", "out_dir", "optim", "coherent_px", "multiscale", "factors", "epochs_factor", "no_crop", "seed")
     extra = argparse.Namespace(**{n: getattr(args, n) for n in names})
     if args.threads:
         torch.set_num_threads(args.threads)

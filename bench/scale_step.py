@@ -16,7 +16,8 @@ Gaussian's colour.
 
 ``time``: one view's render + objective + backward with the broad-strokes (multi-scale) term on (at the settings'
 ``lambda_multiscale``, or ``--multiscale``; λ_NNFM when the settings have it off) and off (0), the same objective
-alternated in one process (a shared machine's load drifts over both alike); medians and their ratio.
+alternated in one process (a shared machine's load drifts over both alike); medians and their ratio. ``--versus
+2,4`` also times the term at those downsampling factors (``MultiScaleStyleLoss.with_factors``) in the same rotation.
 
     python bench/scale_step.py spectrum --style ../shared/data/styles/starry_night_vangogh.jpg
     python bench/scale_step.py time ../shared/data/scenes/playcanvas/biker.spz --style ...
@@ -100,9 +101,11 @@ def spectrum(args: argparse.Namespace, views: list[int], scales: list[float]) ->
     return rows
 
 
-def step_time(args: argparse.Namespace, rounds: int, weight: float | None) -> dict:
+def step_time(args: argparse.Namespace, rounds: int, weight: float | None,
+              versus: tuple[float, ...] | None = None) -> dict:
     """Median seconds of one view's render + objective + backward, without and with the broad-strokes term (the
-    same objective, its weight switched: ``weight``, default the settings' λ, or λ_NNFM when that is 0)."""
+    same objective, its weight switched: ``weight``, default the settings' λ, or λ_NNFM when that is 0); with
+    ``versus`` also with the term at those downsampling factors."""
     engine = engine_at_stylize(args)
     objective = engine.build_objective()
     base = engine.settings.weights
@@ -110,27 +113,36 @@ def step_time(args: argparse.Namespace, rounds: int, weight: float | None) -> di
         weight = base.multiscale if base.multiscale > 0 else base.nnfm
     with_term, without = replace(base, multiscale=float(weight)), replace(base, multiscale=0.0)
 
-    def one(weights: StyleWeights, view: int) -> float:
+    def one(weights: StyleWeights, view: int, term=None) -> float:
         objective.set_weights(weights)
+        if term is not None:
+            objective.loss.multiscale_term = term
         colours = engine.c_s.clone().requires_grad_(True)
         t0 = time.perf_counter()
         image = engine.render(view, colours)
         term_loss(engine, objective, image, view).backward()
         return time.perf_counter() - t0
 
-    times: dict[str, list[float]] = {"nnfm": [], "nnfm+multiscale": []}
     n = len(engine.cameras)
     for view in {(r * 5) % n for r in range(rounds)}:  # warm-up: content features are cached per view
         one(without, view)
     one(with_term, 0)  # builds the term if the settings had it off
+    shipped = objective.loss.multiscale_term
+    runs = [("nnfm", without, None), ("nnfm+multiscale", with_term, shipped)]
+    if versus:
+        other = shipped.with_factors(versus)
+        one(with_term, 0, other)
+        runs.append((f"nnfm+multiscale x{','.join(f'{f:g}' for f in versus)}", with_term, other))
+    times: dict[str, list[float]] = {name: [] for name, _, _ in runs}
     for r in range(rounds):
         view = (r * 5) % n
-        pair = [("nnfm", without), ("nnfm+multiscale", with_term)]
-        for name, weights in pair if r % 2 == 0 else pair[::-1]:  # alternate which goes first
-            times[name].append(one(weights, view))
+        for name, weights, term in runs[r % len(runs):] + runs[:r % len(runs)]:  # rotate which goes first
+            times[name].append(one(weights, view, term))
+    objective.loss.multiscale_term = shipped
     objective.set_weights(base)
     out = {k: round(float(np.median(v)), 4) for k, v in times.items()}
     out["ratio"] = round(out["nnfm+multiscale"] / out["nnfm"], 3)
+    out["factors"] = list(shipped.factors)
     out["lambda_multiscale"] = float(weight)
     out["gaussians"] = engine.gaussian_count
     print(json.dumps(out), flush=True)
@@ -146,13 +158,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rounds", type=int, default=12, help="time: alternations")
     p.add_argument("--multiscale", type=float, default=None,
                    help="time: the term's λ when on (default: the settings' lambda_multiscale, or λ_NNFM if that is 0)")
+    p.add_argument("--versus", default=None, help="time: also the term at these factors, e.g. 2,4")
     args = p.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
     if args.mode == "spectrum":
         spectrum(args, [int(v) for v in args.views.split(",")], [float(s) for s in args.scales.split(",")])
     else:
-        step_time(args, args.rounds, args.multiscale)
+        versus = None if args.versus is None else tuple(float(f) for f in args.versus.split(","))
+        step_time(args, args.rounds, args.multiscale, versus)
     return 0
 
 

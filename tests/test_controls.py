@@ -273,5 +273,13 @@ def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):
         engine.step()
     assert settings.weights.clip == 0.0 and "calibrated 360° defaults" in engine.decisions["clip"]
     assert "in CLIP's place" in engine.decisions["broad_strokes"]
+    from gstyle_core.pipeline.controls import CONTROLS
+    from gstyle_core.pipeline.notes import factor_words
+    from gstyle_core.style.multiscale import DEFAULT_FACTORS
+
+    words = factor_words(DEFAULT_FACTORS)  # what the run and the panel say is what the term does
+    assert f"shrunk {words}," in engine.decisions["broad_strokes"]
+    tooltip = next(c.tooltip for c in CONTROLS if c.name == "lambda_multiscale")
+    assert f"shrunk {words} (" in tooltip
     report = engine.step()
     assert report.losses["clip"] == 0.0 and report.losses["nnfm"] > 0.0

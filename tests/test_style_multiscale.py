@@ -1,4 +1,4 @@
-"""The multi-scale style term: NNFM of render and painting downsampled ×2 and ×4."""
+"""The multi-scale style term: NNFM of render and painting downsampled ×2, ×4 and ×8."""
 
 from __future__ import annotations
 
@@ -20,8 +20,20 @@ def test_zero_for_the_painting_itself_and_positive_otherwise(vgg):
     painting = _painting()
     term = MultiScaleStyleLoss(vgg, painting)
     assert float(term(painting)) == pytest.approx(0.0, abs=1e-5)
-    assert set(term.last_levels) == {2.0, 4.0}
+    assert set(term.last_levels) == {2.0, 4.0, 8.0}
     assert float(term(_painting(seed=1))) > 1e-3
+
+
+def test_with_factors_is_the_same_term_at_other_levels(vgg):
+    a, b = _painting(), _painting(seed=7)
+    render = _painting(48, 80, seed=8)
+    term = MultiScaleStyleLoss(vgg, [a, b], style_weights=(0.25, 0.75))
+    term.set_style_weights((0.6, 0.4))  # a mix re-weighted after it was built
+    other = term.with_factors((2, 4))
+    assert other.factors == (2.0, 4.0)
+    fresh = MultiScaleStyleLoss(vgg, [a, b], factors=(2, 4), style_weights=(0.6, 0.4))
+    torch.testing.assert_close(other(render), fresh(render))
+    assert float(other(render)) != pytest.approx(float(term(render)), abs=1e-6)
 
 
 def test_each_level_is_nnfm_on_downsampled_images(vgg):

@@ -151,7 +151,7 @@ CONTROLS: tuple[Control, ...] = (
           "NNFM brush-stroke term"),
     _term("multiscale", "lambda broad strokes", 100.0, 1e-1, 1e4,
           "Weight of the broad-strokes term: the painting's larger strokes and shapes, matched on the render and the "
-          "painting both shrunk 2x and 4x (multi-scale NNFM). On by default, at lambda NNFM, when no CLIP weights "
+          "painting both shrunk 2x, 4x and 8x (multi-scale NNFM). On by default, at lambda NNFM, when no CLIP weights "
           "are found; follows the stroke size and the style strength.",
           "broad-strokes term (multi-scale NNFM: the painting's larger strokes and shapes; default λ_NNFM "
           "without CLIP weights, 0 with them)"),

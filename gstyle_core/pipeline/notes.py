@@ -47,6 +47,22 @@ def note_networks(decisions: Decisions, objective: Any) -> None:
             decisions[key] = status
 
 
+def factor_words(factors) -> str:
+    """Downsampling factors as words: (2, 4, 8) -> '2x, 4x and 8x'."""
+    words = [f"{f:g}x" for f in factors]
+    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} and {words[-1]}"
+
+
+def _broad_stroke_factors(objective: Any) -> tuple[float, ...]:
+    """The broad-strokes term's factors: the built term's, else the default."""
+    term = getattr(getattr(objective, "loss", None), "multiscale_term", None)
+    if term is not None:
+        return tuple(term.factors)
+    from ..style.multiscale import DEFAULT_FACTORS
+
+    return tuple(float(f) for f in DEFAULT_FACTORS)
+
+
 def note_loss_terms(decisions: Decisions, s: StylizeSettings, objective: Any) -> None:
     """Which loss terms are computed (weight above 0) and which never are; what the broad-strokes term is, when on."""
     weights = getattr(getattr(objective, "loss", None), "weights", s.weights)
@@ -58,8 +74,9 @@ def note_loss_terms(decisions: Decisions, s: StylizeSettings, objective: Any) ->
     decisions.pop("broad_strokes", None)
     if s.weights.multiscale > 0:
         decisions["broad_strokes"] = (
-            f"lambda {s.weights.multiscale:g} (multiscale): NNFM on the render and the painting both shrunk 2x and "
-            "4x, for the painting's larger strokes and shapes (docs/texture-scale.md)"
+            f"lambda {s.weights.multiscale:g} (multiscale): NNFM on the render and the painting both shrunk "
+            f"{factor_words(_broad_stroke_factors(objective))}, for the painting's larger strokes and shapes "
+            "(docs/texture-scale.md)"
             + ("; in CLIP's place: no CLIP weights" if clip_term_name(s.clip_weights) != "CLIP" else ""))
 
 

@@ -55,7 +55,7 @@ class StyleObjective:
     ``style/keep_colours.py``).
     CLIP ViT-B/32 is used when its weights are found; otherwise the documented coarse-VGG substitute
     (``clip_status`` says which). The broad-strokes term (``style/multiscale.py``) matches the same resized paintings
-    downsampled ×2 and ×4. ``refresh_style()`` re-extracts the style features after either setting changed.
+    downsampled ×2, ×4 and ×8. ``refresh_style()`` re-extracts the style features after either setting changed.
     """
 
     luminance_networks = True  # keep colours: networks see luminance (False: colour, chroma restored only; the

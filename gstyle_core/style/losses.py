@@ -10,7 +10,7 @@
   horizontal neighbours. This follows the G-Style reference code (``calculate_total_variation_loss``: sum
   of squared differences), which its λ_TV = 1e-4 is paired with; ``kind="abs"`` gives the L1 variant.
 * CLIP: see :mod:`gstyle_core.style.clip` (or its coarse-VGG substitute).
-* Broad strokes (``multiscale``): NNFM with the render and the painting both downsampled ×2 and ×4
+* Broad strokes (``multiscale``): NNFM with the render and the painting both downsampled ×2, ×4 and ×8
   (:mod:`gstyle_core.style.multiscale`): the painting's larger patterns, for when CLIP cannot run.
 
 A term whose weight is 0 is not computed at all; when λ_NNFM, λ_C and λ_broad strokes are 0 VGG never runs, when
