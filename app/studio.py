@@ -21,6 +21,7 @@ from gstyle_core.pipeline.controls import cli_control_names
 from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
+from .keys import KeyPresses
 from .open_files import LoadedScene, OpenFiles
 from .panels import Command, PanelState, draw_panel
 from .region_tool import RegionTool
@@ -65,8 +66,10 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
 
     def __init__(self, ctx: moderngl.Context, *, loaded: LoadedScene | None = None, style_path: str | None = None,
                  engine_factory: Callable[..., Any] | None = None, engine_config: dict[str, Any] | None = None,
-                 output_dir: str | Path = "out", show_ui: bool = True, worker_mode: str = "process") -> None:
+                 output_dir: str | Path = "out", show_ui: bool = True, worker_mode: str = "process",
+                 keys: KeyPresses | None = None) -> None:
         self.ctx = ctx
+        self.keys = keys if keys is not None else KeyPresses()  # the window's key presses (app/keys.py)
         self.worker_mode = worker_mode  # "process" (the default, measured better) or "thread" (bench/ui.py)
         self.original = SplatRenderer(ctx)
         self.stylized = SplatRenderer(ctx)
@@ -301,11 +304,12 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         full = tuple(target.viewport)
         view = self.view_rect(full, with_ui)
         self._view_size = (view[2], view[3])
+        presses = self.keys.take()  # taken every frame: a press acts in the frame after it, or never
         if with_ui:
             self._handle_input(view, dt)
             self._fill_panel()
             if self.show_ui:
-                commands = draw_panel(self.panel)
+                commands = draw_panel(self.panel, presses)
             for cmd in commands:
                 self.execute(cmd)
             view = self.view_rect(full, with_ui)  # the panel may have collapsed or opened this frame

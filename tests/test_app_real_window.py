@@ -22,7 +22,13 @@ from gstyle_core.io import save_scene  # noqa: E402
 from gstyle_core.scene import GaussianScene, logit, rgb_to_sh_dc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+TESTS = Path(__file__).resolve().parent
 PANEL = 420  # app.panels.PANEL_WIDTH
+# The studio's command line with the engine factory swapped for a fake engine that runs (a million steps) until
+# closed and marks its fifth step in the file $GSTYLE_TEST_STEPPED (tests/fakes.py).
+WITH_FAKE_ENGINE = ("import sys; sys.path.insert(0, sys.argv.pop(1)); import fakes, app.engine_factory as factory; "
+                    "factory.make_stylizer = fakes.make_command_line_engine; from app.main import main; "
+                    "sys.exit(main(sys.argv[1:]))")
 
 
 @pytest.fixture(scope="module")
@@ -58,10 +64,16 @@ def pole_and_ring() -> GaussianScene:
 class Studio:
     """``gstyle-studio`` in a window on the test's X display, with xdotool input and F12 screenshots."""
 
-    def __init__(self, display: str, tmp: Path, scene: Path, size: str, *extra: str) -> None:
-        self.env = {**os.environ, "DISPLAY": display, "GSTYLE_CACHE": str(tmp / "cache")}
+    def __init__(self, display: str, tmp: Path, scene: Path | None, size: str, *extra: str,
+                 engine: bool = False) -> None:
+        """``scene`` None: the bundled demo. ``engine``: a fake engine runs (``WITH_FAKE_ENGINE``; ``self.stepped``
+        appears once it has stepped), else none."""
+        self.stepped = tmp / "stepped"
+        self.env = {**os.environ, "DISPLAY": display, "GSTYLE_CACHE": str(tmp / "cache"),
+                    "GSTYLE_TEST_STEPPED": str(self.stepped)}
         self.out = tmp / "out"
-        argv = [sys.executable, "-m", "app.main", str(scene), "--no-engine", "--size", size, "--output-dir",
+        start = ["-c", WITH_FAKE_ENGINE, str(TESTS), "--engine"] if engine else ["-m", "app.main", "--no-engine"]
+        argv = [sys.executable, *start, *([str(scene)] if scene is not None else []), "--size", size, "--output-dir",
                 str(self.out), *extra]
         self.proc = subprocess.Popen(argv, cwd=ROOT, env=self.env, stdout=subprocess.DEVNULL,
                                      stderr=subprocess.PIPE, text=True)
@@ -201,3 +213,33 @@ def test_c_after_t_compares_with_the_original(display, tmp_path, scene_file):
     finally:
         studio.close()
 
+
+
+def test_a_ctrl_s_tap_during_a_run_exports(display, tmp_path, scene_file):
+    """Issue #27 item 8: a short Ctrl+S tap while the engine runs exports. The quick hand's tap: Ctrl goes down, a
+    frame or more later S goes down and Ctrl comes up at once, so both reach the studio between two of its frames. It
+    was lost when the shortcut asked at the frame whether Ctrl was down (by then it was up again); the key callback
+    reports S with Ctrl held. Then xdotool's own ``key ctrl+s``."""
+    import json
+
+    rolling = ("keydown", "ctrl", "sleep", "0.2", "keydown", "--delay", "0", "s", "keyup", "--delay", "0", "ctrl",
+               "keyup", "--delay", "0", "s")
+    studio = Studio(display, tmp_path, scene_file, "1000x640", engine=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not studio.stepped.exists() and studio.proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert studio.stepped.exists(), "the engine never stepped"
+        for taps, keys in enumerate((rolling, rolling, ("key", "ctrl+s")), start=1):
+            studio.xdo(*keys)
+            deadline = time.monotonic() + 30
+            while len(list(studio.out.glob("stylized_*.json"))) < taps and time.monotonic() < deadline:
+                time.sleep(0.1)
+            assert len(list(studio.out.glob("stylized_*.json"))) == taps, f"tap {taps} ({keys}) exported nothing"
+            time.sleep(0.3)
+        for summary in studio.out.glob("stylized_*.json"):
+            report = json.loads(summary.read_text())["report"]
+            assert report["phase"] == "stylize" and not report["done"] and report["step"] >= 5  # during the run
+            assert summary.with_suffix(".ply").is_file()
+    finally:
+        studio.close()
