@@ -106,7 +106,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.loaded: LoadedScene | None = None
         self.cameras: list[Camera] = []
         self.last_frame_rgb: np.ndarray | None = None
-        self.screenshot_requests: list[Path] = []
+        self.screenshot_requests: list[tuple[Path, bool]] = []  # (where, scene view only), saved by the frame loop
         self.video_job: VideoJob | None = None
         self._exports_seen: tuple[int, int] = (0, 0)
         self._export_failures_seen: tuple[int, int] = (0, 0)  # the same for failed exports (their one line)
@@ -120,6 +120,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._selection_shown: dict[str, Any] = {}
         self._rect_start: tuple[float, float] | None = None
         self._view_size: tuple[int, int] = (1, 1)
+        self.scene_viewport: tuple[int, int, int, int] | None = None  # the last frame's scene view (GL viewport)
         self.engine_region: str = ""
         if loaded is not None:
             self.set_scene(loaded)
@@ -314,6 +315,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
                 self.execute(cmd)
             view = self.view_rect(full, with_ui)  # the panel may have collapsed or opened this frame
             self._view_size = (view[2], view[3])
+        self.scene_viewport = view
         if view != full:
             target.use()
             target.clear(*BACKGROUND, 1.0)
@@ -397,8 +399,27 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         atomic_write_bytes(path, encode_png(rgb))
         return Path(path)
 
-    def capture(self, fbo: moderngl.Framebuffer) -> np.ndarray:
-        """Read ``fbo`` as uint8 RGB (row 0 = top); clears a GL error the default framebuffer read may leave."""
-        rgb = read_rgb(fbo)
+    def capture(self, fbo: moderngl.Framebuffer, viewport: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """Read ``fbo`` (its ``viewport`` part, GL coordinates; default: its viewport) as uint8 RGB (row 0 = top);
+        clears a GL error the default framebuffer read may leave."""
+        rgb = read_rgb(fbo, viewport)
         _ = self.ctx.error
         return rgb
+
+    def save_screenshots(self, fbo: moderngl.Framebuffer, scene_only: bool) -> list[Path]:
+        """Write the requested screenshots of one kind from ``fbo``: ``scene_only`` ones after the frame's scene was
+        drawn and before the UI is (the scene view's part of it), whole-window ones after the UI. The status line
+        says where each went (or why it could not be written); returns the paths written."""
+        written, left = [], []
+        for path, scene in self.screenshot_requests:
+            if scene != scene_only:
+                left.append((path, scene))
+                continue
+            viewport = self.scene_viewport if scene_only else None
+            try:
+                written.append(self.save_png(path, self.capture(fbo, viewport)))
+                self.panel.status = f"screenshot {written[-1]}"
+            except OSError as exc:  # OutputWriteError: "cannot write PATH: no space left on the device"
+                self.panel.status = f"screenshot: {exc}"
+        self.screenshot_requests = left
+        return written

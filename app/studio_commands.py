@@ -85,7 +85,7 @@ class StudioCommands:
     def _output_command(self, name: str, args: dict[str, Any]) -> bool:
         """Screenshot, export, turntable video (start, settings, cancel)."""
         if name == "screenshot":
-            self.screenshot_requests.append(self.output_dir / f"screenshot_{time.strftime('%Y%m%d_%H%M%S')}.png")
+            self.request_screenshot(scene_only=bool(args.get("scene_only", False)))
         elif name == "export":
             self.export(fmt=args.get("format", "ply"))
         elif name == "turntable":
@@ -114,6 +114,15 @@ class StudioCommands:
         else:
             return False
         return True
+
+    def request_screenshot(self, scene_only: bool = False) -> Path:
+        """Save a screenshot at the end of this frame: the whole window (``screenshot_STAMP.png``) or the scene view
+        alone, without panel and overlays (``scene_only``: ``scene_STAMP.png``); never over an earlier one."""
+        stamp = time.strftime("%Y%m%d_%H%M%S")
+        path = unused_name(self.output_dir / f"{'scene' if scene_only else 'screenshot'}_{stamp}.png")
+        if (path, scene_only) not in self.screenshot_requests:  # twice in one frame: one file
+            self.screenshot_requests.append((path, scene_only))
+        return path
 
     def export(self, path: str | Path | None = None, fmt: str = "ply") -> None:
         """Export the stylized scene (``fmt`` "ply", "spz" or "compressed-ply", + .json) through the worker."""

@@ -118,7 +118,8 @@ def test_key_presses_emit_the_shortcuts_commands(window):
     assert run(KeyPress("4")) == []  # three cameras
     assert run(KeyPress("s", ctrl=True)) == [Command("export")]
     assert run(KeyPress("s")) == []  # S alone flies the camera back (held, app/studio_input.py)
-    assert run(KeyPress("f12")) == [Command("screenshot")]
+    assert run(KeyPress("f12")) == [Command("screenshot", {"scene_only": False})]
+    assert run(KeyPress("f12", shift=True)) == [Command("screenshot", {"scene_only": True})]
     assert run(KeyPress("space"), KeyPress("r")) == [Command("pause"), Command("reset_camera")]
     assert run(KeyPress("r", ctrl=True), KeyPress("escape")) == []  # Ctrl+R is no shortcut; Esc: no help shown
     state.show_help = True

@@ -109,21 +109,22 @@ class Studio:
             self.xdo("keyup", hold)
         time.sleep(0.5)
 
-    def screenshot(self) -> np.ndarray:
-        """F12: the studio writes the window (panel included) to its output folder; that image, RGB."""
+    def screenshot(self, scene_only: bool = False) -> np.ndarray:
+        """F12: the studio writes the window (panel included) to its output folder; that image, RGB. ``scene_only``:
+        Shift+F12, the scene view alone (``scene_*.png``)."""
         from PIL import Image
 
-        before = set(self.out.glob("screenshot_*.png")) if self.out.is_dir() else set()
-        time.sleep(1.05)  # one file name per second
-        self.key("F12")
+        pattern = "scene_*.png" if scene_only else "screenshot_*.png"
+        before = set(self.out.glob(pattern)) if self.out.is_dir() else set()
+        self.key("shift+F12" if scene_only else "F12")
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:
-            new = set(self.out.glob("screenshot_*.png")) - before if self.out.is_dir() else set()
+            new = set(self.out.glob(pattern)) - before if self.out.is_dir() else set()
             if new:
                 time.sleep(0.2)
                 return np.asarray(Image.open(new.pop()).convert("RGB"))
             time.sleep(0.1)
-        raise AssertionError("F12 wrote no screenshot")
+        raise AssertionError(f"{'Shift+' if scene_only else ''}F12 wrote no screenshot")
 
     def close(self) -> None:
         if self.proc.poll() is None:
@@ -213,6 +214,35 @@ def test_c_after_t_compares_with_the_original(display, tmp_path, scene_file):
     finally:
         studio.close()
 
+
+
+def grey_pixels(img: np.ndarray) -> np.ndarray:
+    """Where ``img`` shows the studio's UI over the red and green scene: ImGui's greys and white text."""
+    rgb = img.astype(np.int32)
+    return (np.abs(rgb[..., 0] - rgb[..., 1]) < 12) & (np.abs(rgb[..., 1] - rgb[..., 2]) < 12) & (rgb[..., 0] > 25)
+
+
+def test_shift_f12_saves_the_scene_view_alone(display, tmp_path, scene_file):
+    """F12 saves the whole window (panel and the help overlay included); Shift+F12 the scene view alone: its size,
+    the same scene pixels, no panel or overlay pixels."""
+    studio = Studio(display, tmp_path, scene_file, "1000x640")
+    try:
+        studio.key("h")  # the help overlay over the scene view
+        window = studio.screenshot()
+        scene = studio.screenshot(scene_only=True)
+        assert window.shape == (640, 1000, 3) and scene.shape == (640, 1000 - PANEL, 3)
+        view = window[:, PANEL:]
+        overlay = grey_pixels(view)
+        assert overlay.sum() > 2000, "the help overlay is not in the window's screenshot"
+        assert grey_pixels(scene).sum() < 20, "UI pixels in the scene-only screenshot"
+        ys, xs = np.nonzero(overlay)
+        outside = np.ones(overlay.shape, bool)
+        outside[ys.min() - 2:ys.max() + 3, xs.min() - 2:xs.max() + 3] = False  # the overlay's box
+        same = np.abs(scene.astype(np.int32) - view).max(-1) <= 2
+        assert same[outside].mean() > 0.99  # the scene view's pixels, where the overlay is not
+        assert (scene.astype(np.int32).sum(-1) > 60).sum() > 500  # and the scene is in it
+    finally:
+        studio.close()
 
 
 def test_a_ctrl_s_tap_during_a_run_exports(display, tmp_path, scene_file):

@@ -34,8 +34,8 @@ def _shortcut(state: PanelState, press: KeyPress) -> list[Command]:
     name = press.name
     if name == "s" and press.ctrl and not press.alt:
         return [Command("export")]
-    if name == "f12" and press.plain:
-        return [Command("screenshot")]
+    if name == "f12" and press.plain:  # Shift+F12: the scene view alone, F12: the whole window
+        return [Command("screenshot", {"scene_only": press.shift})]
     if not press.plain:
         return []
     if name == "space":

@@ -20,7 +20,8 @@ HELP_TEXT = """Mouse: left drag orbit (turntable about the scene's up), right dr
 B region tool (Alt + drag / wheel: move / resize its box; Shift + drag: select by rectangle)
 T compare with the next take (your exports)
 Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view
-Ctrl+S export .ply   F12 screenshot   H this help"""
+Ctrl+S export .ply   F12 screenshot of the window   Shift+F12 of the scene view alone
+H this help"""
 
 
 def view_section(state: PanelState, out: list[Command]) -> None:
