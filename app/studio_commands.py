@@ -56,13 +56,17 @@ class StudioCommands:
         return True
 
     def _view_command(self, name: str, args: dict[str, Any]) -> bool:
-        """View mode, field of view, camera, help, and the region tool."""
+        """View mode, field of view, camera (reset, frame all, scene cameras), help, and the region tool."""
         if name == "view_mode":
             self.set_view_mode(args["mode"])
         elif name == "fov":
             self.control.set_fov(args["degrees"])
         elif name == "reset_camera":
             self.control.reset()
+            if self._framed is not None:  # a framed home: framed again for the view's size now
+                self._framed = (None, self.control.version)
+        elif name == "frame_all":
+            self.frame_all()
         elif name == "snap_camera":
             if args["index"] < len(self.cameras):
                 cam = self.cameras[args["index"]]

@@ -109,6 +109,11 @@ class Studio:
             self.xdo("keyup", hold)
         time.sleep(0.5)
 
+    def click(self, x: float, y: float) -> None:
+        self.move(x, y)
+        self.xdo("click", "1")
+        time.sleep(0.4)
+
     def screenshot(self, scene_only: bool = False) -> np.ndarray:
         """F12: the studio writes the window (panel included) to its output folder; that image, RGB. ``scene_only``:
         Shift+F12, the scene view alone (``scene_*.png``)."""
@@ -214,6 +219,41 @@ def test_c_after_t_compares_with_the_original(display, tmp_path, scene_file):
     finally:
         studio.close()
 
+
+
+def view_margins(img: np.ndarray) -> np.ndarray:
+    """(left, top, right, bottom) free share of the view beside the panel around its lit pixels."""
+    lit = img[:, PANEL:].astype(np.int32).sum(-1) > 60
+    ys, xs = np.nonzero(lit)
+    assert lit.sum() > 500, "the scene is not in the view beside the panel"
+    h, w = lit.shape
+    return np.array([xs.min() / w, ys.min() / h, (w - 1 - xs.max()) / w, (h - 1 - ys.max()) / h])
+
+
+def test_the_demo_is_framed_in_a_small_window(display, tmp_path):
+    """The bundled demo (a .splat: generated cameras) at 640x480: the whole fountain inside the view beside the
+    panel with a margin on every side (its top touched the window's edge, #27); still inside after a turntable
+    drag; R brings the framed view back; with the panel collapsed it is framed in the whole window."""
+    studio = Studio(display, tmp_path, None, "640x480")
+    try:
+        home = studio.screenshot()
+        assert view_margins(home).min() > 0.03
+        studio.drag((530, 240), (610, 240))  # a turntable orbit
+        assert view_margins(studio.screenshot()).min() > 0.02
+        studio.key("r")
+        again = studio.screenshot()
+        assert view_margins(again).min() > 0.03
+        assert np.abs(again[:, PANEL:].astype(np.int32) - home[:, PANEL:]).max(-1).mean() < 2  # the same view
+        studio.click(10, 9)  # the panel's collapse arrow: the view is the whole window, the home framed in it again
+        whole = studio.screenshot().copy()
+        whole[:24, :PANEL] = 0  # the collapsed panel's title bar
+        lit = whole.astype(np.int32).sum(-1) > 60
+        ys, xs = np.nonzero(lit)
+        assert xs.min() > 0.03 * 640 and xs.max() < 0.97 * 640 and ys.max() < 0.97 * 480
+        assert ys.min() > 26  # the top clear of the title bar too (and of the window's edge by more than 3 %)
+        assert xs.max() - xs.min() > 150  # larger than beside the panel
+    finally:
+        studio.close()
 
 
 def grey_pixels(img: np.ndarray) -> np.ndarray:

@@ -49,6 +49,8 @@ def _shortcut(state: PanelState, press: KeyPress) -> list[Command]:
         return [Command("region_enable", {"on": not state.region_enabled})]
     if name == "r":
         return [Command("reset_camera")]
+    if name == "f":
+        return [Command("frame_all")]
     if name == "t" and state.take_names:  # compare with the next take (newest first)
         following = state.take_shown + 1 if state.compare_with_take else 0
         return [Command("show_take", {"index": following % len(state.take_names), "compare": True})]

@@ -19,7 +19,7 @@ VIEW_TOOLTIPS = {
 HELP_TEXT = """Mouse: left drag orbit (turntable about the scene's up), right drag pan, wheel dolly. W/A/S/D/Q/E fly.
 B region tool (Alt + drag / wheel: move / resize its box; Shift + drag: select by rectangle)
 T compare with the next take (your exports)
-Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view
+Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view   F frame all
 Ctrl+S export .ply   F12 screenshot of the window   Shift+F12 of the scene view alone
 H this help"""
 
@@ -41,8 +41,12 @@ def view_section(state: PanelState, out: list[Command]) -> None:
     tooltip("Field of view of the viewer's camera, across the view's smaller side.")
     if changed:
         out.append(Command("fov", {"degrees": fov}))
-    if button("Reset view", "Back to the first scene camera's view (R)."):
+    if button("Reset view", "Back to the home view (R): the first scene camera's, or for a scene file without "
+                            "cameras the whole scene framed."):
         out.append(Command("reset_camera"))
+    imgui.same_line()
+    if button("Frame all", "Look at the whole scene from this side, with a margin on every side of the view (F)."):
+        out.append(Command("frame_all"))
     camera_list(state, out)
 
 
