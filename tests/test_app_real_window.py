@@ -109,6 +109,16 @@ class Studio:
             self.xdo("keyup", hold)
         time.sleep(0.5)
 
+    def grab(self, size: tuple[int, int]) -> np.ndarray:
+        """The window as the X server shows it (no F12: the status line stays as it is), RGB."""
+        from PIL import ImageGrab
+
+        time.sleep(0.6)  # a frame or two
+        shell = dict(line.split("=", 1) for line in self.xdo("getwindowgeometry", "--shell", self.window).split())
+        x, y = int(shell["X"]), int(shell["Y"])
+        screen = np.asarray(ImageGrab.grab(xdisplay=self.env["DISPLAY"]).convert("RGB"))
+        return screen[y:y + size[1], x:x + size[0]]
+
     def click(self, x: float, y: float) -> None:
         self.move(x, y)
         self.xdo("click", "1")
@@ -252,6 +262,36 @@ def test_the_demo_is_framed_in_a_small_window(display, tmp_path):
         assert xs.min() > 0.03 * 640 and xs.max() < 0.97 * 640 and ys.max() < 0.97 * 480
         assert ys.min() > 26  # the top clear of the title bar too (and of the window's edge by more than 3 %)
         assert xs.max() - xs.min() > 150  # larger than beside the panel
+    finally:
+        studio.close()
+
+
+@pytest.mark.parametrize("size", ["640x480", "520x480"])
+def test_the_help_stays_off_the_panels_controls_and_closes(display, tmp_path, scene_file, size):
+    """H shows the help over the scene view beside the panel (at 640x480 no pixel of the panel changes); in a
+    window too narrow for it (520x480, a 100-pixel view) it covers the panel's edge and says how to close it: a click
+    on it, H or Esc closes it."""
+    width, height = (int(v) for v in size.split("x"))
+    studio = Studio(display, tmp_path, scene_file, size)
+    try:
+        def changed(img: np.ndarray) -> np.ndarray:
+            return np.abs(img.astype(np.int32) - base).max(-1) > 30
+
+        base = studio.grab((width, height))
+        for close in ("click", "h", "Escape"):
+            studio.key("h")
+            shown = changed(studio.grab((width, height)))
+            ys, xs = np.nonzero(shown[:, PANEL:])
+            assert len(xs) > 2000, "no help"
+            if width == 640:  # (left of x = 200 the panel's frame rate changes)
+                assert not shown[:, 200:PANEL].any(), "the help covers the panel"
+            else:
+                assert shown[:, PANEL - 60:PANEL].sum() > 100, close  # its text over the panel's edge
+            if close == "click":
+                studio.click(PANEL + xs.mean(), ys.mean())
+            else:
+                studio.key(close)
+            assert changed(studio.grab((width, height)))[:, 200:].sum() < 50, f"{close} did not close the help"
     finally:
         studio.close()
 

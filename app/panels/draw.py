@@ -68,7 +68,9 @@ def draw_panel(state: PanelState, presses: Sequence[KeyPress] = ()) -> list[Comm
     viewport = imgui.get_main_viewport()
     imgui.set_next_window_pos(viewport.pos, imgui.Cond_.always)
     imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, viewport.size.y), imgui.Cond_.always)
-    opened = imgui.begin("G-Style Studio", None, imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize)[0]
+    # It stays behind the windows over it (the help, the file browser) when clicked, as a docked panel does.
+    flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_bring_to_front_on_focus
+    opened = imgui.begin("G-Style Studio", None, flags)[0]
     pos, size = imgui.get_window_pos(), imgui.get_window_size()
     state.panel_rect = None if imgui.is_window_collapsed() else (pos.x, pos.y, pos.x + size.x, pos.y + size.y)
     if opened:
@@ -80,7 +82,7 @@ def draw_panel(state: PanelState, presses: Sequence[KeyPress] = ()) -> list[Comm
         compare_labels(state)
     region_overlay(state)
     if state.show_help:
-        help_overlay(state)
+        help_overlay(state, out)
     return out
 
 
