@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gstyle_core.cameras.camera import Camera
+from gstyle_core.cameras.framing import FRAME_MARGIN, box_corners, fit_distance, focal_for
 
 MIN_FOV_DEG, MAX_FOV_DEG = 10.0, 120.0
 MIN_DISTANCE = 1e-3
@@ -100,6 +101,24 @@ class CameraControl:
         self.home = Pose(eye, look_rotation(forward, self.world_up), distance, fov_y_deg)
         self.fly_speed = radius
         self.reset()
+
+    def frame_box(self, lo: np.ndarray, hi: np.ndarray, width: int, height: int,
+                  direction: np.ndarray | None = None, set_home: bool = True, margin: float = FRAME_MARGIN) -> None:
+        """Frame all: look at the centre of the box (lo, hi) along ``direction`` (default: the current view's),
+        levelled, from just far enough to see the whole box in a ``width`` x ``height`` view with ``margin`` of its
+        size free on every side (``gstyle_core.cameras.framing``). ``set_home``: R comes back to this pose."""
+        lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+        forward = self.pose.rotation[:, 2] if direction is None else np.asarray(direction, np.float64)
+        rotation = look_rotation(forward / np.linalg.norm(forward), self.world_up)
+        centre = (lo + hi) / 2
+        fov = self.pose.fov_y_deg
+        distance = fit_distance(box_corners(lo, hi), centre, rotation, focal_for(width, height, fov), width, height,
+                                margin)
+        self.pose = Pose(centre - distance * rotation[:, 2], rotation, distance, fov)
+        if set_home:
+            self.home = self.pose.copy()
+        self.fly_speed = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
+        self.version += 1
 
     def set_up(self, up: np.ndarray) -> None:
         """The axis the orbit turns about (the scene's up); the home pose and the view are levelled to it."""

@@ -169,7 +169,7 @@ def open_studio(window, args: argparse.Namespace):
                     engine_config={"cameras": args.cameras, "preset": args.preset, "defaults": args.defaults,
                                    "vgg_weights": args.vgg_weights, "clip_weights": args.clip_weights,
                                    "precision": args.precision},
-                    output_dir=args.output_dir, show_ui=not args.hide_ui)
+                    output_dir=args.output_dir, show_ui=not args.hide_ui, keys=window.keys)
     if len(styles) > 1:
         app.set_style(styles[1], slot=1, mix=args.style_mix)
     app.view_mode = args.view
@@ -215,13 +215,9 @@ def _run_frames(window, app, args: argparse.Namespace, stop: dict[str, bool]) ->
         app.progressive = args.pacing and not last  # the last frame of a --frames run: exact, full resolution
         app.frame(screen)
         count += 1
+        app.save_screenshots(screen, scene_only=True)  # the scene view before the UI is drawn over it
         window.end_frame(swap=False)
-        for path in app.screenshot_requests:
-            try:
-                app.panel.status = f"screenshot {app.save_png(path, app.capture(screen))}"
-            except OSError as exc:  # OutputWriteError: "cannot write PATH: no space left on the device"
-                app.panel.status = f"screenshot: {exc}"
-        app.screenshot_requests.clear()
+        app.save_screenshots(screen, scene_only=False)
         if last and args.screenshot:
             saved = app.save_png(args.screenshot, app.capture(screen))
             print(f"gstyle-studio: wrote {saved}")

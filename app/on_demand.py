@@ -26,13 +26,16 @@ class EventCounter:
     events: int = 0
     held: set[tuple[str, int]] = field(default_factory=set)
 
-    def install(self, glfw: Any, handle: Any) -> None:
-        """Set the counting callbacks on window ``handle`` (call before ``glfw_init_for_opengl``)."""
+    def install(self, glfw: Any, handle: Any, on_key: Callable[[int, int, int, int], None] | None = None) -> None:
+        """Set the counting callbacks on window ``handle`` (call before ``glfw_init_for_opengl``); ``on_key(key,
+        scancode, action, mods)`` also gets every key event (the studio's shortcuts, ``app/keys.py``)."""
         def bump(*_args: Any) -> None:
             self.events += 1
 
-        def key(_w: Any, key: int, _scancode: int, action: int, _mods: int) -> None:
+        def key(_w: Any, key: int, scancode: int, action: int, mods: int) -> None:
             self._hold(("key", key), action)
+            if on_key is not None:
+                on_key(key, scancode, action, mods)
 
         def button(_w: Any, button: int, action: int, _mods: int) -> None:
             self._hold(("button", button), action)

@@ -68,6 +68,7 @@ class LoadedScene:
     path: str
     scene: GaussianScene
     cameras: list[Camera]
+    generated_cameras: bool = False  # the cameras were made up around the scene (a bare scene file), not its own
 
 
 def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) -> LoadedScene:
@@ -80,7 +81,7 @@ def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) ->
         what = "scene file" if scene_path else "bundled demo scene"
         raise GStyleError(f"{what} not found: {path}")
     scene, _report, cams = load_scene_and_cameras(scene_path, cameras_path)
-    return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras))
+    return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras), cams.source.startswith("generated"))
 
 
 class OpenFiles:

@@ -310,10 +310,11 @@ def target_size(fbo: moderngl.Framebuffer) -> tuple[int, int]:
     return int(width), int(height)
 
 
-def read_rgb(fbo: moderngl.Framebuffer) -> np.ndarray:
-    """Read a framebuffer's viewport as uint8 [H, W, 3], row 0 = top of the image."""
-    width, height = target_size(fbo)
-    data = np.frombuffer(fbo.read(viewport=(0, 0, width, height), components=3, alignment=1),
+def read_rgb(fbo: moderngl.Framebuffer, viewport: tuple[int, int, int, int] | None = None) -> np.ndarray:
+    """Read a framebuffer's ``viewport`` (x, y from the bottom, width, height; default: the framebuffer's viewport
+    size from its corner) as uint8 [H, W, 3], row 0 = top of the image."""
+    x, y, width, height = viewport if viewport is not None else (0, 0, *target_size(fbo))
+    data = np.frombuffer(fbo.read(viewport=(x, y, width, height), components=3, alignment=1),
                          np.uint8).reshape(height, width, 3)
     return data[::-1].copy()
 

@@ -21,6 +21,7 @@ from gstyle_core.pipeline.controls import cli_control_names
 from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
+from .keys import KeyPresses
 from .open_files import LoadedScene, OpenFiles
 from .panels import Command, PanelState, draw_panel
 from .region_tool import RegionTool
@@ -65,8 +66,10 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
 
     def __init__(self, ctx: moderngl.Context, *, loaded: LoadedScene | None = None, style_path: str | None = None,
                  engine_factory: Callable[..., Any] | None = None, engine_config: dict[str, Any] | None = None,
-                 output_dir: str | Path = "out", show_ui: bool = True, worker_mode: str = "process") -> None:
+                 output_dir: str | Path = "out", show_ui: bool = True, worker_mode: str = "process",
+                 keys: KeyPresses | None = None) -> None:
         self.ctx = ctx
+        self.keys = keys if keys is not None else KeyPresses()  # the window's key presses (app/keys.py)
         self.worker_mode = worker_mode  # "process" (the default, measured better) or "thread" (bench/ui.py)
         self.original = SplatRenderer(ctx)
         self.stylized = SplatRenderer(ctx)
@@ -103,7 +106,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.loaded: LoadedScene | None = None
         self.cameras: list[Camera] = []
         self.last_frame_rgb: np.ndarray | None = None
-        self.screenshot_requests: list[Path] = []
+        self.screenshot_requests: list[tuple[Path, bool]] = []  # (where, scene view only), saved by the frame loop
         self.video_job: VideoJob | None = None
         self._exports_seen: tuple[int, int] = (0, 0)
         self._export_failures_seen: tuple[int, int] = (0, 0)  # the same for failed exports (their one line)
@@ -117,6 +120,10 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._selection_shown: dict[str, Any] = {}
         self._rect_start: tuple[float, float] | None = None
         self._view_size: tuple[int, int] = (1, 1)
+        self._scene_box: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.ones(3))  # robust box of the centres
+        self._framed: tuple[tuple[int, int] | None, int] | None = None  # (view size, camera version) of the framed
+        # home pose (``_keep_framed``); None: the home pose is a scene camera's
+        self.scene_viewport: tuple[int, int, int, int] | None = None  # the last frame's scene view (GL viewport)
         self.engine_region: str = ""
         if loaded is not None:
             self.set_scene(loaded)
@@ -165,21 +172,47 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             return dict(self.panel.params)
 
     def _frame_scene(self) -> None:
-        """Home pose: the first scene camera's viewpoint, levelled to the scene's up axis (estimated from the
-        cameras), orbiting the scene's centre; without cameras, the scene framed from its side."""
+        """Home pose. A scene with cameras of its own: the first one's viewpoint, levelled to the scene's up axis
+        (estimated from the cameras), orbiting the scene's centre. A bare scene file (generated cameras, or none):
+        the whole scene framed in the view ("frame all", ``frame_all``) from the first generated camera's side, and
+        kept framed while the view changes size and the camera has not moved (``_keep_framed``)."""
+        from gstyle_core.cameras.framing import scene_box
         from gstyle_core.cameras.generate import finite_points, robust_centre_radius
         from gstyle_core.cameras.up import estimate_up
 
+        self._scene_box = scene_box(self.loaded.scene.means)
         centre, radius = robust_centre_radius(finite_points(self.loaded.scene.means))
         self.control.world_up = estimate_up(self.cameras)
-        if self.cameras:
+        if self.cameras and not self.loaded.generated_cameras:
             cam = self.cameras[0]
             self.control.snap_to(cam, float(np.linalg.norm(cam.position - centre)))
             self.control.home = self.control.pose.copy()
             self.control.set_up(self.control.world_up)
             self.control.fly_speed = max(radius, 1e-3)
+            self._framed = None
+            return
+        if self.cameras:
+            self.control.snap_to(self.cameras[0])  # its side and field of view
         else:
-            self.control.frame(centre, radius)
+            self.control.frame(centre, radius)  # a side view
+        self.frame_all(home=True)
+        self._framed = (None, self.control.version)  # framed again for the view's size when it is first drawn
+
+    def frame_all(self, home: bool = False, size: tuple[int, int] | None = None) -> None:
+        """Frame the whole scene (its robust box) in the view (``size``: default the last frame's) from the current
+        viewing direction, with a margin on every side (F); ``home``: as the home pose (R)."""
+        if self.loaded is None:
+            return
+        size = size or self._view_size
+        self.control.frame_box(*self._scene_box, *size, set_home=home)
+        if home:
+            self._framed = (size, self.control.version)
+
+    def _keep_framed(self, size: tuple[int, int]) -> None:
+        """The home pose of a bare scene file follows the view's size (the first frame, a resized window, the panel
+        collapsed) as long as the camera stays there; after R it is framed again for the view's size then."""
+        if self._framed is not None and self._framed[0] != size and self._framed[1] == self.control.version:
+            self.frame_all(home=True, size=size)
 
     def set_style(self, path: str, slot: int = 0, mix: float | None = None) -> None:
         """Use a new style image (``slot`` 0: the painting; 1: a second painting mixed in with the mix slider, at
@@ -301,15 +334,17 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         full = tuple(target.viewport)
         view = self.view_rect(full, with_ui)
         self._view_size = (view[2], view[3])
+        presses = self.keys.take()  # taken every frame: a press acts in the frame after it, or never
         if with_ui:
             self._handle_input(view, dt)
             self._fill_panel()
             if self.show_ui:
-                commands = draw_panel(self.panel)
+                commands = draw_panel(self.panel, presses)
             for cmd in commands:
                 self.execute(cmd)
             view = self.view_rect(full, with_ui)  # the panel may have collapsed or opened this frame
             self._view_size = (view[2], view[3])
+        self.scene_viewport = view
         if view != full:
             target.use()
             target.clear(*BACKGROUND, 1.0)
@@ -337,6 +372,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
     def render_view(self, target: moderngl.Framebuffer) -> None:
         """Show the current view mode in ``target`` (its viewport), paced by ``SceneView`` (app/scene_view.py)."""
         width, height = target_size(target)
+        self._keep_framed((width, height))
         camera = self.control.camera(width, height)
         if self.original.count == 0:
             target.use()
@@ -393,8 +429,27 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         atomic_write_bytes(path, encode_png(rgb))
         return Path(path)
 
-    def capture(self, fbo: moderngl.Framebuffer) -> np.ndarray:
-        """Read ``fbo`` as uint8 RGB (row 0 = top); clears a GL error the default framebuffer read may leave."""
-        rgb = read_rgb(fbo)
+    def capture(self, fbo: moderngl.Framebuffer, viewport: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """Read ``fbo`` (its ``viewport`` part, GL coordinates; default: its viewport) as uint8 RGB (row 0 = top);
+        clears a GL error the default framebuffer read may leave."""
+        rgb = read_rgb(fbo, viewport)
         _ = self.ctx.error
         return rgb
+
+    def save_screenshots(self, fbo: moderngl.Framebuffer, scene_only: bool) -> list[Path]:
+        """Write the requested screenshots of one kind from ``fbo``: ``scene_only`` ones after the frame's scene was
+        drawn and before the UI is (the scene view's part of it), whole-window ones after the UI. The status line
+        says where each went (or why it could not be written); returns the paths written."""
+        written, left = [], []
+        for path, scene in self.screenshot_requests:
+            if scene != scene_only:
+                left.append((path, scene))
+                continue
+            viewport = self.scene_viewport if scene_only else None
+            try:
+                written.append(self.save_png(path, self.capture(fbo, viewport)))
+                self.panel.status = f"screenshot {written[-1]}"
+            except OSError as exc:  # OutputWriteError: "cannot write PATH: no space left on the device"
+                self.panel.status = f"screenshot: {exc}"
+        self.screenshot_requests = left
+        return written

@@ -56,13 +56,17 @@ class StudioCommands:
         return True
 
     def _view_command(self, name: str, args: dict[str, Any]) -> bool:
-        """View mode, field of view, camera, help, and the region tool."""
+        """View mode, field of view, camera (reset, frame all, scene cameras), help, and the region tool."""
         if name == "view_mode":
             self.set_view_mode(args["mode"])
         elif name == "fov":
             self.control.set_fov(args["degrees"])
         elif name == "reset_camera":
             self.control.reset()
+            if self._framed is not None:  # a framed home: framed again for the view's size now
+                self._framed = (None, self.control.version)
+        elif name == "frame_all":
+            self.frame_all()
         elif name == "snap_camera":
             if args["index"] < len(self.cameras):
                 cam = self.cameras[args["index"]]
@@ -85,7 +89,7 @@ class StudioCommands:
     def _output_command(self, name: str, args: dict[str, Any]) -> bool:
         """Screenshot, export, turntable video (start, settings, cancel)."""
         if name == "screenshot":
-            self.screenshot_requests.append(self.output_dir / f"screenshot_{time.strftime('%Y%m%d_%H%M%S')}.png")
+            self.request_screenshot(scene_only=bool(args.get("scene_only", False)))
         elif name == "export":
             self.export(fmt=args.get("format", "ply"))
         elif name == "turntable":
@@ -114,6 +118,15 @@ class StudioCommands:
         else:
             return False
         return True
+
+    def request_screenshot(self, scene_only: bool = False) -> Path:
+        """Save a screenshot at the end of this frame: the whole window (``screenshot_STAMP.png``) or the scene view
+        alone, without panel and overlays (``scene_only``: ``scene_STAMP.png``); never over an earlier one."""
+        stamp = time.strftime("%Y%m%d_%H%M%S")
+        path = unused_name(self.output_dir / f"{'scene' if scene_only else 'screenshot'}_{stamp}.png")
+        if (path, scene_only) not in self.screenshot_requests:  # twice in one frame: one file
+            self.screenshot_requests.append((path, scene_only))
+        return path
 
     def export(self, path: str | Path | None = None, fmt: str = "ply") -> None:
         """Export the stylized scene (``fmt`` "ply", "spz" or "compressed-ply", + .json) through the worker."""

@@ -68,7 +68,11 @@ class StudioInput:
                 self.panel.region_drag = (self._rect_start[0] / sx, self._rect_start[1] / sy, *mouse)
         self._last_mouse = mouse
         if not io_.want_capture_keyboard and not io_.key_ctrl:
-            down = imgui.is_key_down
+            chorded = self.keys.chorded  # the S of a Ctrl+S still down after Ctrl was let go: no flying back
+
+            def down(key: imgui.Key) -> bool:
+                return imgui.is_key_down(key) and key.name not in chorded
+
             forward = float(down(imgui.Key.w)) - float(down(imgui.Key.s))
             right = float(down(imgui.Key.d)) - float(down(imgui.Key.a))
             up = float(down(imgui.Key.e)) - float(down(imgui.Key.q))

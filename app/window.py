@@ -20,6 +20,7 @@ import moderngl
 
 from gstyle_core.errors import GStyleError
 
+from .keys import KeyPresses
 from .on_demand import EventCounter
 
 
@@ -40,6 +41,7 @@ class Window:
     ctx: moderngl.Context
     headless: bool
     counter: EventCounter = field(default_factory=EventCounter)  # its events (render on demand, app/on_demand.py)
+    keys: KeyPresses = field(default_factory=KeyPresses)  # its key presses with their modifiers (app/keys.py)
 
     @property
     def framebuffer_size(self) -> tuple[int, int]:
@@ -123,11 +125,19 @@ def open_window(width: int, height: int, title: str = "G-Style Studio", headless
     except ImportError:
         pass
     imgui.get_io().set_ini_filename("")
-    counter = EventCounter()
-    counter.install(glfw, handle)  # first: ImGui's backend chains its callbacks to these
+    counter, keys = EventCounter(), KeyPresses(layout=_layout_key_name)
+    counter.install(glfw, handle, keys.on_key)  # first: ImGui's backend chains its callbacks to these
     imgui.backends.glfw_init_for_opengl(ctypes.cast(handle, ctypes.c_void_p).value, True)
     imgui.backends.opengl3_init("#version 330")
-    return Window(handle, ctx, headless, counter)
+    return Window(handle, ctx, headless, counter, keys)
+
+
+def _layout_key_name(key: int, scancode: int) -> str | None:
+    """glfw's name of a printable key in the keyboard layout (None for the others, or when glfw cannot tell)."""
+    try:
+        return glfw.get_key_name(key, scancode)
+    except Exception:  # noqa: BLE001 - glfw reports errors as exceptions or warnings, depending on its settings
+        return None
 
 
 def _attach_moderngl() -> moderngl.Context:

@@ -38,12 +38,19 @@ def is_video_request(args: argparse.Namespace) -> bool:
 
 def turntable_cameras(scene: GaussianScene, count: int, width: int = TURNTABLE_SIZE[0],
                       height: int = TURNTABLE_SIZE[1], up: str | np.ndarray = "-y") -> list[Camera]:
-    """``count`` views evenly around the scene on an orbit 20 degrees above its horizon (``generate_cameras``)."""
+    """``count`` views evenly around the scene on an orbit 20 degrees above its horizon (the directions of
+    ``generate_cameras``' orbit), looking at the centre of the scene's robust box from the one distance that frames
+    the whole box with a margin in every frame (``cameras.framing``: the subject never touches the frame's edge)."""
     from .cameras import generate_cameras
+    from .cameras.framing import frame_cameras, scene_box
+    from .cameras.generate import finite_points, resolve_up, robust_centre_radius
 
     if not 1 <= count <= MAX_TURNTABLE_FRAMES:
         raise GStyleError(f"--turntable needs 1 to {MAX_TURNTABLE_FRAMES:,} frames, got {count}")
-    return list(generate_cameras(scene.means, kind="orbit", count=count, width=width, height=height, up=up).cameras)
+    orbit = generate_cameras(scene.means, kind="orbit", count=count, width=width, height=height, up=up).cameras
+    pts = finite_points(scene.means)
+    up_vec = resolve_up(up, pts, robust_centre_radius(pts)[0])  # the orbit's up, as generate_cameras found it
+    return frame_cameras(orbit, *scene_box(scene.means), up_vec)
 
 
 def cameras_up(cameras: Sequence[Camera]) -> np.ndarray:

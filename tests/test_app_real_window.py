@@ -22,7 +22,13 @@ from gstyle_core.io import save_scene  # noqa: E402
 from gstyle_core.scene import GaussianScene, logit, rgb_to_sh_dc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+TESTS = Path(__file__).resolve().parent
 PANEL = 420  # app.panels.PANEL_WIDTH
+# The studio's command line with the engine factory swapped for a fake engine that runs (a million steps) until
+# closed and marks its fifth step in the file $GSTYLE_TEST_STEPPED (tests/fakes.py).
+WITH_FAKE_ENGINE = ("import sys; sys.path.insert(0, sys.argv.pop(1)); import fakes, app.engine_factory as factory; "
+                    "factory.make_stylizer = fakes.make_command_line_engine; from app.main import main; "
+                    "sys.exit(main(sys.argv[1:]))")
 
 
 @pytest.fixture(scope="module")
@@ -58,10 +64,16 @@ def pole_and_ring() -> GaussianScene:
 class Studio:
     """``gstyle-studio`` in a window on the test's X display, with xdotool input and F12 screenshots."""
 
-    def __init__(self, display: str, tmp: Path, scene: Path, size: str, *extra: str) -> None:
-        self.env = {**os.environ, "DISPLAY": display, "GSTYLE_CACHE": str(tmp / "cache")}
+    def __init__(self, display: str, tmp: Path, scene: Path | None, size: str, *extra: str,
+                 engine: bool = False) -> None:
+        """``scene`` None: the bundled demo. ``engine``: a fake engine runs (``WITH_FAKE_ENGINE``; ``self.stepped``
+        appears once it has stepped), else none."""
+        self.stepped = tmp / "stepped"
+        self.env = {**os.environ, "DISPLAY": display, "GSTYLE_CACHE": str(tmp / "cache"),
+                    "GSTYLE_TEST_STEPPED": str(self.stepped)}
         self.out = tmp / "out"
-        argv = [sys.executable, "-m", "app.main", str(scene), "--no-engine", "--size", size, "--output-dir",
+        start = ["-c", WITH_FAKE_ENGINE, str(TESTS), "--engine"] if engine else ["-m", "app.main", "--no-engine"]
+        argv = [sys.executable, *start, *([str(scene)] if scene is not None else []), "--size", size, "--output-dir",
                 str(self.out), *extra]
         self.proc = subprocess.Popen(argv, cwd=ROOT, env=self.env, stdout=subprocess.DEVNULL,
                                      stderr=subprocess.PIPE, text=True)
@@ -97,21 +109,37 @@ class Studio:
             self.xdo("keyup", hold)
         time.sleep(0.5)
 
-    def screenshot(self) -> np.ndarray:
-        """F12: the studio writes the window (panel included) to its output folder; that image, RGB."""
+    def grab(self, size: tuple[int, int]) -> np.ndarray:
+        """The window as the X server shows it (no F12: the status line stays as it is), RGB."""
+        from PIL import ImageGrab
+
+        time.sleep(0.6)  # a frame or two
+        shell = dict(line.split("=", 1) for line in self.xdo("getwindowgeometry", "--shell", self.window).split())
+        x, y = int(shell["X"]), int(shell["Y"])
+        screen = np.asarray(ImageGrab.grab(xdisplay=self.env["DISPLAY"]).convert("RGB"))
+        return screen[y:y + size[1], x:x + size[0]]
+
+    def click(self, x: float, y: float) -> None:
+        self.move(x, y)
+        self.xdo("click", "1")
+        time.sleep(0.4)
+
+    def screenshot(self, scene_only: bool = False) -> np.ndarray:
+        """F12: the studio writes the window (panel included) to its output folder; that image, RGB. ``scene_only``:
+        Shift+F12, the scene view alone (``scene_*.png``)."""
         from PIL import Image
 
-        before = set(self.out.glob("screenshot_*.png")) if self.out.is_dir() else set()
-        time.sleep(1.05)  # one file name per second
-        self.key("F12")
+        pattern = "scene_*.png" if scene_only else "screenshot_*.png"
+        before = set(self.out.glob(pattern)) if self.out.is_dir() else set()
+        self.key("shift+F12" if scene_only else "F12")
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:
-            new = set(self.out.glob("screenshot_*.png")) - before if self.out.is_dir() else set()
+            new = set(self.out.glob(pattern)) - before if self.out.is_dir() else set()
             if new:
                 time.sleep(0.2)
                 return np.asarray(Image.open(new.pop()).convert("RGB"))
             time.sleep(0.1)
-        raise AssertionError("F12 wrote no screenshot")
+        raise AssertionError(f"{'Shift+' if scene_only else ''}F12 wrote no screenshot")
 
     def close(self) -> None:
         if self.proc.poll() is None:
@@ -201,3 +229,127 @@ def test_c_after_t_compares_with_the_original(display, tmp_path, scene_file):
     finally:
         studio.close()
 
+
+
+def view_margins(img: np.ndarray) -> np.ndarray:
+    """(left, top, right, bottom) free share of the view beside the panel around its lit pixels."""
+    lit = img[:, PANEL:].astype(np.int32).sum(-1) > 60
+    ys, xs = np.nonzero(lit)
+    assert lit.sum() > 500, "the scene is not in the view beside the panel"
+    h, w = lit.shape
+    return np.array([xs.min() / w, ys.min() / h, (w - 1 - xs.max()) / w, (h - 1 - ys.max()) / h])
+
+
+def test_the_demo_is_framed_in_a_small_window(display, tmp_path):
+    """The bundled demo (a .splat: generated cameras) at 640x480: the whole fountain inside the view beside the
+    panel with a margin on every side (its top touched the window's edge, #27); still inside after a turntable
+    drag; R brings the framed view back; with the panel collapsed it is framed in the whole window."""
+    studio = Studio(display, tmp_path, None, "640x480")
+    try:
+        home = studio.screenshot()
+        assert view_margins(home).min() > 0.03
+        studio.drag((530, 240), (610, 240))  # a turntable orbit
+        assert view_margins(studio.screenshot()).min() > 0.02
+        studio.key("r")
+        again = studio.screenshot()
+        assert view_margins(again).min() > 0.03
+        assert np.abs(again[:, PANEL:].astype(np.int32) - home[:, PANEL:]).max(-1).mean() < 2  # the same view
+        studio.click(10, 9)  # the panel's collapse arrow: the view is the whole window, the home framed in it again
+        whole = studio.screenshot().copy()
+        whole[:24, :PANEL] = 0  # the collapsed panel's title bar
+        lit = whole.astype(np.int32).sum(-1) > 60
+        ys, xs = np.nonzero(lit)
+        assert xs.min() > 0.03 * 640 and xs.max() < 0.97 * 640 and ys.max() < 0.97 * 480
+        assert ys.min() > 26  # the top clear of the title bar too (and of the window's edge by more than 3 %)
+        assert xs.max() - xs.min() > 150  # larger than beside the panel
+    finally:
+        studio.close()
+
+
+@pytest.mark.parametrize("size", ["640x480", "520x480"])
+def test_the_help_stays_off_the_panels_controls_and_closes(display, tmp_path, scene_file, size):
+    """H shows the help over the scene view beside the panel (at 640x480 no pixel of the panel changes); in a
+    window too narrow for it (520x480, a 100-pixel view) it covers the panel's edge and says how to close it: a click
+    on it, H or Esc closes it."""
+    width, height = (int(v) for v in size.split("x"))
+    studio = Studio(display, tmp_path, scene_file, size)
+    try:
+        def changed(img: np.ndarray) -> np.ndarray:
+            return np.abs(img.astype(np.int32) - base).max(-1) > 30
+
+        base = studio.grab((width, height))
+        for close in ("click", "h", "Escape"):
+            studio.key("h")
+            shown = changed(studio.grab((width, height)))
+            ys, xs = np.nonzero(shown[:, PANEL:])
+            assert len(xs) > 2000, "no help"
+            if width == 640:  # (left of x = 200 the panel's frame rate changes)
+                assert not shown[:, 200:PANEL].any(), "the help covers the panel"
+            else:
+                assert shown[:, PANEL - 60:PANEL].sum() > 100, close  # its text over the panel's edge
+            if close == "click":
+                studio.click(PANEL + xs.mean(), ys.mean())
+            else:
+                studio.key(close)
+            assert changed(studio.grab((width, height)))[:, 200:].sum() < 50, f"{close} did not close the help"
+    finally:
+        studio.close()
+
+
+def grey_pixels(img: np.ndarray) -> np.ndarray:
+    """Where ``img`` shows the studio's UI over the red and green scene: ImGui's greys and white text."""
+    rgb = img.astype(np.int32)
+    return (np.abs(rgb[..., 0] - rgb[..., 1]) < 12) & (np.abs(rgb[..., 1] - rgb[..., 2]) < 12) & (rgb[..., 0] > 25)
+
+
+def test_shift_f12_saves_the_scene_view_alone(display, tmp_path, scene_file):
+    """F12 saves the whole window (panel and the help overlay included); Shift+F12 the scene view alone: its size,
+    the same scene pixels, no panel or overlay pixels."""
+    studio = Studio(display, tmp_path, scene_file, "1000x640")
+    try:
+        studio.key("h")  # the help overlay over the scene view
+        window = studio.screenshot()
+        scene = studio.screenshot(scene_only=True)
+        assert window.shape == (640, 1000, 3) and scene.shape == (640, 1000 - PANEL, 3)
+        view = window[:, PANEL:]
+        overlay = grey_pixels(view)
+        assert overlay.sum() > 2000, "the help overlay is not in the window's screenshot"
+        assert grey_pixels(scene).sum() < 20, "UI pixels in the scene-only screenshot"
+        ys, xs = np.nonzero(overlay)
+        outside = np.ones(overlay.shape, bool)
+        outside[ys.min() - 2:ys.max() + 3, xs.min() - 2:xs.max() + 3] = False  # the overlay's box
+        same = np.abs(scene.astype(np.int32) - view).max(-1) <= 2
+        assert same[outside].mean() > 0.99  # the scene view's pixels, where the overlay is not
+        assert (scene.astype(np.int32).sum(-1) > 60).sum() > 500  # and the scene is in it
+    finally:
+        studio.close()
+
+
+def test_a_ctrl_s_tap_during_a_run_exports(display, tmp_path, scene_file):
+    """Issue #27 item 8: a short Ctrl+S tap while the engine runs exports. The quick hand's tap: Ctrl goes down, a
+    frame or more later S goes down and Ctrl comes up at once, so both reach the studio between two of its frames. It
+    was lost when the shortcut asked at the frame whether Ctrl was down (by then it was up again); the key callback
+    reports S with Ctrl held. Then xdotool's own ``key ctrl+s``."""
+    import json
+
+    rolling = ("keydown", "ctrl", "sleep", "0.2", "keydown", "--delay", "0", "s", "keyup", "--delay", "0", "ctrl",
+               "keyup", "--delay", "0", "s")
+    studio = Studio(display, tmp_path, scene_file, "1000x640", engine=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not studio.stepped.exists() and studio.proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert studio.stepped.exists(), "the engine never stepped"
+        for taps, keys in enumerate((rolling, rolling, ("key", "ctrl+s")), start=1):
+            studio.xdo(*keys)
+            deadline = time.monotonic() + 30
+            while len(list(studio.out.glob("stylized_*.json"))) < taps and time.monotonic() < deadline:
+                time.sleep(0.1)
+            assert len(list(studio.out.glob("stylized_*.json"))) == taps, f"tap {taps} ({keys}) exported nothing"
+            time.sleep(0.3)
+        for summary in studio.out.glob("stylized_*.json"):
+            report = json.loads(summary.read_text())["report"]
+            assert report["phase"] == "stylize" and not report["done"] and report["step"] >= 5  # during the run
+            assert summary.with_suffix(".ply").is_file()
+    finally:
+        studio.close()

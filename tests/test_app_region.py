@@ -127,8 +127,8 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         assert app.bridge.wait_until(lambda s: s.ready or s.error, 60)
         assert app.bridge.wait_until(lambda s: len(BUILT) >= 2, 30)
         assert BUILT[-1].settings.region == HALF and np.array_equal(BUILT[-1].input_selection, inside)
-        driver.frame(lambda io: io.add_key_event(imgui.Key.b, True))
-        driver.frame(lambda io: io.add_key_event(imgui.Key.b, False))
+        app.keys.press("b")  # as the window's key callback queues it (app/keys.py)
+        driver.frame()
         assert not app.region_enabled and not app.stylized.highlight
     finally:
         assert app.close(timeout=60)

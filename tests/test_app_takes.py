@@ -13,7 +13,6 @@ pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
 from fakes import make_fake_engine  # noqa: E402
-from imgui_bundle import imgui  # noqa: E402
 from imgui_driver import studio_driver  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
@@ -85,8 +84,8 @@ def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_p
         assert app.view_mode == "compare" and app.compare_with_take and app.take_shown == str(exported[0])
         # C after T compares with the original (stylized left, original right, as its tooltip says); C again leaves
         for expected in (("compare", False, "comparing with the original"), ("stylized", False, "")):
-            driver.frame(lambda io: io.add_key_event(imgui.Key.c, True))
-            driver.frame(lambda io: io.add_key_event(imgui.Key.c, False))
+            app.keys.press("c")  # as the window's key callback queues it (app/keys.py)
+            driver.frame()
             assert (app.view_mode, app.compare_with_take, app.panel.status) == expected
         driver.frame()
         assert not app.panel.compare_with_take

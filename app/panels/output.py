@@ -9,17 +9,19 @@ from .widgets import button, button_row, tooltip
 
 
 def output_section(state: PanelState, out: list[Command]) -> None:
-    """Export buttons (.ply, .spz, .compressed.ply), screenshot and the turntable video row."""
+    """Export buttons (.ply, .spz, .compressed.ply), screenshots (window, scene view) and the turntable video row."""
     imgui.separator()
     button_row(out, ("Export .ply (Ctrl+S)", "Save the stylized scene as .ply with a .json summary in the output "
                                              "folder.", Command("export")),
-               ("Screenshot (F12)", "Save the current view as PNG in the output folder.", Command("screenshot")))
-    button_row(out, ("Export .spz", "Save the stylized scene for web viewers as Niantic .spz (about 10x smaller than "
-                                    ".ply) with a .json summary in the output folder.",
-                     Command("export", {"format": "spz"})),
-               ("Export .compressed.ply", "Save the stylized scene for web viewers as PlayCanvas / SuperSplat "
-                                          "compressed PLY with a .json summary in the output folder.",
-                Command("export", {"format": "compressed-ply"})))
+               ("Export .spz", "Save the stylized scene for web viewers as Niantic .spz (about 10x smaller than .ply) "
+                               "with a .json summary in the output folder.", Command("export", {"format": "spz"})))
+    button_row(out, ("Export .compressed.ply", "Save the stylized scene for web viewers as PlayCanvas / SuperSplat "
+                                               "compressed PLY with a .json summary in the output folder.",
+                     Command("export", {"format": "compressed-ply"})))
+    button_row(out, ("Screenshot (F12)", "Save the whole window (panel and overlays included) as PNG in the output "
+                                         "folder.", Command("screenshot", {"scene_only": False})),
+               ("Scene only (Shift+F12)", "Save the scene view alone (its size, no panel or overlays) as PNG in the "
+                                          "output folder.", Command("screenshot", {"scene_only": True})))
     video_row(state, out)
 
 

@@ -16,11 +16,27 @@ VIEW_TOOLTIPS = {
     "take": "The take chosen under Takes (an earlier export; the newest when none is chosen), alone.",
 }
 
-HELP_TEXT = """Mouse: left drag orbit (turntable about the scene's up), right drag pan, wheel dolly. W/A/S/D/Q/E fly.
-B region tool (Alt + drag / wheel: move / resize its box; Shift + drag: select by rectangle)
-T compare with the next take (your exports)
-Space pause/resume   C compare   1-9 scene cameras (all: the camera list)   R reset view
-Ctrl+S export .ply   F12 screenshot   H this help"""
+HELP_ROWS = (  # (keys, what they do): the help overlay (H); the README lists the same keys
+    ("left drag", "orbit (turns about the scene's up)"),
+    ("right drag, wheel", "pan, dolly"),
+    ("W A S D, Q E", "fly; down, up"),
+    ("F", "frame the whole scene from this side"),
+    ("R", "reset the view"),
+    ("1-9", "scene cameras (all of them: the camera list)"),
+    ("Space", "pause / resume the engine"),
+    ("C", "compare: stylized left, original right"),
+    ("T", "compare with the next take (your exports)"),
+    ("B", "region tool on / off"),
+    ("Alt + drag, wheel", "move, resize the region box"),
+    ("Shift + drag", "select by rectangle"),
+    ("Ctrl+S", "export .ply"),
+    ("F12", "screenshot of the window"),
+    ("Shift+F12", "screenshot of the scene view alone"),
+)
+HELP_TITLE = "H, Esc or a click here closes this help"
+HELP_PAD = 10.0  # pixels between the help and the view's edges
+MIN_HELP_WIDTH = 160.0  # narrower views: the help covers the panel's edge (it says how to close it)
+
 
 
 def view_section(state: PanelState, out: list[Command]) -> None:
@@ -40,8 +56,12 @@ def view_section(state: PanelState, out: list[Command]) -> None:
     tooltip("Field of view of the viewer's camera, across the view's smaller side.")
     if changed:
         out.append(Command("fov", {"degrees": fov}))
-    if button("Reset view", "Back to the first scene camera's view (R)."):
+    if button("Reset view", "Back to the home view (R): the first scene camera's, or for a scene file without "
+                            "cameras the whole scene framed."):
         out.append(Command("reset_camera"))
+    imgui.same_line()
+    if button("Frame all", "Look at the whole scene from this side, with a margin on every side of the view (F)."):
+        out.append(Command("frame_all"))
     camera_list(state, out)
 
 
@@ -82,16 +102,44 @@ def compare_labels(state: PanelState) -> None:
     draw.add_text(imgui.ImVec2(x + 10, y), colour, right)
 
 
-def help_overlay(state: PanelState) -> None:
-    """The keys and mouse actions, centred over the scene's view (beside the panel, not over its controls)."""
+def help_overlay(state: PanelState, out: list[Command]) -> None:
+    """The keys and mouse actions over the scene's view, beside the panel, centred: a table where the view is wide
+    enough for it, else one wrapped line per key. A view narrower than ``MIN_HELP_WIDTH`` (a window under ~600
+    pixels wide) gets it at the window's right edge, over the panel's edge; its title says that H, Esc or a click on
+    it closes it."""
     ox, oy, width, height = state.view_rect
-    imgui.set_next_window_pos(imgui.ImVec2(ox + width * 0.5, oy + height * 0.5), imgui.Cond_.always,
+    style = imgui.get_style()
+    keys_width = max(imgui.calc_text_size(keys).x for keys, _ in HELP_ROWS)
+    table_width = (keys_width + max(imgui.calc_text_size(what).x for _, what in HELP_ROWS)
+                   + 4 * style.cell_padding.x + 2 * style.window_padding.x + 2 * style.item_spacing.x)
+    room = width - 2 * HELP_PAD
+    as_table = table_width <= room
+    help_width = table_width if as_table else max(room, MIN_HELP_WIDTH)
+    centre_x = ox + width / 2 if help_width <= room else ox + width - help_width / 2
+    imgui.set_next_window_pos(imgui.ImVec2(max(centre_x, help_width / 2), oy + height / 2), imgui.Cond_.always,
                               imgui.ImVec2(0.5, 0.5))
+    imgui.set_next_window_size_constraints(imgui.ImVec2(help_width, 0.0),
+                                           imgui.ImVec2(help_width, max(height - 2 * HELP_PAD, 60.0)))
     imgui.set_next_window_bg_alpha(0.85)
     flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.always_auto_resize
-             | imgui.WindowFlags_.no_inputs)
+             | imgui.WindowFlags_.no_focus_on_appearing | imgui.WindowFlags_.no_nav
+             | imgui.WindowFlags_.no_saved_settings)
     imgui.begin("help", None, flags)
-    imgui.push_text_wrap_pos(max(width - 40.0, 160.0))
-    imgui.text_wrapped(HELP_TEXT)
-    imgui.pop_text_wrap_pos()
+    imgui.text_wrapped(HELP_TITLE)
+    imgui.separator()
+    if as_table and imgui.begin_table("keys", 2, imgui.TableFlags_.row_bg):
+        imgui.table_setup_column("keys", imgui.TableColumnFlags_.width_fixed, keys_width)
+        imgui.table_setup_column("what", imgui.TableColumnFlags_.width_stretch)
+        for keys, what in HELP_ROWS:
+            imgui.table_next_row()
+            imgui.table_next_column()
+            imgui.text(keys)
+            imgui.table_next_column()
+            imgui.text(what)
+        imgui.end_table()
+    elif not as_table:
+        for keys, what in HELP_ROWS:
+            imgui.text_wrapped(f"{keys}: {what}")
+    if imgui.is_window_hovered() and imgui.is_mouse_clicked(0):
+        out.append(Command("toggle_help"))
     imgui.end()
