@@ -5,7 +5,8 @@ A mixin of ``StudioApp`` (it uses the app's scene, camera control, renderers, pa
 from __future__ import annotations
 
 import numpy as np
-from imgui_bundle import imgui
+
+from .studio_framing import framebuffer_scale
 
 
 class RegionTool:
@@ -112,8 +113,7 @@ class RegionTool:
         mask = self.region_mask()
         if mask is None or self.loaded is None or not mask.any():
             return []
-        scale = imgui.get_io().display_framebuffer_scale if imgui.get_current_context() is not None else None
-        sx, sy = (scale.x, scale.y) if scale is not None and scale.x > 0 else (1.0, 1.0)
+        sx, sy = framebuffer_scale()
         key = (self._region_version, id(mask), self.control.version, width, height, sx, sy)
         cached = self._selection_shown.get("outline")
         if cached is None or cached[0] != key:
@@ -130,8 +130,7 @@ class RegionTool:
         b = self.region_box
         corners = np.array([[b[3 * (i & 1)], b[1 + 3 * ((i >> 1) & 1)], b[2 + 3 * ((i >> 2) & 1)]] for i in range(8)])
         pc = corners @ np.asarray(cam.world_to_cam)[:3, :3].T + np.asarray(cam.world_to_cam)[:3, 3]
-        scale = imgui.get_io().display_framebuffer_scale if imgui.get_current_context() is not None else None
-        sx, sy = (scale.x, scale.y) if scale is not None and scale.x > 0 else (1.0, 1.0)
+        sx, sy = framebuffer_scale()
         edges = []
         for i in range(8):
             for bit in (1, 2, 4):

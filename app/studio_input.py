@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from imgui_bundle import imgui
 
+from .studio_framing import framebuffer_scale
+
 BOX_WHEEL_STEP = 1.1  # Alt + one wheel notch resizes the region box by this factor
 DIVIDER_GRAB_PIXELS = 6
 
@@ -26,17 +28,17 @@ class StudioInput:
         relative to its top-left corner."""
         io_ = imgui.get_io()
         width, height = view[2], view[3]
-        scale = io_.display_framebuffer_scale
+        sx, sy = framebuffer_scale()
         origin = self.panel.view_rect[:2]  # window coordinates
         mouse = (io_.mouse_pos.x - origin[0], io_.mouse_pos.y - origin[1])
-        fb_mouse = (mouse[0] * (scale.x or 1.0), mouse[1] * (scale.y or 1.0))
+        fb_mouse = (mouse[0] * sx, mouse[1] * sy)
         if self._dragging == "select" and not imgui.is_mouse_down(0):  # released: select what the rectangle holds
             start, self._rect_start = self._rect_start, None
             self.panel.region_drag = None
             if start is not None and abs(fb_mouse[0] - start[0]) >= 2 and abs(fb_mouse[1] - start[1]) >= 2:
                 self.select_rectangle((*start, *fb_mouse), width, height)
         if not io_.want_capture_mouse and mouse[0] >= 0:
-            divider_x = self.divider * width / (scale.x or 1.0)
+            divider_x = self.divider * width / sx
             if imgui.is_mouse_clicked(0) and io_.key_shift and self.loaded is not None:
                 self._dragging, self._rect_start = "select", fb_mouse
                 self.region_enabled = True
@@ -62,9 +64,8 @@ class StudioInput:
             elif self._dragging == "pan" and (dx or dy):
                 self.control.pan(dx, dy, height)
             elif self._dragging == "box" and (dx or dy):
-                self.move_region_box(dx * (scale.x or 1.0), dy * (scale.y or 1.0), width, height)
+                self.move_region_box(dx * sx, dy * sy, width, height)
             elif self._dragging == "select" and self._rect_start is not None:
-                sx, sy = scale.x or 1.0, scale.y or 1.0
                 self.panel.region_drag = (self._rect_start[0] / sx, self._rect_start[1] / sy, *mouse)
         self._last_mouse = mouse
         if not io_.want_capture_keyboard and not io_.key_ctrl:
