@@ -22,7 +22,7 @@ pytest.importorskip("moderngl")
 
 from PIL import Image  # noqa: E402
 from synthetic import blob_scene  # noqa: E402
-from xsession import XServer, find_buttons, log_lines, start_xvfb, wait_for  # noqa: E402
+from xsession import XServer, find_buttons, log_lines, start_xvfb, stop_process, wait_for  # noqa: E402
 
 from app.panels import PANEL_WIDTH  # noqa: E402
 from gstyle_core.io import load_scene, save_scene  # noqa: E402
@@ -131,12 +131,7 @@ class Studio:
         return shot[top:bottom, boxes[0][0] + 2:boxes[0][0] + 100].reshape(-1, 3).mean(axis=0)
 
     def close(self) -> None:
-        self.proc.terminate()
-        try:
-            self.proc.wait(20)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait(5)
+        stop_process(self.proc, 20.0)
 
 
 def scene_area_changed(before: np.ndarray, after: np.ndarray) -> float:

@@ -70,11 +70,17 @@ class XServer:
         return np.asarray(ImageGrab.grab(xdisplay=self.display).convert("RGB"))
 
     def stop(self) -> None:
-        self.proc.terminate()
-        try:
-            self.proc.wait(5)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
+        stop_process(self.proc, 5.0)
+
+
+def stop_process(proc: subprocess.Popen, grace: float) -> None:
+    """Ask ``proc`` to end (SIGTERM); kill it if it has not within ``grace`` seconds."""
+    proc.terminate()
+    try:
+        proc.wait(grace)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(5)
 
 
 def start_xvfb(size: tuple[int, int] = (1024, 768), timeout: float = 10.0) -> XServer:

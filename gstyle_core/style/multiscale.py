@@ -95,7 +95,7 @@ class MultiScaleStyleLoss(nn.Module):
         self._style_weights = tuple(float(w) for w in weights)
         for target in self.targets:
             if isinstance(target, WeightedTargets):
-                target.weights = tuple(float(w) for w in weights)
+                target.weights = self._style_weights
 
     def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
         if render.ndim != 4 or render.shape[1] != 3:
