@@ -146,6 +146,12 @@ class Studio:
             self.proc.terminate()
             self.proc.communicate(timeout=60)
 
+    def __enter__(self) -> Studio:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
 
 @pytest.fixture
 def scene_file(tmp_path) -> Path:
@@ -166,8 +172,7 @@ def pole_angle_deg(img: np.ndarray) -> float:
 
 
 def test_horizontal_orbit_keeps_the_scene_upright(display, tmp_path, scene_file):
-    studio = Studio(display, tmp_path, scene_file, "1000x640")
-    try:
+    with Studio(display, tmp_path, scene_file, "1000x640") as studio:
         studio.key("r")
         assert pole_angle_deg(studio.screenshot()) < 2.0
         studio.drag((560, 320), (860, 320))  # 300 px to the right
@@ -175,13 +180,10 @@ def test_horizontal_orbit_keeps_the_scene_upright(display, tmp_path, scene_file)
         assert pole_angle_deg(img) < 2.0
         studio.drag((860, 320), (660, 320))
         assert pole_angle_deg(studio.screenshot()) < 2.0
-    finally:
-        studio.close()
 
 
 def test_small_window_shows_the_whole_scene_beside_the_panel(display, tmp_path, scene_file):
-    studio = Studio(display, tmp_path, scene_file, "640x480")
-    try:
+    with Studio(display, tmp_path, scene_file, "640x480") as studio:
         img = studio.screenshot()
         assert img.shape == (480, 640, 3)
         lit = img.astype(np.int32).sum(-1) > 60
@@ -189,21 +191,16 @@ def test_small_window_shows_the_whole_scene_beside_the_panel(display, tmp_path, 
         ys, xs = np.nonzero(view)
         assert view.sum() > 500, "the scene is not in the view beside the panel"
         assert xs.min() > 2 and xs.max() < view.shape[1] - 3 and ys.min() > 2 and ys.max() < 477  # nothing cut off
-    finally:
-        studio.close()
 
 
 def test_selection_shows_in_the_stylized_view(display, tmp_path, scene_file):
-    studio = Studio(display, tmp_path, scene_file, "1000x640")
-    try:
+    with Studio(display, tmp_path, scene_file, "1000x640") as studio:
         before = studio.screenshot()
         studio.key("b")
         studio.drag((600, 200), (960, 450), hold="shift")
         after = studio.screenshot()
         changed = np.abs(after[:, PANEL + 10:].astype(np.int32) - before[:, PANEL + 10:]).sum(-1) > 60
         assert changed.sum() > 200, "the selection is not visible in the stylized view"
-    finally:
-        studio.close()
 
 
 def test_c_after_t_compares_with_the_original(display, tmp_path, scene_file):
@@ -215,8 +212,7 @@ def test_c_after_t_compares_with_the_original(display, tmp_path, scene_file):
     blue.sh_dc[:] = rgb_to_sh_dc(np.tile([0.1, 0.2, 1.0], (blue.count, 1)).astype(np.float32))
     save_scene(blue, take)
     TakeShelf(take.parent).add(take, blue.count)
-    studio = Studio(display, tmp_path, scene_file, "1000x640")
-    try:
+    with Studio(display, tmp_path, scene_file, "1000x640") as studio:
         def blue_right() -> float:  # share of the lit pixels right of the divider that are blue
             img = studio.screenshot()[:, PANEL + (1000 - PANEL) // 2 + 4:].astype(np.int32)
             lit = img.sum(-1) > 60
@@ -226,8 +222,6 @@ def test_c_after_t_compares_with_the_original(display, tmp_path, scene_file):
         assert blue_right() > 0.5  # T: the take (blue) right of the divider
         studio.key("c")
         assert blue_right() < 0.05  # C: the original right of the divider
-    finally:
-        studio.close()
 
 
 
@@ -244,8 +238,7 @@ def test_the_demo_is_framed_in_a_small_window(display, tmp_path):
     """The bundled demo (a .splat: generated cameras) at 640x480: the whole fountain inside the view beside the
     panel with a margin on every side (its top touched the window's edge, #27); still inside after a turntable
     drag; R brings the framed view back; with the panel collapsed it is framed in the whole window."""
-    studio = Studio(display, tmp_path, None, "640x480")
-    try:
+    with Studio(display, tmp_path, None, "640x480") as studio:
         home = studio.screenshot()
         assert view_margins(home).min() > 0.03
         studio.drag((530, 240), (610, 240))  # a turntable orbit
@@ -262,8 +255,6 @@ def test_the_demo_is_framed_in_a_small_window(display, tmp_path):
         assert xs.min() > 0.03 * 640 and xs.max() < 0.97 * 640 and ys.max() < 0.97 * 480
         assert ys.min() > 26  # the top clear of the title bar too (and of the window's edge by more than 3 %)
         assert xs.max() - xs.min() > 150  # larger than beside the panel
-    finally:
-        studio.close()
 
 
 @pytest.mark.parametrize("size", ["640x480", "520x480"])
@@ -272,8 +263,7 @@ def test_the_help_stays_off_the_panels_controls_and_closes(display, tmp_path, sc
     window too narrow for it (520x480, a 100-pixel view) it covers the panel's edge and says how to close it: a click
     on it, H or Esc closes it."""
     width, height = (int(v) for v in size.split("x"))
-    studio = Studio(display, tmp_path, scene_file, size)
-    try:
+    with Studio(display, tmp_path, scene_file, size) as studio:
         def changed(img: np.ndarray) -> np.ndarray:
             return np.abs(img.astype(np.int32) - base).max(-1) > 30
 
@@ -292,8 +282,6 @@ def test_the_help_stays_off_the_panels_controls_and_closes(display, tmp_path, sc
             else:
                 studio.key(close)
             assert changed(studio.grab((width, height)))[:, 200:].sum() < 50, f"{close} did not close the help"
-    finally:
-        studio.close()
 
 
 def grey_pixels(img: np.ndarray) -> np.ndarray:
@@ -305,8 +293,7 @@ def grey_pixels(img: np.ndarray) -> np.ndarray:
 def test_shift_f12_saves_the_scene_view_alone(display, tmp_path, scene_file):
     """F12 saves the whole window (panel and the help overlay included); Shift+F12 the scene view alone: its size,
     the same scene pixels, no panel or overlay pixels."""
-    studio = Studio(display, tmp_path, scene_file, "1000x640")
-    try:
+    with Studio(display, tmp_path, scene_file, "1000x640") as studio:
         studio.key("h")  # the help overlay over the scene view
         window = studio.screenshot()
         scene = studio.screenshot(scene_only=True)
@@ -321,8 +308,6 @@ def test_shift_f12_saves_the_scene_view_alone(display, tmp_path, scene_file):
         same = np.abs(scene.astype(np.int32) - view).max(-1) <= 2
         assert same[outside].mean() > 0.99  # the scene view's pixels, where the overlay is not
         assert (scene.astype(np.int32).sum(-1) > 60).sum() > 500  # and the scene is in it
-    finally:
-        studio.close()
 
 
 def test_a_ctrl_s_tap_during_a_run_exports(display, tmp_path, scene_file):
@@ -334,8 +319,7 @@ def test_a_ctrl_s_tap_during_a_run_exports(display, tmp_path, scene_file):
 
     rolling = ("keydown", "ctrl", "sleep", "0.2", "keydown", "--delay", "0", "s", "keyup", "--delay", "0", "ctrl",
                "keyup", "--delay", "0", "s")
-    studio = Studio(display, tmp_path, scene_file, "1000x640", engine=True)
-    try:
+    with Studio(display, tmp_path, scene_file, "1000x640", engine=True) as studio:
         deadline = time.monotonic() + 120
         while not studio.stepped.exists() and studio.proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.2)
@@ -351,5 +335,3 @@ def test_a_ctrl_s_tap_during_a_run_exports(display, tmp_path, scene_file):
             report = json.loads(summary.read_text())["report"]
             assert report["phase"] == "stylize" and not report["done"] and report["step"] >= 5  # during the run
             assert summary.with_suffix(".ply").is_file()
-    finally:
-        studio.close()
