@@ -18,6 +18,9 @@ and the time per stylization step. Variants (prototypes only; the engine is not 
   engine's own default holds (λ_NNFM when no CLIP weights are found, 0 with them); ``--multiscale 0`` switches it
   off (the "today" rows of docs/texture-scale.md were measured without the term).
 * ``--factors 2,4``: the broad-strokes term's downsampling factors (``multiscale.DEFAULT_FACTORS``, shipped 2,4,8).
+* ``--field-steps C,F``: coherent strokes' shares of the learning rate for the colours and for the colour field
+  (``colour_field.COLOUR_STEP_SHARE`` and ``FIELD_STEP_SHARE``, shipped 0.5,0.5); ``--colour-field 0`` (the CLI's)
+  switches the field off.
 * ``--epochs-factor``, ``--no-crop``, ``--seed`` and the CLI's own options (``--lambda-content``,
   ``--working-width``, ``--style-scale`` ...).
 
@@ -38,6 +41,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from gstyle_core.pipeline import colour_field  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer, style_paths  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request, evaluate_run, texture_scale_line  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
@@ -225,6 +229,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--multiscale", type=float, default=None,
                    help="λ of the broad-strokes term, i.e. --lambda-multiscale (default: the engine's; 0: off)")
     p.add_argument("--factors", default=None, help="the broad-strokes term's downsampling factors, e.g. 2,4")
+    p.add_argument("--field-steps", default=None,
+                   help="coherent strokes: the colours' and the field's shares of the learning rate, e.g. 1,1")
     p.add_argument("--epochs-factor", type=float, default=1.0)
     p.add_argument("--no-crop", action="store_true")
     p.add_argument("--seed", type=int, default=None, help="the engine's seed (default: the settings')")
@@ -234,7 +240,11 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--multiscale and --lambda-multiscale set the same weight: give one")
     if args.factors:
         multiscale.DEFAULT_FACTORS = tuple(float(f) for f in args.factors.split(","))
-    names = ("tag", "out_dir", "optim", "coherent_px", "multiscale", "factors", "epochs_factor", "no_crop", "seed")
+    if args.field_steps:
+        colours, field = (float(x) for x in args.field_steps.split(","))
+        colour_field.COLOUR_STEP_SHARE, colour_field.FIELD_STEP_SHARE = colours, field
+    names = ("tag", "out_dir", "optim", "coherent_px", "multiscale", "factors", "field_steps", "epochs_factor",
+             "no_crop", "seed")
     extra = argparse.Namespace(**{n: getattr(args, n) for n in names})
     if args.threads:
         torch.set_num_threads(args.threads)

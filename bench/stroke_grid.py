@@ -1,5 +1,5 @@
-"""A labelled grid of the pictures ``bench/tradeoff.py --sweep scale --pictures DIR`` saved: one row per
-broad-strokes setting (on, off), one column per stroke size, the input first.
+"""A labelled grid of the pictures ``bench/tradeoff.py --sweep scale --pictures DIR`` saved: one row per setting
+found (as shipped; coherent strokes off; broad strokes off), one column per stroke size, the input first.
 
     .venv/bin/python bench/stroke_grid.py DIR/biker_starry --out docs/stroke_size_biker.jpg [--crop 0.5]
 
@@ -16,7 +16,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 SIZES = ("0.5", "1", "2")
-ROWS = (("", "broad strokes on"), ("_no_broad_strokes", "broad strokes off"))
+ROWS = (("", "as shipped"), ("_no_coherent_strokes", "coherent strokes off"),
+        ("_no_broad_strokes", "broad strokes off"))
 LABEL_H = 22
 
 

@@ -90,10 +90,11 @@ SLOW_POINTS = [  # --with-slow: measured once (see docs/tradeoffs.md), left out 
 STRENGTH_SWEEP = [("as shipped", "shipped", {})] + [
     (f"strength {s:g}", "shipped", {"strength": s}) for s in (0.3, 3.0, 10.0)]
 FULL_SWEEP += STRENGTH_SWEEP
-# Style at every scale (issue #23): the broad-strokes term on/off at three stroke sizes, and the higher presets, all
-# as shipped (on 360° captures the calibrated defaults).
+# Style at every scale (issue #23): the broad-strokes term and the coherent strokes (colour field) each on/off at
+# three stroke sizes, and the higher presets, all as shipped (on 360° captures the calibrated defaults).
 SCALE_SWEEP = [(f"stroke {s:g}{suffix}", "shipped", {"style_scale": s, **extra})
-               for suffix, extra in (("", {}), (" no broad strokes", {"lambda_multiscale": 0.0}))
+               for suffix, extra in (("", {}), (" no broad strokes", {"lambda_multiscale": 0.0}),
+                                     (" no coherent strokes", {"colour_field": False}))
                for s in (0.5, 1.0, 2.0)]
 SCALE_SWEEP += [("balanced as shipped", "balanced", {}), ("final as shipped", "final", {}),
                 ("broad strokes 100", "shipped", {"lambda_multiscale": 100.0})]  # half the 360° default

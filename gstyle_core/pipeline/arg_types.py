@@ -1,5 +1,6 @@
-"""Command-line value types of the stylization options (``--style-scale``, ``--style-weights``, ``--region``), shared
-by ``gstyle stylize`` and ``gstyle-studio``: a bad value is one line from argparse (exit status 2), not a traceback.
+"""Command-line value types of the stylization options (``--style-scale``, ``--style-weights``, ``--region``,
+``--colour-field``), shared by ``gstyle stylize`` and ``gstyle-studio``: a bad value is one line from argparse (exit
+status 2), not a traceback.
 Nothing here imports torch."""
 
 from __future__ import annotations
@@ -44,6 +45,17 @@ def _region(text: str) -> tuple[float, ...]:
     return parse_region(text)
 
 
+def _on_off(text: str) -> bool:
+    """A switch given a value: 1/on/yes/true or 0/off/no/false (any case)."""
+    word = text.strip().lower()
+    if word in ("1", "on", "yes", "true"):
+        return True
+    if word in ("0", "off", "no", "false"):
+        return False
+    raise ValueError(f"expected 1 or 0 (on or off), got {text!r}")
+
+
 style_scale_arg = argument_type(_style_scale)
+on_off_arg = argument_type(_on_off)
 style_weights_arg = argument_type(_style_weights)
 region_arg = argument_type(_region)

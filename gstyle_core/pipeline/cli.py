@@ -96,8 +96,8 @@ def stylize_command(args: argparse.Namespace) -> int:
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
-    needed = ("region", "sh", "preprocess", "culled", "loss_terms", "broad_strokes", "clip", "vgg", "precision",
-              "styles")
+    needed = ("region", "sh", "preprocess", "culled", "loss_terms", "broad_strokes", "colour_field", "clip", "vgg",
+              "precision", "styles")
     for key in needed:  # what it needed (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from ..style.mix import weights_with_mix
-from .arg_types import style_scale_arg
+from .arg_types import on_off_arg, style_scale_arg
 
 if TYPE_CHECKING:
     from .settings import StylizeSettings
@@ -38,6 +38,7 @@ class Effect(enum.Flag):
     RESTORE_CHROMA = enum.auto()  # with keep colours on: every Gaussian takes its ground truth's chroma back at once
     LR_SCHEDULE = enum.auto()  # the learning-rate schedule is rescaled (read at the next step: nothing to do now)
     NEXT_SPLIT = enum.auto()  # read at the next colour-gradient split (nothing to do now)
+    NEXT_STEP = enum.auto()  # read at the next stylization step (nothing to do now)
 
 
 @dataclass(frozen=True)
@@ -109,6 +110,10 @@ def _write_style_scale(s: StylizeSettings, value: Any) -> None:
 
 def _write_keep_colours(s: StylizeSettings, value: Any) -> None:
     s.keep_colours = bool(value)
+
+
+def _write_colour_field(s: StylizeSettings, value: Any) -> None:
+    s.colour_field = bool(value)
 
 
 def _write_split_rate(s: StylizeSettings, value: Any) -> None:
@@ -183,6 +188,15 @@ CONTROLS: tuple[Control, ...] = (
             Effect.STYLE_FEATURES | Effect.CONTENT_TARGETS | Effect.RESTORE_CHROMA,
             read=lambda s: float(s.keep_colours), write=_write_keep_colours, widget="checkbox",
             cli=CliOption("keep the scene's hues and take only the painting's luminance pattern", switch=True)),
+    Control("colour_field", "coherent strokes", 0.0, 0.0, 1.0, False,
+            "Coherent strokes: neighbouring Gaussians' colours move together. A coarse colour field over the scene "
+            "(cells of 4 px x the stroke size at its middle distance) steps beside each Gaussian's own colour, each "
+            "at half the learning rate, so strokes come as wide as the painting's and the stroke size shows. On by "
+            "default with the broad-strokes term; read from the next step (--colour-field 0/1).",
+            Effect.NEXT_STEP, read=lambda s: float(s.colour_field), write=_write_colour_field, widget="checkbox",
+            cli=CliOption("coherent strokes: a coarse colour field steps beside each Gaussian's colour (1 on, 0 off; "
+                          "default on with the broad-strokes term, docs/texture-scale.md)", type=on_off_arg,
+                          metavar="0|1")),
     Control("split_rate", "split rate", 0.05, 1e-3, 0.5, True,
             "Fraction of Gaussians split where the style gradient is largest (finer detail, more Gaussians).",
             Effect.NEXT_SPLIT, read=lambda s: s.split_rate, write=_write_split_rate,

@@ -23,7 +23,8 @@ from .active import ActiveSet
 from .notes import note_loss_terms, note_networks, note_style
 from .settings import StylizeSettings
 
-COUNTERS = ("visibility_passes", "cache_builds", "cache_gaussians", "optimised_colours", "refit_gaussians")
+COUNTERS = ("visibility_passes", "cache_builds", "cache_gaussians", "optimised_colours", "refit_gaussians",
+            "field_cells")
 
 
 def objective_generator(objective: Any) -> torch.Generator | None:
@@ -59,7 +60,8 @@ class RunState:
         self.global_step = 0
         self.decisions: dict[str, Any] = {}
         # Work done, for tests and the trade-off bench: visibility passes, colour caches built and the Gaussians in
-        # them, colours given gradients (per optimiser), Gaussians in refits (per refit).
+        # them, colours given gradients (per optimiser), Gaussians in refits (per refit), cells of the colour field
+        # (per field).
         self.counters = dict.fromkeys(COUNTERS, 0)
         self.history: list[dict[str, float]] = []
         self.timings: dict[str, float] = {}

@@ -37,6 +37,8 @@ class StylizeSettings:
     view_order: str = "orbit"  # "orbit": views in camera order; "random": a new permutation every epoch
     working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
     style_scale: float = 1.0  # stroke size: the painting is matched at this × the working width (objective.py)
+    colour_field: bool = False  # coherent strokes: a coarse colour field steps beside each Gaussian's colour
+    # (pipeline/colour_field.py; on with the broad-strokes term)
     keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
     style_weights: tuple[float, ...] = ()  # several paintings: their weights (style/mix.py; the engine normalises
     # them to sum 1; empty: equal shares)
@@ -121,7 +123,9 @@ CALIBRATED_360 = dict(
 # cost 3 points of drop and 0.2 of structure; at λ_CLIP 10 no measurable style for ~10 % more time). Real CLIP weights
 # keep the paper's λ_CLIP and no broad-strokes term. Forward-facing scenes keep the paper's values with the
 # substitute: on the fern the term lowered the NNFM drop below 30 % (28.8 %, structure 0.53; docs/texture-scale.md).
-BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0)
+# With the term the coarse colour field (pipeline/colour_field.py) is on: over 9 captures × paintings it raised the
+# coarse ratio and the structure on all nine (docs/texture-scale.md).
+BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0, colour_field=True)
 CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0)}  # strokes need 256 px; 32 steps of 4 views
 # Forward-facing preview: the reference splits into children at 1/16 of the parent's scale and lets a refit of
 # max(5·n_views, 2000) iterations regrow them; the preview refits 60, so its children keep 3DGS's 1/1.6 and cover
@@ -177,6 +181,8 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     apply_controls(s, live)  # checked and set as the studio's controls are (controls.py)
     if broad_strokes and live.get("lambda_multiscale") is None:  # tied to λ_NNFM, the given one included
         s.weights = replace(s.weights, multiscale=s.weights.nnfm * BROAD_STROKES["multiscale_per_nnfm"])
+    if broad_strokes and live.get("colour_field") is None:
+        s.colour_field = BROAD_STROKES["colour_field"]
     for name, allowed in CHOICES.items():
         if getattr(s, name) not in allowed:
             raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {getattr(s, name)!r}")

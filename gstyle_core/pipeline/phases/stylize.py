@@ -5,8 +5,10 @@ takes the objective's mean loss and one Adam step on c_s with an exponentially d
 ``grad_accumulate_from`` on, ‖∂L/∂c_s‖ is accumulated; at the scheduled steps (``split_at``, fractions of the
 stylization counted in optimiser steps, so every preset performs them) a ``ColourSplit`` runs, then a ``Refit``.
 Only the active Gaussians are optimised (``active.py``): the unseen ones get no gradient and keep their colour. With
-``optimizer="visible_adam"`` only the Gaussians in the step's views move (``visible_adam.py``). Keep colours: after
-every optimiser step c_s takes the chroma of c_gt back.
+``optimizer="visible_adam"`` only the Gaussians in the step's views move (``visible_adam.py``). With
+``colour_field`` a coarse colour field steps beside the colours and is folded into them after every step
+(``colour_field.py``; rebuilt when the stroke size or the switch changes). Keep colours: after every optimiser step
+c_s takes the chroma of c_gt back.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from typing import Any
 
 import torch
 
+from ..colour_field import ColourField, build_colour_field
 from ..notes import network_area_note
 from .base import Phase, StepReport
 from .colour_split import ColourSplit
@@ -41,6 +44,8 @@ class Stylize(Phase):
         self.splits_done = 0
         self.optimiser: Any = None
         self.c_opt: torch.Tensor | None = None  # the optimised copy of the active rows of c_s
+        self.field: ColourField | None = None  # the coarse colour field over c_opt's Gaussians (colour_field on)
+        self._field_for: tuple[bool, float] | None = None  # (switch, stroke size) the field was built for
         self.refit: Refit | None = None
 
     @property
@@ -99,7 +104,7 @@ class Stylize(Phase):
     def _split(self) -> StepReport:
         self.split_steps.remove(self.step_index)
         self.splits_done += 1
-        self.optimiser, self.c_opt = None, None  # new rows: a new optimiser after the refit
+        self.optimiser, self.c_opt, self.field = None, None, None  # new rows: a new optimiser after the refit
         rep = ColourSplit(self.run).step()
         if self.run.settings.refit_iterations > 0:
             self.refit = Refit.after_split(self.run)
@@ -110,13 +115,20 @@ class Stylize(Phase):
         run, s = self.run, self.run.settings
         if self.optimiser is None:
             self._start_optimiser()
+        elif self._field_for != (bool(s.colour_field), float(s.style_scale)):
+            self._sync_field()
+        field = self.field
         for g in self.optimiser.param_groups:
-            g["lr"] = self.lr()
+            g["lr"] = self.lr() * (field.colour_share if field is not None else 1.0)
         views = self.views_of_step()
         self.optimiser.zero_grad(set_to_none=True)
+        if field is not None:
+            field.set_lr(self.lr() * field.field_share)
+            field.zero_grad()
         total, terms = 0.0, {}
         for view in views:  # the mean loss over this step's views: gradients add up before one optimiser step
-            image = run.render_seen(view, run.active.place_in_seen(run.c_s, self.c_opt))
+            colours = self.c_opt if field is None else self.c_opt + field.sample()
+            image = run.render_seen(view, run.active.place_in_seen(run.c_s, colours))
             loss, view_terms = run.objective_fn()(image, run.content_images[view], view,
                                                   coverage=run.objective_coverage(view))
             (loss / len(views)).backward()
@@ -126,6 +138,9 @@ class Stylize(Phase):
         if self.step_index >= self.accumulate_from and self.c_opt.grad is not None:
             run.active.scatter_add(run.grad_acc, self.c_opt.grad.detach().norm(dim=-1))
         self.optimiser.step()
+        if field is not None:
+            field.step()
+            field.fold_into(self.c_opt)
         with torch.no_grad():
             self.c_opt.clamp_(0.0, 1.0)
             run.active.scatter(run.c_s, self.c_opt)
@@ -133,7 +148,7 @@ class Stylize(Phase):
             self.restore_chroma()
         self.step_index += 1
         if self.step_index >= self.steps:
-            self.optimiser, self.c_opt = None, None
+            self.optimiser, self.c_opt, self.field = None, None, None
         return self.report(losses={"total": total, **terms}, colours_changed=True,
                            message=f"stylize view{'s' if len(views) > 1 else ''} {', '.join(map(str, views))}")
 
@@ -149,6 +164,22 @@ class Stylize(Phase):
             self.optimiser = VisibleAdam(self.c_opt, lr=self.lr())
         else:
             self.optimiser = torch.optim.Adam([self.c_opt], lr=self.lr())
+        self._sync_field()
+
+    def _sync_field(self) -> None:
+        """Build the colour field over the optimised Gaussians when the settings ask for it (for their stroke size),
+        drop it when they do not."""
+        run, s = self.run, self.run.settings
+        self.field = None
+        if s.colour_field:
+            points = run.active.gather(run.params["means"].detach())
+            self.field = build_colour_field(points, run.cameras, s.style_scale, self.lr(),
+                                            visible=s.optimizer == "visible_adam")
+            run.counters["field_cells"] = self.field.cells
+            run.decisions["colour_field"] = self.field.describe(s.style_scale)
+        else:
+            run.decisions["colour_field"] = "off"
+        self._field_for = (bool(s.colour_field), float(s.style_scale))
 
     @torch.no_grad()
     def restore_chroma(self) -> None:
@@ -161,16 +192,19 @@ class Stylize(Phase):
         return {**super().state_dict(), "step_index": self.step_index, "split_steps": list(self.split_steps),
                 "splits_done": self.splits_done,
                 "adam": None if self.optimiser is None else copy.deepcopy(self.optimiser.state_dict()),
+                "field": None if self.field is None else copy.deepcopy(self.field.state_dict()),
                 "refit": None if self.refit is None else self.refit.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         super().load_state_dict(state)
         self.step_index, self.splits_done = int(state["step_index"]), int(state["splits_done"])
         self.split_steps = [int(k) for k in state["split_steps"]]
-        self.optimiser, self.c_opt, self.refit = None, None, None
+        self.optimiser, self.c_opt, self.field, self.refit = None, None, None, None
         if state["adam"] is not None:
             self._start_optimiser()
             self.optimiser.load_state_dict(state["adam"])
+            if self.field is not None and state.get("field") is not None:
+                self.field.load_state_dict(state["field"])
         if state["refit"] is not None:  # built as a fresh one is, then its saved state
             self.refit = Refit.after_split(self.run)
             self.refit.load_state_dict(state["refit"])
