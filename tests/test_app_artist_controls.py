@@ -1,5 +1,6 @@
-"""The studio's artist controls (issue #15): the "stroke size" slider and the "keep colours" checkbox reach the
-engine mid-run, and a closed session resumes with them (headless GL window, real small engine in a worker thread)."""
+"""The studio's artist controls (issue #15): the "stroke size" slider and the "keep colours" and "coherent strokes"
+checkboxes reach the engine mid-run, and a closed session resumes with them (headless GL window, real small engine in
+a worker thread)."""
 
 import numpy as np
 import pytest
@@ -42,8 +43,14 @@ def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, m
         assert [c.args for c in commands if c.name == "set_params"] == [{"keep_colours": 1.0}]
         assert driver.recorder.find("keep colours").tooltip
         assert app.bridge.wait_until(lambda s: s.params.get("keep_colours") == 1.0, 30)
+        assert app.panel.params["colour_field"] == 0.0  # forward-facing settings: off
+        commands = driver.click("coherent strokes")
+        assert [c.args for c in commands if c.name == "set_params"] == [{"colour_field": 1.0}]
+        assert "neighbouring Gaussians" in driver.recorder.find("coherent strokes").tooltip
+        assert app.bridge.wait_until(lambda s: s.params.get("colour_field") == 1.0, 30)
         engine = BUILT[-1]
         assert engine.settings.style_scale == pytest.approx(asked) and engine.settings.keep_colours is True
+        assert engine.settings.colour_field is True
         app.bridge.step_once()
         assert app.bridge.wait_until(lambda s: s.reports_received >= 1, 60), app.bridge.state.error
         path = app.session_checkpoint()
@@ -51,7 +58,7 @@ def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, m
         assert app.close(timeout=60)
     state, meta = read_checkpoint(path)
     assert meta["params"]["keep_colours"] == 1.0 and meta["params"]["style_scale"] == pytest.approx(asked)
-    assert state["settings"]["keep_colours"] is True
+    assert state["settings"]["keep_colours"] is True and state["settings"]["colour_field"] is True
 
     app = studio()
     try:
@@ -60,6 +67,7 @@ def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, m
         assert app.bridge.state.error is None
         resumed = BUILT[-1]
         assert resumed.settings.keep_colours is True and resumed.settings.style_scale == pytest.approx(asked)
+        assert resumed.settings.colour_field is True
         assert app.bridge.wait_until(lambda s: s.params.get("keep_colours") == 1.0, 30)
     finally:
         app.close(timeout=60)

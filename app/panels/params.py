@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gstyle_core.pipeline.controls import control, panel_controls
+from gstyle_core.pipeline.controls import panel_controls
 
 
 @dataclass(frozen=True)
@@ -37,4 +37,9 @@ def param_rows() -> tuple[Param, ...]:
 COARSE_CLIP_TOOLTIP = (
     "Weight of the coarse (CLIP substitute) term: no CLIP ViT-B/32 weights were found, so the style's large-scale "
     "colour and texture statistics (VGG features of 4x smaller images) are matched instead of CLIP's embedding.")
-KEEP_COLOURS_TOOLTIP = control("keep_colours").tooltip
+
+
+def switch_rows() -> tuple[Param, ...]:
+    """The parameter section's checkboxes (keep colours, coherent strokes): every live control shown as one."""
+    return tuple(Param(c.name, c.label, c.default, c.low, c.high, c.tooltip, c.log, c.fmt)
+                 for c in panel_controls("checkbox"))

@@ -1,11 +1,11 @@
 """The panel's parameter sliders (one row per ``param_rows()`` entry: on/off for a loss term, slider, reset), the
-keep-colours checkbox and "Reset all"."""
+checkboxes (``switch_rows()``: keep colours, coherent strokes) and "Reset all"."""
 
 from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from .params import COARSE_CLIP_TOOLTIP, KEEP_COLOURS_TOOLTIP, Param, param_rows
+from .params import COARSE_CLIP_TOOLTIP, Param, param_rows, switch_rows
 from .state import Command, PanelState
 from .widgets import button, param_slider, tooltip
 
@@ -35,20 +35,19 @@ def switch_command(state: PanelState, p: Param, on: bool) -> Command:
 
 
 def params_section(state: PanelState, out: list[Command]) -> None:
-    """One slider row per parameter, the keep-colours checkbox and "Reset all"."""
+    """One slider row per parameter, one checkbox per switch and "Reset all"."""
     imgui.separator()
     for p in param_rows():
         imgui.push_id(p.key)
         param_row(state, p, out)
         imgui.pop_id()
-    keep = bool(state.params.get("keep_colours", 0.0))
-    changed, keep = imgui.checkbox("keep colours", keep)
-    tooltip(KEEP_COLOURS_TOOLTIP)
-    if changed:
-        out.append(Command("set_params", {"keep_colours": float(keep)}))
-    if button("Reset all", "Every parameter back to the preset's value for this scene (keep colours too)."):
-        values = {p.key: default_value(state, p) for p in param_rows()}
-        values["keep_colours"] = float(state.defaults.get("keep_colours", 0.0))
+    for p in switch_rows():
+        changed, on = imgui.checkbox(p.label, bool(state.params.get(p.key, default_value(state, p))))
+        tooltip(p.tooltip)
+        if changed:
+            out.append(Command("set_params", {p.key: float(on)}))
+    if button("Reset all", "Every parameter back to the preset's value for this scene (the checkboxes too)."):
+        values = {p.key: default_value(state, p) for p in (*param_rows(), *switch_rows())}
         out.append(Command("set_params", values))
 
 

@@ -7,10 +7,10 @@ the optimised Gaussians' centres, read at each centre by trilinear interpolation
 gradient is the sum of the colour gradients of the Gaussians around it, so a field step is one coherent move of a
 whole neighbourhood; the colours keep their own steps for the fine marks.
 
-* **Cell size**: ``FIELD_CELL_PX`` working-width pixels at the scene's median distance from the training cameras,
-  times the stroke size (so the stroke size sets the width of the coherent moves), enlarged where the grid would
-  exceed ``MAX_FIELD_CELLS`` cells. The grid spans the 0.5-99.5th percentile box of the centres; centres outside it
-  read the border cells.
+* **Cell size**: ``FIELD_CELL_PX`` (8) working-width pixels at the scene's median distance from the training
+  cameras, times the stroke size (so the stroke size sets the width of the coherent moves), enlarged where the grid
+  would exceed ``MAX_FIELD_CELLS`` cells. The grid spans the 0.5-99.5th percentile box of the centres; centres
+  outside it read the border cells.
 * **Step**: the colours and the field each step at ``FIELD_STEP_SHARE`` (half) of the learning rate, so the step
   budget of the run is split between the two scales rather than doubled (docs/texture-scale.md measures full and
   half steps). The field uses the same optimiser kind as the colours (``VisibleAdam``: cells no view's Gaussian
@@ -30,8 +30,10 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-FIELD_CELL_PX = 4.0  # cell edge in working-width pixels at the scene's median distance (times the stroke size):
-# the lower edge of the coarse band (σ 4-10 px) of the texture-scale figure
+FIELD_CELL_PX = 8.0  # cell edge in working-width pixels at the scene's median distance (times the stroke size). A
+# cell's trilinear hat has σ = edge / √6 ≈ 3.3 px, at the lower edge of the texture-scale figure's coarse band (σ 4-10
+# px). Measured over nine captures × paintings (docs/texture-scale.md): against 4 px the coarse ratio and the structure
+# were higher on all nine; 16 px kept more structure still but cost up to 2.9 points of NNFM drop.
 FIELD_STEP_SHARE = 0.5  # the colours and the field each step at this share of the learning rate (read when a field
 # is built: benches may set it, and COLOUR_STEP_SHARE for the colours alone)
 COLOUR_STEP_SHARE: float | None = None  # None: FIELD_STEP_SHARE

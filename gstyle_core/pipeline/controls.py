@@ -190,7 +190,7 @@ CONTROLS: tuple[Control, ...] = (
             cli=CliOption("keep the scene's hues and take only the painting's luminance pattern", switch=True)),
     Control("colour_field", "coherent strokes", 0.0, 0.0, 1.0, False,
             "Coherent strokes: neighbouring Gaussians' colours move together. A coarse colour field over the scene "
-            "(cells of 4 px x the stroke size at its middle distance) steps beside each Gaussian's own colour, each "
+            "(cells of 8 px x the stroke size at its middle distance) steps beside each Gaussian's own colour, each "
             "at half the learning rate, so strokes come as wide as the painting's and the stroke size shows. On by "
             "default with the broad-strokes term; read from the next step (--colour-field 0/1).",
             Effect.NEXT_STEP, read=lambda s: float(s.colour_field), write=_write_colour_field, widget="checkbox",
