@@ -2,19 +2,19 @@
 
 Each stylized colour takes its own Adam step, and Adam moves every colour by about the learning rate whatever its
 gradient, so the texture that accumulates sits at the scale of single Gaussians (about 1 px at the working width;
-docs/texture-scale.md). Beside the per-Gaussian colours this module keeps a **colour field**: a dense 3-D grid over
-the optimised Gaussians' centres, read at each centre by trilinear interpolation and added to its colour. A cell's
-gradient is the sum of the colour gradients of the Gaussians around it, so a field step is one coherent move of a
-whole neighbourhood; the colours keep their own steps for the fine marks.
+docs/texture-scale.md). Beside the per-Gaussian colours this module keeps a **colour field**: values on a regular 3-D
+lattice, read at each optimised Gaussian's centre by trilinear interpolation and added to its colour. A lattice
+point's gradient is the sum of the colour gradients of the Gaussians around it, so a field step is one coherent move
+of a whole neighbourhood; the colours keep their own steps for the fine marks.
 
 * **Cell size**: ``FIELD_CELL_PX`` (8) working-width pixels at the scene's median distance from the training
-  cameras, times the stroke size (so the stroke size sets the width of the coherent moves), enlarged where the grid
-  would exceed ``MAX_FIELD_CELLS`` cells. The grid spans the 0.5-99.5th percentile box of the centres; centres
-  outside it read the border cells.
+  cameras, times the stroke size (so the stroke size sets the width of the coherent moves).
+* **Sparse**: only the lattice points at the corners of a cell that holds a centre exist (at most 8 per Gaussian),
+  so an unbounded capture's far background costs as little as its foreground and every cell keeps its size.
 * **Step**: the colours and the field each step at ``FIELD_STEP_SHARE`` (half) of the learning rate, so the step
   budget of the run is split between the two scales rather than doubled (docs/texture-scale.md measures full and
-  half steps). The field uses the same optimiser kind as the colours (``VisibleAdam``: cells no view's Gaussian
-  reaches keep their moments).
+  half steps). The field uses the same optimiser kind as the colours (``VisibleAdam``: lattice points no view's
+  Gaussian reaches keep their moments).
 * **Folding**: after every optimiser step the field's values are added into the colours and set back to zero, so
   the colours (c_s) always hold the whole stylized colour (exports, the studio's buffers, splits and refits see
   nothing else) while Adam's moments of the field go on. The gradient does not depend on the field's value, so this
@@ -28,7 +28,6 @@ from typing import Any
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 FIELD_CELL_PX = 8.0  # cell edge in working-width pixels at the scene's median distance (times the stroke size). A
 # cell's trilinear hat has σ = edge / √6 ≈ 3.3 px, at the lower edge of the texture-scale figure's coarse band (σ 4-10
@@ -37,8 +36,7 @@ FIELD_CELL_PX = 8.0  # cell edge in working-width pixels at the scene's median d
 FIELD_STEP_SHARE = 0.5  # the colours and the field each step at this share of the learning rate (read when a field
 # is built: benches may set it, and COLOUR_STEP_SHARE for the colours alone)
 COLOUR_STEP_SHARE: float | None = None  # None: FIELD_STEP_SHARE
-MAX_FIELD_CELLS = 2_000_000  # cells enlarged beyond this (memory: 3 floats and 2 Adam moments per cell)
-BOX_PERCENTILES = (0.5, 99.5)  # the grid spans this box of the centres (outliers read the border cells)
+CORNERS = torch.tensor([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])  # a cell's 8 corners
 
 
 def pixel_footprint(points: np.ndarray, cameras: Sequence[Any]) -> float:
@@ -51,21 +49,20 @@ def pixel_footprint(points: np.ndarray, cameras: Sequence[Any]) -> float:
                             for c in cameras]))
 
 
-def grid_shape(extent: np.ndarray, cell: float, max_cells: int = MAX_FIELD_CELLS) -> tuple[tuple[int, int, int], float]:
-    """Cells per axis (x, y, z) covering ``extent`` [3] with cells of ``cell`` scene units, and the cell size used
-    (enlarged until the grid has at most ``max_cells`` cells)."""
-    extent = np.maximum(np.asarray(extent, np.float64), 0.0)
-    if not (np.isfinite(cell) and cell > 0):
-        raise ValueError(f"the colour field's cell size must be a finite number above 0, got {cell}")
-    while True:
-        dims = tuple(int(np.ceil(e / cell)) + 1 for e in extent)
-        if int(np.prod(dims)) <= max_cells:
-            return dims, float(cell)
-        cell *= 1.25
+def unique_points(points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The distinct rows of ``points`` [P, 3] (integers >= 0) and each row's index among them (``torch.unique`` of
+    rows, through one int64 key per row where the lattice's span allows it: a 1-D sort instead of a row sort)."""
+    span = points.max(0).values + 1
+    if float(span.double().prod()) >= 2.0 ** 62:  # too wide for one key: sort the rows themselves
+        return torch.unique(points, dim=0, return_inverse=True)
+    sy, sz = int(span[1]), int(span[2])
+    key = (points[:, 0] * sy + points[:, 1]) * sz + points[:, 2]
+    keys, inverse = torch.unique(key, return_inverse=True)
+    return torch.stack([keys // (sy * sz), (keys // sz) % sy, keys % sz], 1), inverse
 
 
 class ColourField:
-    """A trilinear colour field over ``points`` [N, 3] (the optimised Gaussians' centres), cells of ``cell`` scene
+    """A trilinear colour field at ``points`` [N, 3] (the optimised Gaussians' centres) on a lattice of ``cell`` scene
     units, with its own optimiser (``visible``: ``VisibleAdam``, else Adam) at ``lr``.
 
     ``sample()`` [N, 3] is each point's field colour (differentiable); ``step()`` takes the optimiser step;
@@ -74,16 +71,26 @@ class ColourField:
     def __init__(self, points: torch.Tensor, cell: float, lr: float, visible: bool = True) -> None:
         self.field_share = float(FIELD_STEP_SHARE)  # of the learning rate, for the field's steps
         self.colour_share = float(FIELD_STEP_SHARE if COLOUR_STEP_SHARE is None else COLOUR_STEP_SHARE)  # colours'
-        pts = np.asarray(points.detach().to(torch.float64).numpy())
+        pts = points.detach().to(torch.float64)
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
             raise ValueError(f"the colour field needs centres [N, 3] with N > 0, got {tuple(pts.shape)}")
-        lo, hi = np.percentile(pts, BOX_PERCENTILES, axis=0)
-        self.dims, self.cell = grid_shape(hi - lo, cell)
-        span = (np.array(self.dims) - 1) * self.cell
-        u = np.where(span > 0, (pts - lo) / np.where(span > 0, span, 1.0) * 2.0 - 1.0, 0.0)
-        self.coords = torch.as_tensor(np.clip(u, -1.0, 1.0), dtype=torch.float32).view(1, -1, 1, 1, 3)
-        nx, ny, nz = self.dims
-        self.values = torch.zeros(nx * ny * nz, 3, requires_grad=True)  # rows: z-major, then y, then x
+        if not bool(torch.isfinite(pts).all()):
+            raise ValueError("the colour field needs finite centres")
+        if not (np.isfinite(cell) and cell > 0):
+            raise ValueError(f"the colour field's cell size must be a finite number above 0, got {cell}")
+        self.cell = float(cell)
+        self.origin = pts.min(0).values  # lattice point (0, 0, 0), scene units
+        grid = (pts - self.origin) / self.cell  # lattice units
+        base = grid.floor()
+        frac = (grid - base).to(torch.float32)  # [N, 3] position inside the cell
+        corners = (base.to(torch.int64)[:, None, :] + CORNERS[None]).reshape(-1, 3)  # [N·8, 3], all >= 0
+        keys, inverse = unique_points(corners)
+        self.lattice = keys  # [M, 3] integer coordinates of the lattice points (position: origin + cell × these)
+        self.index = inverse.reshape(-1, 8)  # each point's 8 lattice points (rows of ``values``)
+        c = CORNERS.to(torch.float32)[None]  # [1, 8, 3]
+        self.weights = (c * frac[:, None, :] + (1 - c) * (1 - frac[:, None, :])).prod(-1)  # [N, 8], sum 1
+        self.extent = tuple(int(e) + 1 for e in (keys.max(0).values - keys.min(0).values))  # lattice span (x, y, z)
+        self.values = torch.zeros(len(keys), 3, requires_grad=True)
         if visible:
             from .visible_adam import VisibleAdam
 
@@ -93,15 +100,13 @@ class ColourField:
 
     @property
     def cells(self) -> int:
-        """Number of cells."""
+        """Number of lattice points (the field's values)."""
         return int(self.values.shape[0])
 
     def sample(self) -> torch.Tensor:
-        """The field at every point, [N, 3] (trilinear; differentiable with respect to the cells)."""
-        nx, ny, nz = self.dims
-        volume = self.values.t().reshape(1, 3, nz, ny, nx)
-        out = F.grid_sample(volume, self.coords, mode="bilinear", padding_mode="border", align_corners=True)
-        return out.reshape(3, -1).t()
+        """The field at every point, [N, 3] (trilinear; differentiable with respect to the lattice values)."""
+        corners = self.values.index_select(0, self.index.reshape(-1)).view(*self.index.shape, 3)  # [N, 8, 3]
+        return (corners * self.weights[..., None]).sum(1)
 
     def set_lr(self, lr: float) -> None:
         """The learning rate of the next step."""
@@ -123,23 +128,23 @@ class ColourField:
         self.values.zero_()
 
     def state_dict(self) -> dict[str, Any]:
-        """The optimiser's moments and the grid's shape (the values are zero between steps: they are folded)."""
-        return {"dims": list(self.dims), "cell": self.cell, "optimiser": self.optimiser.state_dict()}
+        """The optimiser's moments and the lattice's size (the values are zero between steps: they are folded)."""
+        return {"cells": self.cells, "cell": self.cell, "optimiser": self.optimiser.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the moments saved by ``state_dict`` (the grid must have the same shape)."""
-        if tuple(state["dims"]) != tuple(self.dims):
-            raise ValueError(f"colour field state for a {tuple(state['dims'])} grid, this one is {self.dims}")
+        """Restore the moments saved by ``state_dict`` (the lattice must have as many points)."""
+        if int(state["cells"]) != self.cells:
+            raise ValueError(f"colour field state for {state['cells']} lattice points, this one has {self.cells}")
         self.optimiser.load_state_dict(state["optimiser"])
 
     def describe(self, stroke_size: float) -> str:
         """One line for the run's decisions."""
-        nx, ny, nz = self.dims
+        nx, ny, nz = self.extent
         steps = (f"the colours and the field each step at {self.field_share:g} × the learning rate"
                  if self.colour_share == self.field_share else
                  f"the colours step at {self.colour_share:g} and the field at {self.field_share:g} × the learning rate")
-        return (f"on: {nx}×{ny}×{nz} cells of {self.cell:.3g} scene units ({FIELD_CELL_PX:g} px × stroke size "
-                f"{stroke_size:g} at the scene's median distance, or larger to stay within {MAX_FIELD_CELLS:,} "
+        return (f"on: {self.cells:,} lattice points (cells of {self.cell:.3g} scene units: {FIELD_CELL_PX:g} px × "
+                f"stroke size {stroke_size:g} at the scene's median distance; the scene spans {nx}×{ny}×{nz} "
                 f"cells); {steps}")
 
 

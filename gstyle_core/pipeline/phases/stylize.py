@@ -126,8 +126,11 @@ class Stylize(Phase):
             field.set_lr(self.lr() * field.field_share)
             field.zero_grad()
         total, terms = 0.0, {}
+        colours = self.c_opt
+        if field is not None:  # the field read once a step: the views' gradients meet on a leaf, then go through it
+            with_field = self.c_opt + field.sample()
+            colours = with_field.detach().requires_grad_(True)
         for view in views:  # the mean loss over this step's views: gradients add up before one optimiser step
-            colours = self.c_opt if field is None else self.c_opt + field.sample()
             image = run.render_seen(view, run.active.place_in_seen(run.c_s, colours))
             loss, view_terms = run.objective_fn()(image, run.content_images[view], view,
                                                   coverage=run.objective_coverage(view))
@@ -135,6 +138,8 @@ class Stylize(Phase):
             total += float(loss.detach()) / len(views)
             for k, v in view_terms.items():
                 terms[k] = terms.get(k, 0.0) + v / len(views)
+        if field is not None and colours.grad is not None:
+            with_field.backward(colours.grad)
         if self.step_index >= self.accumulate_from and self.c_opt.grad is not None:
             run.active.scatter_add(run.grad_acc, self.c_opt.grad.detach().norm(dim=-1))
         self.optimiser.step()
