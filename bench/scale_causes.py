@@ -86,10 +86,7 @@ class FirstRmsEpsAdam(VisibleAdam):
 
 def pixel_footprint(engine) -> float:
     """Scene units per working-width pixel at the scene's median distance from the training cameras."""
-    means = engine.params["means"].detach().numpy()
-    centre = np.median(means, axis=0)
-    dists = [np.linalg.norm(c.position - centre) / c.fx for c in engine.cameras]
-    return float(np.median(dists))
+    return colour_field.pixel_footprint(engine.params["means"].detach().numpy(), engine.cameras)
 
 
 def neighbour_operator(points: np.ndarray, k: int = 16) -> tuple[torch.Tensor, float]:

@@ -28,10 +28,15 @@ class Param:
         return self.key.startswith("lambda_")
 
 
-def param_rows() -> tuple[Param, ...]:
-    """The parameter section's sliders: every live control shown as a slider (``controls.panel_controls``)."""
+def _rows(widget: str) -> tuple[Param, ...]:
+    """Every live control the panel shows as ``widget`` ("slider" or "checkbox"; ``controls.panel_controls``)."""
     return tuple(Param(c.name, c.label, c.default, c.low, c.high, c.tooltip, c.log, c.fmt)
-                 for c in panel_controls("slider"))
+                 for c in panel_controls(widget))
+
+
+def param_rows() -> tuple[Param, ...]:
+    """The parameter section's sliders."""
+    return _rows("slider")
 
 
 COARSE_CLIP_TOOLTIP = (
@@ -40,6 +45,5 @@ COARSE_CLIP_TOOLTIP = (
 
 
 def switch_rows() -> tuple[Param, ...]:
-    """The parameter section's checkboxes (keep colours, coherent strokes): every live control shown as one."""
-    return tuple(Param(c.name, c.label, c.default, c.low, c.high, c.tooltip, c.log, c.fmt)
-                 for c in panel_controls("checkbox"))
+    """The parameter section's checkboxes (keep colours, coherent strokes)."""
+    return _rows("checkbox")

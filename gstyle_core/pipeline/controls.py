@@ -108,12 +108,12 @@ def _write_style_scale(s: StylizeSettings, value: Any) -> None:
     s.style_scale = check_style_scale(value)
 
 
-def _write_keep_colours(s: StylizeSettings, value: Any) -> None:
-    s.keep_colours = bool(value)
+def _write_switch(name: str) -> Callable[[StylizeSettings, Any], None]:
+    """The writer of an on/off setting (a checkbox: any true value is on)."""
+    def write(s: StylizeSettings, value: Any) -> None:
+        setattr(s, name, bool(value))
 
-
-def _write_colour_field(s: StylizeSettings, value: Any) -> None:
-    s.colour_field = bool(value)
+    return write
 
 
 def _write_split_rate(s: StylizeSettings, value: Any) -> None:
@@ -186,14 +186,15 @@ CONTROLS: tuple[Control, ...] = (
             "Turned on mid-run the hues come back at once; turned off, the painting's colours are matched again "
             "from the next step and at the end (--keep-colours).",
             Effect.STYLE_FEATURES | Effect.CONTENT_TARGETS | Effect.RESTORE_CHROMA,
-            read=lambda s: float(s.keep_colours), write=_write_keep_colours, widget="checkbox",
+            read=lambda s: float(s.keep_colours), write=_write_switch("keep_colours"), widget="checkbox",
             cli=CliOption("keep the scene's hues and take only the painting's luminance pattern", switch=True)),
     Control("colour_field", "coherent strokes", 0.0, 0.0, 1.0, False,
             "Coherent strokes: neighbouring Gaussians' colours move together. A coarse colour field over the scene "
             "(cells of 8 px x the stroke size at its middle distance) steps beside each Gaussian's own colour, each "
             "at half the learning rate, so strokes come as wide as the painting's and the stroke size shows. On by "
             "default with the broad-strokes term; read from the next step (--colour-field 0/1).",
-            Effect.NEXT_STEP, read=lambda s: float(s.colour_field), write=_write_colour_field, widget="checkbox",
+            Effect.NEXT_STEP, read=lambda s: float(s.colour_field), write=_write_switch("colour_field"),
+            widget="checkbox",
             cli=CliOption("coherent strokes: a coarse colour field steps beside each Gaussian's colour (1 on, 0 off; "
                           "default on with the broad-strokes term, docs/texture-scale.md)", type=on_off_arg,
                           metavar="0|1")),
