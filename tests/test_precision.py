@@ -229,6 +229,23 @@ def test_a_bf16_run_uses_bf16_networks_and_records_why(monkeypatch):
     assert losses[0]["nnfm"] == pytest.approx(fp32_losses[0]["nnfm"], rel=0.05)
 
 
+def test_bf16_covers_the_broad_strokes_term_and_leaves_the_colour_field_fp32(monkeypatch):
+    """The broad-strokes term runs on the objective's network: its levels' NNFM searches are bf16 like block 3's; the
+    coherent-strokes field, like the colours, stays fp32; the term's loss agrees with fp32's."""
+    runs = {p: _run(monkeypatch, precision=p, lambda_multiscale=50.0, colour_field=True) for p in ("bf16", "fp32")}
+    engine, losses = runs["bf16"]
+    term = engine.build_objective().loss.multiscale_term
+    assert term is not None and term.vgg is engine.objective.vgg
+    assert all(t.search_matrix.dtype == torch.bfloat16 and t.matrix.dtype == torch.float32 for t in term.targets)
+    field = engine.stylize.field
+    assert field is not None and field.values.dtype == torch.float32 and engine.c_s.dtype == torch.float32
+    fp32_engine, fp32_losses = runs["fp32"]
+    fp32_term = fp32_engine.build_objective().loss.multiscale_term
+    assert all(t.search_matrix.dtype == torch.float32 for t in fp32_term.targets)
+    assert losses[0]["multiscale"] == pytest.approx(fp32_losses[0]["multiscale"], rel=0.05)
+    assert all(np.isfinite(v) for step in losses for v in step.values())
+
+
 def test_auto_resolved_to_fp32_is_the_fp32_run_bit_for_bit(monkeypatch):
     _, auto = _run(monkeypatch)
     fp32_engine, fp32 = _run(monkeypatch, precision="fp32")

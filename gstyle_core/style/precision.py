@@ -2,9 +2,10 @@
 
 bf16 covers VGG-16 (its convolutions in bfloat16, channels_last, forward and backward) and the NNFM
 nearest-neighbour search (``losses.nnfm_loss``: the search runs in the precision of the network its style target was
-taken with). The scene's colours, the content targets, the loss values, the NNFM distances and the optimiser stay
-float32. On a CPU with native bf16 dot products (AVX512-BF16, AMX) bf16 is about twice as fast; without them it is
-emulated and several times slower. ``auto`` decides, in this order:
+taken with), the broad-strokes term's levels included (they run on the same network). The scene's colours, the
+coherent-strokes field, the content targets, the loss values, the NNFM distances and the optimisers stay float32.
+On a CPU with native bf16 dot products (AVX512-BF16, AMX) bf16 is about twice as fast; without them it is emulated
+and several times slower. ``auto`` decides, in this order:
 
 1. ``$GSTYLE_PRECISION`` (``fp32`` or ``bf16``) when set; the test suite sets fp32, so no result of it depends on
    the CPU it runs on;
@@ -43,7 +44,8 @@ BF16_MARGIN = 0.9  # bf16 must take at most this fraction of fp32's time (it rou
 TIMED_ROUNDS = 2
 DECISIVE = 1.5  # a first round this lopsided decides without a second one
 NATIVE_BF16_FLAGS = ("avx512_bf16", "amx_bf16")
-COVERS = "VGG-16 (channels_last) and the NNFM search in bf16; colours, content targets and the optimiser in fp32"
+COVERS = ("VGG-16 (channels_last) and the NNFM searches (block 3 and the broad-strokes term's levels) in bf16; "
+          "colours, the coherent-strokes field, content targets and the optimisers in fp32")
 
 Timer = Callable[[str, tuple[int, int]], float]  # (precision, (height, width)) -> seconds of one timed run
 

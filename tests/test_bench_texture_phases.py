@@ -1,0 +1,110 @@
+"""``bench/texture_phases.py`` on tiny scenes (seconds): the renders at each phase boundary, the random colour changes
+and a whole run from the command line."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from synthetic import blob_scene, ring_cameras
+
+BENCH = Path(__file__).resolve().parents[1] / "bench"
+TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 3, "refit_iterations": 2, "preprocess_rounds": 1,
+        "split_at": (0.5,), "working_width": 32}
+
+
+@pytest.fixture(scope="module")
+def phases():
+    spec = importlib.util.spec_from_file_location("texture_phases_bench", BENCH / "texture_phases.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def style():
+    return np.random.default_rng(1).uniform(size=(16, 16, 3)).astype(np.float32)
+
+
+def tiny_engine(vgg, scene, style, **overrides):
+    """A real engine on ``vgg`` over 3 ring cameras, not yet stepped."""
+    from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    opts = dict(max_views=3, epochs=1, min_steps=2, preprocess_rounds=1, refit_iterations=2, split_rate=0.0,
+                working_width=32)
+    opts.update(overrides)
+    settings = resolve_settings("preview", "forward", 3, **opts)
+    return Stylizer(scene, ring_cameras(3), style, settings,
+                    objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
+
+
+@pytest.mark.parametrize("final_match", [True, False])
+def test_every_stage_is_rendered_and_the_last_is_the_result(phases, vgg, style, final_match):
+    scene = blob_scene(150, seed=3, sh_degree=1)
+    engine = tiny_engine(vgg, scene, style, colour_match_after=final_match)
+    cameras = ring_cameras(2, width=40, height=32)
+    images = phases.stage_renders(engine, scene, cameras)
+    assert engine.done
+    assert set(images) == set(phases.STAGES)
+    result = phases.render_views(engine.stylized_scene(), cameras)[0]
+    for got, want in zip(images["final"], result, strict=True):
+        assert np.array_equal(got, want)
+    # each boundary shows its own scene: the colour match and the stylization each change the renders
+    assert not np.allclose(images["preprocessed"][0], images["colour-matched"][0])
+    assert not np.allclose(images["colour-matched"][0], images["stylized"][0])
+    assert np.array_equal(images["stylized"][0], images["final"][0]) == (not final_match)
+
+
+def test_a_coarser_random_change_renders_coarser(phases, vgg, style):
+    scene = blob_scene(8000, seed=4, spread=0.4, scale=0.02)  # Gaussians of about a pixel in 96-px views
+    engine = tiny_engine(vgg, scene, style)  # working width 32: a working-width pixel is 3 of these views'
+    cameras = ring_cameras(2, width=96, height=80)
+    alphas = phases.render_views(scene, cameras)[1]
+    out = phases.random_field_shares(scene, engine, cameras, alphas, [0.0, 4.0])
+    per_gaussian, lattice = out["0 px"], out["4 px"]
+    for share in (per_gaussian, lattice):
+        assert abs(sum(share) - 1) < 1e-9
+    assert lattice[2] > per_gaussian[2] + 0.2  # the smooth change puts more of its energy in the coarse band
+    assert per_gaussian[0] > lattice[0]
+
+
+@pytest.mark.slow
+def test_command_line_run_writes_the_changes(phases, vgg, no_clip_weights, monkeypatch, tmp_path, style, capsys):
+    from PIL import Image
+
+    from gstyle_core.io import save_scene
+    from gstyle_core.style import vgg as vgg_module
+
+    scene, painting = tmp_path / "tiny.ply", tmp_path / "style.png"
+    save_scene(blob_scene(150, seed=2), scene)
+    Image.fromarray((style * 255).astype(np.uint8)).save(painting)
+    monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: vgg)
+    plain = phases.build_request
+
+    def tiny_request(args):
+        request = plain(args)
+        request.overrides.update(TINY)
+        return request
+
+    monkeypatch.setattr(phases, "build_request", tiny_request)
+    threads = torch.get_num_threads()
+    try:
+        phases.main([str(scene), "--style", str(painting), "--threads", "1", "--random-field", "0,16",
+                     "--json", str(tmp_path / "out.json")])
+    finally:
+        torch.set_num_threads(threads)
+    out = json.loads((tmp_path / "out.json").read_text())
+    assert set(out["changes"]) == {"input → preprocessed", "preprocessed → colour-matched",
+                                   "colour-matched → stylized", "stylized → final", "colour-matched → final",
+                                   "input → final"}
+    assert all(len(e) == 3 and min(e) >= 0 for e in out["changes"].values())
+    assert set(out["random_field"]) == {"0 px", "16 px"} and len(out["painting"]) == 3
+    printed = capsys.readouterr().out
+    assert "input → final" in printed and "random change, lattice   16 px" in printed
+    assert printed.strip().splitlines()[-1].startswith("RESULT stylization_coarse_ratio=")
