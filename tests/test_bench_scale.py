@@ -11,12 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from bench_cli import tiny_bench_inputs
 from fakes import engine_at_stylize
 from synthetic import blob_scene
 
 BENCH = Path(__file__).resolve().parents[1] / "bench"
-TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 3, "refit_iterations": 2, "preprocess_rounds": 1,
-        "split_at": (0.5,), "working_width": 32}
 
 
 def _load(name: str):
@@ -59,23 +58,7 @@ def test_patched_optimiser_starts_the_variant_and_steps(causes, vgg, style, opti
 def test_command_line_run_writes_the_row(causes, vgg, no_clip_weights, monkeypatch, tmp_path, style):
     """Parse, build (the tiny scene file through ``build_request``), run with a patch and the broad-strokes term at
     the given λ, and write OUT.json with the table's figures."""
-    from PIL import Image
-
-    from gstyle_core.io import save_scene
-    from gstyle_core.style import vgg as vgg_module
-
-    scene, painting = tmp_path / "tiny.ply", tmp_path / "style.png"
-    save_scene(blob_scene(150, seed=2), scene)
-    Image.fromarray((style * 255).astype(np.uint8)).save(painting)
-    monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: vgg)
-    plain = causes.build_request
-
-    def tiny_request(args):
-        request = plain(args)
-        request.overrides.update(TINY)
-        return request
-
-    monkeypatch.setattr(causes, "build_request", tiny_request)
+    scene, painting = tiny_bench_inputs(causes, vgg, style, tmp_path, monkeypatch)
     threads = torch.get_num_threads()
     try:
         causes.main([str(scene), "--style", str(painting), "--tag", "t", "--out-dir", str(tmp_path),

@@ -10,11 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from bench_cli import tiny_bench_inputs
 from synthetic import blob_scene, ring_cameras
 
 BENCH = Path(__file__).resolve().parents[1] / "bench"
-TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 3, "refit_iterations": 2, "preprocess_rounds": 1,
-        "split_at": (0.5,), "working_width": 32}
 
 
 @pytest.fixture(scope="module")
@@ -76,23 +75,7 @@ def test_a_coarser_random_change_renders_coarser(phases, vgg, style):
 
 @pytest.mark.slow
 def test_command_line_run_writes_the_changes(phases, vgg, no_clip_weights, monkeypatch, tmp_path, style, capsys):
-    from PIL import Image
-
-    from gstyle_core.io import save_scene
-    from gstyle_core.style import vgg as vgg_module
-
-    scene, painting = tmp_path / "tiny.ply", tmp_path / "style.png"
-    save_scene(blob_scene(150, seed=2), scene)
-    Image.fromarray((style * 255).astype(np.uint8)).save(painting)
-    monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: vgg)
-    plain = phases.build_request
-
-    def tiny_request(args):
-        request = plain(args)
-        request.overrides.update(TINY)
-        return request
-
-    monkeypatch.setattr(phases, "build_request", tiny_request)
+    scene, painting = tiny_bench_inputs(phases, vgg, style, tmp_path, monkeypatch)
     threads = torch.get_num_threads()
     try:
         phases.main([str(scene), "--style", str(painting), "--threads", "1", "--random-field", "0,16",

@@ -1,0 +1,34 @@
+"""Shared set-up for tests that run a bench script's command line on tiny inputs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from synthetic import blob_scene
+
+TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 3, "refit_iterations": 2, "preprocess_rounds": 1,
+        "split_at": (0.5,), "working_width": 32}
+
+
+def tiny_bench_inputs(module, vgg, style: np.ndarray, tmp_path: Path, monkeypatch) -> tuple[Path, Path]:
+    """Write a 150-Gaussian scene and ``style`` as files, load ``vgg`` wherever VGG is loaded, and make ``module``'s
+    ``build_request`` ask for ``TINY`` settings; returns the scene's and the painting's paths."""
+    from PIL import Image
+
+    from gstyle_core.io import save_scene
+    from gstyle_core.style import vgg as vgg_module
+
+    scene, painting = tmp_path / "tiny.ply", tmp_path / "style.png"
+    save_scene(blob_scene(150, seed=2), scene)
+    Image.fromarray((style * 255).astype(np.uint8)).save(painting)
+    monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: vgg)
+    plain = module.build_request
+
+    def tiny_request(args):
+        request = plain(args)
+        request.overrides.update(TINY)
+        return request
+
+    monkeypatch.setattr(module, "build_request", tiny_request)
+    return scene, painting
