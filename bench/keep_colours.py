@@ -41,7 +41,7 @@ def luminance_nnfm(vgg, style: np.ndarray, renders: list[np.ndarray], alphas: li
 def run_variant(name: str, scene: str | None, style_path: str | None, preset: str) -> dict:
     """One stylization and its measurements."""
     from gstyle_core.pipeline.build import BuildRequest, build_stylizer
-    from gstyle_core.pipeline.cli import evaluate_run
+    from gstyle_core.pipeline.cli import evaluate_run, evaluation_cameras
     from gstyle_core.pipeline.objective import StyleObjective
     from gstyle_core.render_cli import render_scene_image
     from gstyle_core.style.keep_colours import chroma
@@ -54,9 +54,7 @@ def run_variant(name: str, scene: str | None, style_path: str | None, preset: st
     seconds = time.perf_counter() - t0
     q = evaluate_run(engine, input_scene, style)
     before_img, after_img = q.pop("images")
-    from gstyle_core.pipeline.stylizer import choose_views
-
-    cams = [engine.full_cameras[i].resized_to_width(256) for i in choose_views(engine.full_cameras, 3)]
+    cams = evaluation_cameras(engine)
     before, alpha = zip(*(render_scene_image(input_scene, c, with_alpha=True) for c in cams), strict=True)
     after = [render_scene_image(engine.stylized_scene(), c) for c in cams]
     vgg = engine.objective.vgg

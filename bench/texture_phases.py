@@ -43,11 +43,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from gstyle_core.fit.model import scene_from_params  # noqa: E402
 from gstyle_core.pipeline import colour_field  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request, run_texture_scale  # noqa: E402
-from gstyle_core.pipeline.stylizer import choose_views  # noqa: E402
+from gstyle_core.pipeline.cli import (  # noqa: E402
+    add_stylize_arguments,
+    build_request,
+    evaluation_cameras,
+    run_texture_scale,
+)
 from gstyle_core.render_cli import render_scene_image  # noqa: E402
 from gstyle_core.scene import rgb_to_sh_dc  # noqa: E402
-from gstyle_core.style.texture_scale import BAND_NAMES, band_energies, shares  # noqa: E402
+from gstyle_core.style.texture_scale import BAND_NAMES, added_energies, shares  # noqa: E402
 
 EVAL_VIEWS, EVAL_WIDTH = 3, 256  # as evaluate_run
 STAGES = ("input", "preprocessed", "colour-matched", "stylized", "final")
@@ -60,11 +64,6 @@ def render_views(scene, cameras, sh_degree: int | None = None) -> tuple[list[np.
     return [np.asarray(o[0], np.float64) for o in out], [np.asarray(o[1], np.float64) for o in out]
 
 
-def change_energies(first: list[np.ndarray], second: list[np.ndarray], alphas: list[np.ndarray]) -> np.ndarray:
-    """Band energies of ``second − first`` summed over the views, weighted by ``alphas``."""
-    return sum(band_energies(b - a, w) for a, b, w in zip(first, second, alphas, strict=True))
-
-
 def ground_truth_scene(engine):
     """The current geometry with the ground-truth colours (SH degree 0)."""
     scene = scene_from_params(engine.params)
@@ -72,11 +71,13 @@ def ground_truth_scene(engine):
     return scene
 
 
-def stage_renders(engine, scene_in, cameras) -> dict[str, list[np.ndarray]]:
-    """Run ``engine`` to the end, rendering ``cameras`` at every phase boundary (``STAGES``)."""
+def stage_renders(engine, scene_in, cameras) -> tuple[dict[str, list[np.ndarray]], list[np.ndarray]]:
+    """Run ``engine`` to the end, rendering ``cameras`` at every phase boundary (``STAGES``); returns the renders of
+    each stage and the input's alphas (the weights of every change's energies)."""
     if engine.settings.region is not None or getattr(engine, "input_selection", None) is not None:
         raise SystemExit("texture_phases probes whole-scene runs only (no --region)")
-    images = {"input": render_views(scene_in, cameras)[0]}
+    inputs, alphas = render_views(scene_in, cameras)
+    images = {"input": inputs}
     boundaries = {"colour_match": ("preprocessed", lambda: ground_truth_scene(engine)),
                   "stylize": ("colour-matched", engine.stylized_scene),
                   "finish": ("stylized", engine.stylized_scene)}
@@ -87,7 +88,7 @@ def stage_renders(engine, scene_in, cameras) -> dict[str, list[np.ndarray]]:
         engine.step()
     images["final"] = render_views(engine.stylized_scene(), cameras)[0]
     images.setdefault("stylized", images["final"])  # no final colour match (colour_match_after off)
-    return images
+    return images, alphas
 
 
 def random_field_shares(scene_in, engine, cameras, alphas, cells_px: list[float], seed: int = 0) -> dict[str, list]:
@@ -114,7 +115,7 @@ def random_field_shares(scene_in, engine, cameras, alphas, cells_px: list[float]
                 change = field.sample()
         change = RANDOM_FIELD_RMS * change / change.std()
         rgb = np.clip(RANDOM_FIELD_GREY + change.numpy(), 0.0, 1.0)
-        out[f"{px:g} px"] = shares(change_energies(grey, render_colours(rgb), alphas)).tolist()
+        out[f"{px:g} px"] = shares(added_energies(grey, render_colours(rgb), alphas)).tolist()
     return out
 
 
@@ -133,15 +134,12 @@ def main(argv: list[str] | None = None) -> int:
         torch.set_num_threads(args.threads)
     cells = [float(x) for x in args.random_field.split(",") if x.strip()]
     engine, scene_in, _, _, style = build_stylizer(build_request(args))
-    cameras = [engine.full_cameras[i].resized_to_width(EVAL_WIDTH)
-               for i in choose_views(engine.full_cameras, EVAL_VIEWS)]
-    _, alphas = render_views(scene_in, cameras)
+    cameras = evaluation_cameras(engine, EVAL_VIEWS, EVAL_WIDTH)
     t0 = time.perf_counter()
-    images = stage_renders(engine, scene_in, cameras)
+    images, alphas = stage_renders(engine, scene_in, cameras)
     seconds = time.perf_counter() - t0
-    steps = [(a, b) for a, b in zip(STAGES, STAGES[1:], strict=False)] + [("colour-matched", "final"),
-                                                                          ("input", "final")]
-    rows = {f"{a} → {b}": change_energies(images[a], images[b], alphas).tolist() for a, b in steps}
+    steps = [*zip(STAGES, STAGES[1:], strict=False), ("colour-matched", "final"), ("input", "final")]
+    rows = {f"{a} → {b}": added_energies(images[a], images[b], alphas).tolist() for a, b in steps}
     figure = run_texture_scale(engine, style, images["input"], images["final"], alphas, EVAL_WIDTH).to_dict()
     painting = list(figure["painting"].values())
     print(f"{args.scene or 'demo'} × {', '.join(args.style or ['the bundled painting'])}: {engine.gaussian_count:,} "

@@ -158,7 +158,7 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
               pictures: tuple[Path, str] | None = None) -> dict:
     """One stylization with ``overrides``; wall time per phase and the quality figures (``pictures`` = (folder,
     name): also the pictures of ``save_pictures``)."""
-    from gstyle_core.pipeline.cli import evaluate_run
+    from gstyle_core.pipeline.cli import evaluate_run, evaluation_cameras
 
     kw = {**BASE, **overrides} if preset == "preview" else dict(overrides)
     kw = {"precision": POINT_PRECISION, **kw}
@@ -187,7 +187,7 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
     q.pop("images")
     if pictures is not None:
         save_pictures(engine, scene_in, *pictures)
-    eval_cams = [engine.full_cameras[i].resized_to_width(EVAL_WIDTH) for i in choose_views(engine.full_cameras, 3)]
+    eval_cams = evaluation_cameras(engine, 3, EVAL_WIDTH)
     pairs = [(c, nearby_camera(c, NEARBY_SHIFT * median_depth(scene_in, c))) for c in eval_cams]
     return {
         "seconds": total, "build_s": build_s, **{f"s_{k}": v for k, v in phase_wall.items()},

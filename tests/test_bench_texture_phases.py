@@ -48,9 +48,10 @@ def test_every_stage_is_rendered_and_the_last_is_the_result(phases, vgg, style, 
     scene = blob_scene(150, seed=3, sh_degree=1)
     engine = tiny_engine(vgg, scene, style, colour_match_after=final_match)
     cameras = ring_cameras(2, width=40, height=32)
-    images = phases.stage_renders(engine, scene, cameras)
+    images, alphas = phases.stage_renders(engine, scene, cameras)
     assert engine.done
     assert set(images) == set(phases.STAGES)
+    assert all(np.array_equal(a, b) for a, b in zip(alphas, phases.render_views(scene, cameras)[1], strict=True))
     result = phases.render_views(engine.stylized_scene(), cameras)[0]
     for got, want in zip(images["final"], result, strict=True):
         assert np.array_equal(got, want)

@@ -286,14 +286,21 @@ def _resume(engine, path: Path, saved, fingerprint: dict[str, str]) -> dict:
     return {"checkpoint": str(path), "skipped_steps": skipped, "phase": engine.phase}
 
 
+def evaluation_cameras(engine, n_views: int = 3, width: int = 256) -> list:
+    """The fixed views the quality figures are measured on: ``n_views`` training cameras spread over the list
+    (``choose_views``), resized to ``width`` px."""
+    from .stylizer import choose_views
+
+    return [engine.full_cameras[i].resized_to_width(width) for i in choose_views(engine.full_cameras, n_views)]
+
+
 def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: int = 3, width: int = 256) -> dict:
     """Quality figures on fixed evaluation views, before (input scene) and after (stylized scene); a list of
     paintings is measured with the engine's mix weights (``Evaluator``)."""
     from ..render_cli import render_scene_image
     from .evaluate import Evaluator, structure_kept
-    from .stylizer import choose_views
 
-    cams = [engine.full_cameras[i].resized_to_width(width) for i in choose_views(engine.full_cameras, n_views)]
+    cams = evaluation_cameras(engine, n_views, width)
     # the run's own network when its objective was built; the figures are measured in fp32 whatever the run's
     # precision, so that runs at either precision compare
     vgg = getattr(engine.objective, "vgg", None)

@@ -160,6 +160,19 @@ class TextureScale:
                 f"{fmt(f'{v:.2f}' for v in self.painting)} (coarse {self.coarse_ratio:.2f}× the painting's)")
 
 
+def added_energies(before: Sequence[np.ndarray], after: Sequence[np.ndarray],
+                   coverage: Sequence[np.ndarray | None]) -> np.ndarray:
+    """Band energies of ``after − before`` summed over views (one coverage weight image, or None, per view)."""
+    if not (len(before) == len(after) == len(coverage)) or not before:
+        raise ValueError(f"{len(before)} before, {len(after)} after and {len(coverage)} coverage image(s)")
+    energy = np.zeros(3)
+    for b, a, c in zip(before, after, coverage, strict=True):
+        if np.shape(a) != np.shape(b):
+            raise ValueError(f"before {np.shape(b)} and after {np.shape(a)} differ in shape")
+        energy += band_energies(np.asarray(a, np.float64) - np.asarray(b, np.float64), c)
+    return energy
+
+
 def texture_scale(before: Sequence[np.ndarray] | np.ndarray, after: Sequence[np.ndarray] | np.ndarray,
                   coverage: Sequence[np.ndarray] | np.ndarray | None,
                   paintings: Sequence[np.ndarray] | np.ndarray, painting_side: int,
@@ -170,13 +183,7 @@ def texture_scale(before: Sequence[np.ndarray] | np.ndarray, after: Sequence[np.
     after_l = [after] if isinstance(after, np.ndarray) else list(after)
     cov_l = [None] * len(before_l) if coverage is None else (
         [coverage] if isinstance(coverage, np.ndarray) else list(coverage))
-    if not (len(before_l) == len(after_l) == len(cov_l)) or not before_l:
-        raise ValueError(f"{len(before_l)} before, {len(after_l)} after and {len(cov_l)} coverage image(s)")
-    energy = np.zeros(3)
-    for b, a, c in zip(before_l, after_l, cov_l, strict=True):
-        if np.shape(a) != np.shape(b):
-            raise ValueError(f"before {np.shape(b)} and after {np.shape(a)} differ in shape")
-        energy += band_energies(np.asarray(a, np.float64) - np.asarray(b, np.float64), c)
+    energy = added_energies(before_l, after_l, cov_l)
     paint_l = [paintings] if isinstance(paintings, np.ndarray) else list(paintings)
     w = np.ones(len(paint_l)) if painting_weights is None else np.asarray(painting_weights, np.float64)
     if len(w) != len(paint_l) or not w.sum() > 0:
