@@ -31,7 +31,7 @@ from .snapshot import FOLLOW_GEOMETRY
 
 IDLE_POLL_SECONDS = 0.05
 REPORT_FIELDS = ("phase", "step", "total_steps", "losses", "seconds", "gaussians", "colours_changed",
-                 "geometry_changed", "done", "message")
+                 "geometry_changed", "done", "message", "width")
 PAINTING_PARAMS = painting_controls()  # engine params that belong to the config's paintings, not carried to a new one
 
 
@@ -97,6 +97,7 @@ class EngineHost:
             self.fail(exc, "building the engine")
             return
         self.send("ready", {"paused": self.paused})
+        self.send_plans()
         if resume_from:
             self.load_checkpoint(resume_from)
         if self.params:
@@ -117,6 +118,49 @@ class EngineHost:
         self.send_decisions()
         self.snapshot_pending = True
         self.flush_snapshot()
+        if self.done:
+            self.send_summary()
+
+    def send_plans(self) -> None:
+        """Every preset's steps on this scene (the panel prices them at the measured step times), if the engine
+        can tell; the preset it runs and the widths it works at."""
+        plans = getattr(self.engine, "preset_plans", None)
+        if plans is None:
+            return
+        try:
+            self.send("plans", {"plans": plans(), "preset": self.engine.settings.preset,
+                                "working_width": int(self.engine.settings.working_width),
+                                "levels": list(self.engine.levels), "next_width": self.engine.next_level_width()})
+        except Exception as exc:  # noqa: BLE001 - the estimates are a courtesy: say why they are missing
+            self.send("error", f"estimating the presets: {one_line_error(exc)}")
+
+    def send_summary(self) -> None:
+        """The finished run's summary (``gstyle_core.pipeline.cli.result_summary``: its speckle at a display's
+        size), for engines that have one."""
+        if not hasattr(self.engine, "input_scene"):
+            return
+        try:
+            from gstyle_core.pipeline.cli import result_summary
+
+            self.send("summary", result_summary(self.engine))
+        except Exception as exc:  # noqa: BLE001
+            traceback.print_exc()
+            self.send("summary", {"line": f"no summary: {one_line_error(exc)}"})
+
+    def refine(self) -> None:
+        """Carry the run on at its next finer level (``engine.refine()``), from its colours as they are."""
+        if self.engine is None or not hasattr(self.engine, "refine"):
+            self.send("error", "refine: this engine has no finer levels")
+            return
+        try:
+            width = self.engine.refine()
+        except ValueError as exc:  # at the largest width: one line, the run stays as it is
+            self.send("refine_refused", one_line_error(exc))
+            return
+        self.done = False
+        self.send("refining", width)
+        self.send_plans()
+        self.send_decisions()
 
     def send_decisions(self) -> None:
         """Forward the engine's ``decisions`` dict (if it has one) whenever it changed."""
@@ -169,6 +213,8 @@ class EngineHost:
             self.set_params(arg)
         elif command == "export":
             self.export(arg)
+        elif command == "refine":
+            self.refine()
         elif command == "quit":
             self.checkpoint()
             self.send("bye", None)

@@ -88,6 +88,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.engine_factory = engine_factory
         self.engine_config = dict(engine_config or {})
         self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
+        self.panel.quality = str(self.engine_config.get("preset") or "preview")
         self.bridge: WorkerBridge | None = None
         self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
         self._resumed_from: Path | None = None  # the session checkpoint this engine continued from

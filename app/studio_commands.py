@@ -46,6 +46,16 @@ class StudioCommands:
                 self._update_style_config()
             if bridge is not None:
                 bridge.set_params(**args)
+        elif name == "set_quality":
+            self.panel.quality = str(args["preset"])
+        elif name == "restart_quality":
+            self.engine_config["preset"] = str(args["preset"])
+            self.panel.quality = str(args["preset"])
+            self.panel.status = f"restarting at the {args['preset']} quality"
+            self.start_engine()
+        elif name == "refine":
+            if bridge is not None:
+                bridge.refine()
         elif name == "remove_style2":
             self.remove_second_style()
             self.panel.status = "back to one painting"

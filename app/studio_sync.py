@@ -77,11 +77,30 @@ class StudioSync:
             p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
             p.eta_seconds = (st.step_seconds / max(st.reports_received, 1) * max(p.total_steps - p.step, 0)
                              if st.reports_received and not st.done and not st.paused else None)  # paused: no ETA
+        self._fill_quality(st)
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             p.status = f"resumed the last session at step {st.resumed.get('step')}"
         self._sync_exports(st)
         self._show_takes_error()
+
+    def _fill_quality(self, st) -> None:
+        """The quality section: the preset run, each preset's estimate at this run's step times, the widths."""
+        from gstyle_core.pipeline.plan import estimate_seconds
+
+        p = self.panel
+        plans = st.plans
+        if plans:
+            p.preset = str(plans.get("preset", ""))
+            working = int(plans.get("working_width", 256))
+            p.quality_estimates = {name: estimate_seconds(plan, st.step_times, working)
+                                   for name, plan in plans.get("plans", {}).items()}
+            p.levels = list(plans.get("levels", []))
+            p.next_width = plans.get("next_width")
+        rep = st.last_report or {}
+        p.width = int(rep.get("width") or (p.levels[0] if p.levels else 0))
+        p.refine_note = st.refine_note
+        p.summary_line = str((st.summary or {}).get("line", ""))
 
     def _sync_exports(self, st) -> None:
         """New exports become takes (status: the last one); a failed export's one line goes to the status (no take

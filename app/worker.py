@@ -17,6 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from gstyle_core.pipeline.plan import StepTimes
+
 from .child_process import interrupts_ignored
 from .engine_host import worker_main
 
@@ -51,6 +53,10 @@ class WorkerState:
     checkpoint: str | None = None
     resumed: dict[str, Any] | None = None  # {"checkpoint": path, "step": n} once a checkpoint was loaded
     started_at: float = 0.0
+    plans: dict[str, Any] = field(default_factory=dict)  # every preset's steps, the preset run, its widths (plans)
+    step_times: StepTimes = field(default_factory=StepTimes)  # seconds per step of each kind (the estimates)
+    summary: dict[str, Any] | None = None  # the finished run's summary (its speckle at a display's size)
+    refine_note: str = ""  # why Refine was refused, or the level it started
 
 
 # ====================================================================== the UI side
@@ -161,6 +167,8 @@ class WorkerBridge:
         self.state.decisions = {}
         self.state.reports_received, self.state.step_seconds = 0, 0.0
         self.state.resumed = None
+        self.state.summary, self.state.refine_note = None, ""
+        self.state.step_times = StepTimes()
         if resume_from:
             self._send("restart_from", (self.config, str(resume_from)))
         else:
@@ -175,6 +183,10 @@ class WorkerBridge:
         """Change engine parameters (the live controls of ``gstyle_core.pipeline.controls``: λ weights, strength,
         stroke size, keep colours, split rate, lr, style mix) from the next step on."""
         self._send("set_params", dict(params))
+
+    def refine(self) -> None:
+        """Carry the run on at its next finer level from the colours it has (no restart)."""
+        self._send("refine")
 
     def export(self, path: str | os.PathLike) -> None:
         """Ask the worker to save the stylized scene (.ply, .spz or .compressed.ply; + .json summary) at ``path``."""
@@ -191,7 +203,8 @@ class WorkerBridge:
         """Apply all pending worker messages to ``state``; returns them (oldest first) as (kind, payload).
 
         Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
-        decisions (dict), exported (path), export_failed (one line), checkpoint (path), resumed (dict), bye.
+        decisions (dict), exported (path), export_failed (one line), checkpoint (path), resumed (dict), plans (dict),
+        summary (dict), refining (width), refine_refused (one line), bye.
         """
         messages: list[tuple[str, Any]] = []
         if self._events is None:
@@ -220,6 +233,7 @@ class WorkerBridge:
         elif kind == "report":
             st.last_report = payload
             st.reports_received += 1
+            st.step_times.add(payload)
             st.step_seconds += float(payload.get("seconds") or 0.0)
             st.done = bool(payload.get("done"))
             losses = dict(payload.get("losses") or {})
@@ -252,6 +266,15 @@ class WorkerBridge:
             st.checkpoint = payload
         elif kind == "resumed":
             st.resumed = dict(payload)
+        elif kind == "plans":
+            st.plans = dict(payload)
+        elif kind == "summary":
+            st.summary = dict(payload)
+        elif kind == "refining":
+            st.done, st.summary = False, None
+            st.refine_note = f"refining at {payload} px"
+        elif kind == "refine_refused":
+            st.refine_note = str(payload)
 
     def wait_until(self, predicate: Callable[[WorkerState], bool], timeout: float = 30.0) -> bool:
         """Poll until ``predicate(state)`` holds (True) or ``timeout`` seconds pass (False). For tests and CLI."""

@@ -11,7 +11,7 @@ and the time per stylization step. Variants (prototypes only; the engine is not 
 * ``--coherent-px P``: each colour gradient diffused over its neighbours in the scene in the optimiser step (repeated
   averaging over the 16 nearest Gaussians until it has spread over σ = P px × stroke size × the pixel footprint at
   the scene's median distance).
-  Both patch the Stylize phase's optimiser start (``engine.stylize._start_optimiser``), which optimises the active
+  Both patch the Stylize phase's optimiser start (``engine.stylize.colour_steps.start``), which optimises the active
   rows of c_s (``run_state.active.gather``).
 * ``--multiscale L``: the broad-strokes term (multi-scale NNFM, ``style/multiscale.py``, now part of the engine) at
   weight L: the setting ``lambda_multiscale`` (same as ``--lambda-multiscale L``; strength applies). Without it the
@@ -106,19 +106,20 @@ def neighbour_operator(points: np.ndarray, k: int = 16) -> tuple[torch.Tensor, f
 
 
 def patch_optimiser(engine, optim: str, coherent_px: float) -> dict:
-    """Wrap the Stylize phase's optimiser start (``engine.stylize._start_optimiser``: at its first step and after
+    """Wrap the Stylize phase's optimiser start (``engine.stylize.colour_steps.start``: at its first step and after
     every split's refit) so that it starts a variant; returns a dict the patch fills with notes."""
     notes: dict = {}
     stylize, run = engine.stylize, engine.run_state
-    original = stylize._start_optimiser
+    steps = stylize.colour_steps
+    original = steps.start
 
-    def start():
-        original()
-        c_opt = stylize.c_opt  # the optimised copy of the active rows of c_s
+    def start(lr: float):
+        original(lr)
+        c_opt = steps.c_opt  # the optimised copy of the active rows of c_s
         if optim == "global":
-            stylize.optimiser = GlobalNormAdam(c_opt, lr=stylize.lr())
+            steps.optimiser = GlobalNormAdam(c_opt, lr=lr)
         elif optim == "eps":
-            stylize.optimiser = FirstRmsEpsAdam(c_opt, lr=stylize.lr())
+            steps.optimiser = FirstRmsEpsAdam(c_opt, lr=lr)
         if coherent_px > 0:
             pos = run.active.gather(engine.params["means"].detach()).numpy()
             sigma = coherent_px * engine.settings.style_scale * pixel_footprint(engine)
@@ -128,7 +129,7 @@ def patch_optimiser(engine, optim: str, coherent_px: float) -> dict:
             notes.setdefault("neighbour_seconds", []).append(round(time.perf_counter() - t0, 2))
             notes.update(sigma_scene_units=sigma, passes=passes, one_pass_rms=spread ** 0.5)
 
-            plain_step = stylize.optimiser.step
+            plain_step = steps.optimiser.step
 
             def smoothed_step():  # once per optimiser step, after the split ranking has read the raw gradient
                 g = c_opt.grad
@@ -138,9 +139,9 @@ def patch_optimiser(engine, optim: str, coherent_px: float) -> dict:
                     c_opt.grad = g
                 return plain_step()
 
-            stylize.optimiser.step = smoothed_step
+            steps.optimiser.step = smoothed_step
 
-    stylize._start_optimiser = start
+    steps.start = start
     return notes
 
 
@@ -148,8 +149,8 @@ def time_multiscale(engine) -> dict:
     """Seconds spent in the broad-strokes term's forward passes (``objective.loss.multiscale_term``), accumulated from
     the first stylization step on in the returned dict's ``seconds`` (0 while the term is off)."""
     timer = {"seconds": 0.0, "hooked": None}
-    stylize = engine.stylize
-    start = stylize._start_optimiser  # the objective is built right after the optimiser starts: build it here
+    steps = engine.stylize.colour_steps
+    start = steps.start  # the objective is built right after the optimiser starts: build it here
 
     def before(_module, _inputs):
         timer["t0"] = time.perf_counter()
@@ -157,15 +158,15 @@ def time_multiscale(engine) -> dict:
     def after(_module, _inputs, _output):
         timer["seconds"] += time.perf_counter() - timer.pop("t0", time.perf_counter())
 
-    def start_and_hook():
-        start()
+    def start_and_hook(lr: float):
+        start(lr)
         term = engine.build_objective().loss.multiscale_term
         if term is not None and term is not timer["hooked"]:  # (re)built: a new module to time
             term.register_forward_pre_hook(before)
             term.register_forward_hook(after)
             timer["hooked"] = term
 
-    stylize._start_optimiser = start_and_hook
+    steps.start = start_and_hook
     return timer
 
 

@@ -1,14 +1,17 @@
-"""Per-phase timing of a stylization run, and the stylize step against its floor (VGG + NNFM).
+"""Per-phase timing of a stylization run, and the stylize step against its floor (every network pass it runs).
 
 Prints where it ran (the CPU's model and the flags that decide its speed, torch threads), the run's precision
 (``--precision``, default auto, with the reason), the floor on a whole frame at both precisions (fp32 and bf16), a
 per-phase table, a table of where the stylize step's time goes, and
-``RESULT step_over_floor=X same_pixels=Y``: X = mean stylization step time / (views per step × the time of a VGG-16
-(conv1_1…relu3_3) + NNFM forward+backward on a whole frame at the working resolution), measured in the same run;
-Y = the step against its floor on the same pixels: VGG + NNFM forward+backward on exactly what the step's networks
-saw (for an object scene without photos, the box of each view that the scene covers, ``pipeline/scene_box.py``),
-summed over the step's views. ``--whole-frames`` switches the boxes off (``crop_to_scene = False``) to compare.
-Both floors are at the run's precision (the other precision's network is loaded only for its whole-frame floor).
+``RESULT step_over_floor=X same_pixels=Y``: X = mean stylization step time / (views per step × the floor of a whole
+frame at the working resolution), measured in the same run; Y = the step against its floor on the same pixels. The
+floor is every network pass the objective runs, forward and backward: VGG-16 (conv1_1…relu3_3) + NNFM on what the
+step's networks saw (for an object scene without photos, the box of each view that the scene covers,
+``pipeline/scene_box.py``) and, with the broad-strokes term, VGG + NNFM on each of its levels (×2, ×4, ×8 of the box
+grown by the coarsest factor), summed over the step's views. ``--whole-frames`` switches the boxes off
+(``crop_to_scene = False``) to compare. Both floors are at the run's precision (the other precision's network is
+loaded only for the plain whole-frame VGG + NNFM time). ``--levels`` goes on into the finer levels and adds their
+steps against their own floors (``level<W>_crop_over_floor``, ``level<W>_whole_over_floor``).
 
     .venv/bin/python bench/stylize.py [SCENE] [--style IMAGE] [--preset preview] [--steps 60]
 """
@@ -113,14 +116,30 @@ def instrument(engine) -> PartTimer:
     return timer
 
 
-def floor_time(objective, height: int, width: int, repeats: int = 7) -> float:
-    """Median time of VGG forward+backward + NNFM on a [1, 3, H, W] image (``objective``: anything with ``vgg`` and
-    ``target``, e.g. the run's objective)."""
+def floor_time(objective, height: int, width: int, repeats: int = 7,
+               coarse: tuple[int, int] | None = None) -> float:
+    """Median time of every network pass the objective runs on a [1, 3, H, W] view, forward and backward: VGG +
+    NNFM, and with the broad-strokes term (``objective.loss.multiscale_term``, weight > 0) VGG + NNFM on each of its
+    levels, taken from a ``coarse`` (h, w) view (the grown box it sees; default the same size). ``objective``: anything
+    with ``vgg`` and ``target`` (and optionally ``loss``), e.g. the run's objective."""
+    from gstyle_core.style.losses import upsample_for_vgg, vgg_input_size
+    from gstyle_core.style.multiscale import downsample
+
+    term = getattr(getattr(objective, "loss", None), "multiscale_term", None)
+    if term is not None and not getattr(objective.loss.weights, "multiscale", 0) > 0:
+        term = None
     times = []
     for _ in range(repeats + 2):
         img = torch.rand(1, 3, height, width, requires_grad=True)
         t0 = time.perf_counter()
         loss = style_nnfm(concat_features(objective.vgg(img)), objective.target)
+        if term is not None:
+            wide = torch.rand(1, 3, *(coarse or (height, width)), requires_grad=True)
+            for factor, target in zip(term.factors, term.targets, strict=True):
+                small = downsample(wide, factor)
+                if tuple(small.shape[-2:]) != vgg_input_size(small.shape[-2:]):
+                    small = upsample_for_vgg(small)
+                loss = loss + style_nnfm(concat_features(objective.vgg(small)), target)
         loss.backward()
         times.append(time.perf_counter() - t0)
     return statistics.median(times[2:])
@@ -138,7 +157,7 @@ def networks_at(engine, precision: str):
     search in that precision)."""
     objective = engine.objective
     if objective.precision == precision:
-        return objective
+        return Networks(objective.vgg, objective.target)
     dtype = torch_dtype(precision)
     vgg = load_vgg(engine.settings.vgg_weights, dtype=dtype, channels_last=precision == "bf16")
     target = objective.target
@@ -147,12 +166,20 @@ def networks_at(engine, precision: str):
     return Networks(vgg, WeightedTargets(copies, target.weights) if isinstance(target, WeightedTargets) else copies[0])
 
 
-def network_sizes(engine) -> list[tuple[int, int]]:
-    """(height, width) of what VGG sees in each training view: the view, or its scene box."""
+def network_sizes(engine) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """(height, width) of what VGG sees in each training view (the view, or its scene box) and of what the
+    broad-strokes term's levels are taken from (the box grown by its coarsest factor)."""
     out = []
+    objective = engine.objective
+    term = objective.loss.multiscale_term
     for view, cam in enumerate(engine.cameras):
-        box = engine.objective.network_box(view, engine.objective_coverage(view))
-        out.append((cam.height, cam.width) if box is None else (box[0].stop - box[0].start, box[1].stop - box[1].start))
+        coverage = engine.objective_coverage(view)
+        sizes = []
+        for grow in (1, int(max(term.factors)) if term is not None else 1):
+            box = objective.network_box(view, coverage, grow=grow)
+            sizes.append((cam.height, cam.width) if box is None else
+                         (box[0].stop - box[0].start, box[1].stop - box[1].start))
+        out.append((sizes[0], sizes[1]))
     return out
 
 
@@ -202,6 +229,8 @@ def main() -> None:
     add_stylize_arguments(p)
     p.add_argument("--steps", type=int, default=60, help="stylization steps to time (after warm-up)")
     p.add_argument("--whole-frames", action="store_true", help="VGG on whole frames (crop_to_scene = False)")
+    p.add_argument("--levels", action="store_true",
+                   help="go on into the finer levels (--refine-widths or the preset's) and time their steps too")
     args = p.parse_args()
     print(f"cpu: {cpu_description()}")
     if args.threads:
@@ -211,17 +240,17 @@ def main() -> None:
     engine, scene, _, cams, _ = build_stylizer(request)
     phase_times, stylize_times, timer, step_views = run_timed(engine, args.steps)
     cam = engine.cameras[0]
-    sizes = network_sizes(engine)
-    floors = {size: floor_time(engine.objective, *size) for size in sorted(set(sizes))}
-    floor = statistics.mean(floors[size] for size in sizes)
-    full_floor = floors.get((cam.height, cam.width)) or floor_time(engine.objective, cam.height, cam.width)
-    at = {p: full_floor if p == engine.objective.precision else floor_time(networks_at(engine, p), cam.height,
-                                                                            cam.width) for p in ("fp32", "bf16")}
+    pairs = network_sizes(engine)
+    sizes = [p[0] for p in pairs]
+    floors = {pair: floor_time(engine.objective, *pair[0], coarse=pair[1]) for pair in sorted(set(pairs))}
+    floor = statistics.mean(floors[pair] for pair in pairs)
+    full_floor = floor_time(engine.objective, cam.height, cam.width)
+    at = {p: floor_time(networks_at(engine, p), cam.height, cam.width) for p in ("fp32", "bf16")}
     timed_steps = stylize_times[5:]
     step = statistics.mean(timed_steps) if timed_steps else float("nan")
     views_per_step = engine.settings.views_per_step
     # the floor on the same pixels: each timed step's own views (their boxes), summed
-    same_floor = (sum(floors[sizes[v]] for v in step_views) / len(timed_steps)) if timed_steps else float("nan")
+    same_floor = (sum(floors[pairs[v]] for v in step_views) / len(timed_steps)) if timed_steps else float("nan")
     print(f"scene: {scene.count} Gaussians, {len(engine.cameras)} views, working {cam.width}x{cam.height}, "
           f"{views_per_step} view(s) per step, torch threads {torch.get_num_threads()}")
     print(f"{'phase':>14} {'steps':>6} {'total s':>9} {'mean s':>8}")
@@ -230,16 +259,55 @@ def main() -> None:
     share = statistics.mean(h * w for h, w in sizes) / (cam.height * cam.width)
     print(f"VGG sees {100 * share:.0f} % of the frame's pixels on average ({engine.decisions.get('network_area')})")
     print(f"precision: {engine.decisions.get('precision')}")
-    print(f"floor (VGG+NNFM fwd+bwd) on a whole frame at {cam.width}x{cam.height}: fp32 {at['fp32']:.3f} s, bf16 "
+    print(f"one VGG + NNFM fwd+bwd on a whole frame at {cam.width}x{cam.height}: fp32 {at['fp32']:.3f} s, bf16 "
           f"{at['bf16']:.3f} s (fp32/bf16 {at['fp32'] / at['bf16']:.2f}); the figures below are at "
           f"{engine.objective.precision}")
-    print(f"{'floor (VGG+NNFM fwd+bwd)':>30}: {full_floor:.3f} s a view at {cam.width}x{cam.height}, {floor:.3f} s a "
-          f"view on the pixels VGG sees; stylize step mean {step:.3f} s ({views_per_step} view(s))")
+    print(f"{'floor (every network pass, fwd+bwd)':>36}: {full_floor:.3f} s a view at {cam.width}x{cam.height}, "
+          f"{floor:.3f} s a view on the pixels VGG sees; stylize step mean {step:.3f} s ({views_per_step} view(s))")
     if timer is not None and timed_steps:
         print_parts(engine, timer, len(timed_steps), step, same_floor)
     print(f"per-pixel: step / floor on the same pixels = {step / same_floor:.2f}")
+    levels = time_levels(engine, args.steps, floor) if args.levels else {}
     print(f"RESULT step_over_floor={step / (views_per_step * full_floor):.2f} same_pixels={step / same_floor:.2f} "
-          f"precision={engine.objective.precision} floor_fp32={at['fp32']:.3f} floor_bf16={at['bf16']:.3f}")
+          f"precision={engine.objective.precision} floor_fp32={at['fp32']:.3f} floor_bf16={at['bf16']:.3f}"
+          + "".join(f" {k}={v:.2f}" for k, v in levels.items()))
+
+
+def time_levels(engine, steps: int, view_floor: float) -> dict[str, float]:
+    """Step on into the finer levels and time ``steps`` of each (after 2 untimed ones): their crop steps against the
+    floor of the level's networks on a crop (VGG + NNFM at the level's painting size), their whole-view steps at the
+    working width against the stylization's floor (``view_floor`` a view). Prints a row per level; returns the
+    ratios for the RESULT line."""
+    from gstyle_core.pipeline.phases.refine import CROP_TERMS, Refine
+
+    out: dict[str, float] = {}
+    while not engine.done:
+        level = next((p for p in engine.phases if isinstance(p, Refine) and not p.finished), None)
+        if level is None:
+            break
+        kinds: dict[bool, list[float]] = {True: [], False: []}
+        while not level.finished:
+            crop = level.targets_done and level.crop_step()
+            rep = engine.step()
+            if level.targets_done and rep.losses and level.step_index > 2:
+                kinds[crop].append(rep.seconds)
+            if len(kinds[True]) + len(kinds[False]) >= steps:
+                break
+        cam = engine.cameras[0]
+        terms = CROP_TERMS if level.mode == "crops" else None
+        crop_floor = floor_time(engine.run_state.level_objective(level.width, terms), cam.height, cam.width)
+        per = engine.settings.views_per_step
+        rows = [("crop" if level.mode == "crops" else "whole view", kinds[True], per * crop_floor),
+                ("whole view at the working width", kinds[False], per * view_floor)]
+        for name, times, floor in rows:
+            if times:
+                ratio = statistics.mean(times) / floor
+                print(f"level {level.width} px, {name} steps: {statistics.mean(times):.3f} s, floor {floor:.3f} s, "
+                      f"step / floor {ratio:.2f} ({len(times)} steps)")
+                out[f"level{level.width}_{name.split()[0]}_over_floor"] = ratio
+        while not level.finished:  # the rest of the level untimed
+            engine.step()
+    return out
 
 
 @contextmanager

@@ -17,7 +17,7 @@ from app.panels import Command  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
 from gstyle_core.pipeline.checkpoint import read_checkpoint  # noqa: E402
 
-W, H = 700, 1100  # tall enough for the whole panel
+W, H = 700, 1300  # tall enough for the whole panel
 
 
 def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, monkeypatch, tmp_path):

@@ -16,7 +16,7 @@ from gstyle_core.pipeline.controls import control  # noqa: E402
 from gstyle_core.pipeline.settings import resolve_settings, ui_params  # noqa: E402
 from gstyle_core.style.clip import COARSE_NAME  # noqa: E402
 
-W, H = 700, 1100  # tall enough for the whole panel
+W, H = 700, 1300  # tall enough for the whole panel
 
 
 def panel_state(**kw) -> PanelState:
@@ -48,8 +48,9 @@ def test_every_control_button_and_view_mode_has_a_tooltip(panel):
     drawn = driver.recorder.widgets
     kinds = {w.kind for w in drawn}
     assert {"button", "small_button", "checkbox", "radio_button", "slider_float", "begin_combo"} <= kinds
-    assert {w.path for w in drawn if w.kind == "radio_button"} == {"stylized", "original", "compare", "ground truth",
-                                                                      "take"}
+    radios = {w.path for w in drawn if w.kind == "radio_button"}
+    assert {r for r in radios if "###q_" not in r} == {"stylized", "original", "compare", "ground truth", "take"}
+    assert {r.split("###q_")[1] for r in radios if "###q_" in r} == {"preview", "balanced", "final"}  # the quality
     assert [w.path for w in drawn if not w.tooltip] == []
 
 

@@ -20,7 +20,7 @@ from app.renderer import read_rgb  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
 from gstyle_core.pipeline.region import box_mask, rect_mask  # noqa: E402
 
-W, H = 700, 1100
+W, H = 700, 1300
 BUILT: list = []
 HALF = (-10.0, -10.0, -10.0, 0.0, 10.0, 10.0)
 

@@ -22,7 +22,7 @@ from app.studio import LoadedScene, StudioApp  # noqa: E402
 from app.takes import TAKES_FILE, TakeShelf  # noqa: E402
 from gstyle_core.io import save_scene  # noqa: E402
 
-W, H = 700, 1100  # tall enough for the whole panel
+W, H = 700, 1300  # tall enough for the whole panel
 
 
 def test_the_shelf_keeps_the_newest_takes_and_remembers_them(tmp_path):

@@ -204,7 +204,7 @@ def _render_gradient(eng: Stylizer, image: torch.Tensor, view: int) -> torch.Ten
 @pytest.mark.slow
 def test_zero_weight_terms_are_never_computed_and_change_nothing(random_vgg_objective):
     common = dict(preprocess_rounds=0, split_rate=0.0, colour_match_after=False, epochs=1, lambda_clip=0.0,
-                  lambda_multiscale=0.0)
+                  lambda_multiscale=0.0, lambda_chroma_tv=0.0)
     skipped = engine(blob_scene(150, seed=3), random_vgg_objective, lambda_content=0.0, **common)
     tiny = engine(blob_scene(150, seed=3), random_vgg_objective, lambda_content=1e-9, **common)
     while skipped.phase != "stylize":
@@ -213,7 +213,8 @@ def test_zero_weight_terms_are_never_computed_and_change_nothing(random_vgg_obje
     skipped.run()
     tiny.run()
     steps = skipped.stylize_steps
-    assert skipped.decisions["loss_terms"] == "computed: nnfm, tv; never computed (weight 0): clip, content, multiscale"
+    assert skipped.decisions["loss_terms"] == ("computed: nnfm, tv; never computed (weight 0): clip, content, "
+                                               "multiscale, chroma_tv")
     assert skipped.decisions["clip"] == "CLIP term off (λ_CLIP = 0)"
     assert skipped.objective.calls == {"vgg": steps, "clip": 0}  # NNFM only: no content features, no CLIP
     assert tiny.objective.calls == {"vgg": steps + len(tiny.cameras), "clip": 0}  # + one content pass per view
@@ -234,14 +235,15 @@ def test_zero_weight_terms_are_never_computed_and_change_nothing(random_vgg_obje
 
 def test_clip_without_weights_never_runs_and_weights_set_to_zero_stop_the_networks(random_vgg_objective):
     eng = engine(blob_scene(150, seed=3), random_vgg_objective, preprocess_rounds=0, split_rate=0.0,
-                 lambda_clip=10.0, lambda_content=0.0, lambda_multiscale=0.0)
+                 lambda_clip=10.0, lambda_content=0.0, lambda_multiscale=0.0, lambda_chroma_tv=0.0)
     while eng.phase != "stylize":
         eng.step()
     eng.step()
     assert "not found" in eng.decisions["clip"] and "substitute" in eng.decisions["clip"]
     assert eng.objective.calls == {"vgg": 2, "clip": 0}  # NNFM + the coarse-VGG substitute; the ViT never runs
     eng.set_params(lambda_clip=0.0, lambda_nnfm=0.0)
-    assert eng.decisions["loss_terms"] == "computed: tv; never computed (weight 0): clip, nnfm, content, multiscale"
+    assert eng.decisions["loss_terms"] == ("computed: tv; never computed (weight 0): clip, nnfm, content, multiscale, "
+                                           "chroma_tv")
     eng.step()
     assert eng.objective.calls == {"vgg": 2, "clip": 0}
 

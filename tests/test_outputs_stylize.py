@@ -86,7 +86,7 @@ def tiny(monkeypatch, tmp_path):
                            np.zeros((8, 8, 3), np.float32))
 
     monkeypatch.setattr(cli, "build_stylizer", build)
-    monkeypatch.setattr(cli, "evaluate_run", lambda engine, scene, style: {
+    monkeypatch.setattr(cli, "evaluate_run", lambda engine, scene, style, **_: {
         "images": (np.zeros((6, 8, 3), np.float32), np.ones((6, 8, 3), np.float32)),
         "initial": {"nnfm": 2.0}, "final": {"nnfm": 1.0}, "nnfm_drop": 0.5, "structure": 0.9})
     return built

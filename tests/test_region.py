@@ -188,7 +188,7 @@ def test_cli_region_runs_and_is_recorded(tmp_path, monkeypatch):
     from gstyle_core.pipeline import cli, objective
 
     monkeypatch.setattr(objective, "StyleObjective", MeanColourPull)
-    monkeypatch.setattr(cli, "evaluate_run", lambda engine, scene, style: {
+    monkeypatch.setattr(cli, "evaluate_run", lambda engine, scene, style, **_: {
         "images": (np.zeros((4, 4, 3), np.float32), np.zeros((4, 4, 3), np.float32)),
         "initial": {"nnfm": 1.0}, "final": {"nnfm": 1.0}, "nnfm_drop": 0.0, "structure": 1.0})
     scene = blob_scene(120, seed=2, sh_degree=1)

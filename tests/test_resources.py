@@ -21,7 +21,7 @@ def _engine(n=200, **overrides):
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0
     opts = dict(max_views=4, epochs=4, min_steps=0, refit_iterations=2, split_at=(0.5,), working_width=40,
-                preprocess_rounds=1, force_preprocess=True, cull_unseen=False)
+                preprocess_rounds=1, force_preprocess=True, cull_unseen=False, preprocess_min_child_px=0.0)
     opts.update(overrides)
     settings = resolve_settings("preview", "forward", 4, **opts)
     return Stylizer(blob_scene(n, seed=3), ring_cameras(4), style, settings, objective_factory=MeanColourPull)

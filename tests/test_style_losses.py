@@ -119,6 +119,7 @@ def test_combined_loss_and_zero_weight_terms_are_skipped(parts):
     total.backward()
     assert loss_fn.calls == {"vgg": 2, "clip": 1} and vgg.forward_calls == 2 and encoder.calls == 1
     assert terms.pop("multiscale") == 0.0  # weight 0 by default (the settings turn it on without CLIP weights)
+    assert terms.pop("chroma_tv") == 0.0  # likewise (the settings' defaults set it)
     assert all(v > 0 for v in terms.values()) and torch.isfinite(render.grad).all()
     w = StyleWeights()
     expected = w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"] + w.tv * terms["tv"]

@@ -9,6 +9,7 @@ from imgui_bundle import imgui
 from ..keys import KeyPress
 from .file_browser import file_browser_window
 from .output import output_section, takes_section
+from .quality import quality_section
 from .region import region_overlay, region_section
 from .run_sections import decisions_section, files_section, progress_section
 from .sliders import params_section
@@ -90,6 +91,7 @@ def _sections(state: PanelState, out: list[Command]) -> None:
     """The panel's sections, top to bottom."""
     files_section(state, out)
     progress_section(state, out)
+    quality_section(state, out)
     decisions_section(state)
     view_section(state, out)
     params_section(state, out)

@@ -79,3 +79,11 @@ class PanelState:
     view_rect: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0)  # the scene's part (x, y, width, height)
     browser: Any = None  # the studio's file browser (app/file_browser.FileBrowser) while it is open
     dialog_note: str = ""  # a native file dialog is open: what it is for (the panel offers the studio's browser)
+    preset: str = ""  # the quality the engine runs at ("" until it is built)
+    quality: str = "preview"  # the quality chosen in the panel (a restart applies it)
+    quality_estimates: dict[str, float | None] = field(default_factory=dict)  # seconds per preset on this scene
+    width: int = 0  # the width the engine works at now (px)
+    levels: list[int] = field(default_factory=list)  # the widths of the run, coarse to fine
+    next_width: int | None = None  # Refine's width (None: no finer level possible)
+    refine_note: str = ""
+    summary_line: str = ""  # the finished run's result (its speckle at a display's size)

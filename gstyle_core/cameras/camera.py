@@ -54,3 +54,12 @@ class Camera:
     def resized_to_width(self, width: int) -> Camera:
         """Return the camera scaled so its image is ``width`` pixels wide (aspect kept)."""
         return self.scaled(width / self.width)
+
+    def cropped(self, x0: int, y0: int, width: int, height: int) -> Camera:
+        """The camera of the pixel window [x0, x0 + width) × [y0, y0 + height) of this camera's image: the same pose
+        and focal lengths, the principal point moved by the window's corner (a render of it is that part of this
+        camera's render)."""
+        if width < 1 or height < 1:
+            raise ValueError(f"a crop needs a size of at least 1 × 1 px, got {width} × {height}")
+        return Camera(int(width), int(height), self.fx, self.fy, self.cx - x0, self.cy - y0, self.world_to_cam.copy(),
+                      self.name, self.image_path)

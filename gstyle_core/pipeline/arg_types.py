@@ -45,6 +45,34 @@ def _region(text: str) -> tuple[float, ...]:
     return parse_region(text)
 
 
+MAX_DISPLAY_WIDTH = 8192
+
+
+def _display_width(text: str) -> int:
+    """``--display-width``: 0 (no display figure) or a whole number of pixels from 16 to ``MAX_DISPLAY_WIDTH``."""
+    try:
+        width = int(text)
+    except ValueError:
+        raise ValueError(f"expected a whole number of pixels, got {text!r}") from None
+    if width != 0 and not 16 <= width <= MAX_DISPLAY_WIDTH:
+        raise ValueError(f"must be 0 (skip the figure) or 16 to {MAX_DISPLAY_WIDTH} px, got {width}")
+    return width
+
+
+def _widths(text: str) -> tuple[int, ...]:
+    """``--refine-widths``: whole numbers of pixels separated by commas, ascending (an empty string or 0: none)."""
+    from .levels import check_refine_widths
+
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    if parts == ["0"]:
+        return ()
+    try:
+        widths = tuple(int(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"expected widths in pixels separated by commas, e.g. 512,1024, got {text!r}") from None
+    return check_refine_widths(widths)
+
+
 def _on_off(text: str) -> bool:
     """A switch given a value: 1/on/yes/true or 0/off/no/false (any case)."""
     word = text.strip().lower()
@@ -59,3 +87,5 @@ style_scale_arg = argument_type(_style_scale)
 on_off_arg = argument_type(_on_off)
 style_weights_arg = argument_type(_style_weights)
 region_arg = argument_type(_region)
+display_width_arg = argument_type(_display_width)
+widths_arg = argument_type(_widths)

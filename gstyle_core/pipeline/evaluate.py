@@ -68,7 +68,9 @@ class Evaluator:
     the distances to each painting (``nnfm_styles`` lists them) and ``colour`` compares with the weighted palette."""
 
     def __init__(self, vgg, style: np.ndarray | Sequence[np.ndarray], width: int = 256,
-                 weights: Sequence[float] | None = None) -> None:
+                 weights: Sequence[float] | None = None, max_vectors: int | None = None) -> None:
+        """``max_vectors``: at most this many of each painting's feature vectors (a random subset drawn from seed 0;
+        None: all), to bound the search at large widths."""
         from ..style.losses import StyleTarget
         from ..style.mix import normalise_style_weights
 
@@ -79,17 +81,21 @@ class Evaluator:
         self.targets = []
         for image in self.styles:
             height = max(1, round(image.shape[0] * width / image.shape[1]))
-            self.targets.append(StyleTarget.from_image(vgg, to_bchw(resize_image(image, (width, height)))))
+            self.targets.append(StyleTarget.from_image(vgg, to_bchw(resize_image(image, (width, height))),
+                                                       max_vectors=max_vectors,
+                                                       generator=torch.Generator().manual_seed(0)))
         self.palette = Palette.mixture([Palette.of(s) for s in self.styles], self.weights)
 
     @torch.no_grad()
     def measure(self, renders: list[np.ndarray], ground_truth: list[np.ndarray],
-                coverage: list[np.ndarray] | None = None) -> dict[str, float]:
+                coverage: list[np.ndarray] | None = None, whole_frame: bool = True) -> dict[str, float]:
         """NNFM distance to the style, content distance (VGG relu3 MSE) to ground truth, colour distance.
 
         ``nnfm_full`` is the mean over the whole frame. ``nnfm`` weights each feature vector by the scene's coverage
         (rendered alpha, pooled to the feature grid) when ``coverage`` is given: background that no Gaussian covers
         cannot change, so it is left out. ``colour`` uses covered pixels (alpha > 0.5) the same way.
+        ``whole_frame=False`` (with ``coverage``): only the covered feature vectors are searched (the same ``nnfm``;
+        no ``nnfm_full``), for large widths.
         """
         from ..style.losses import concat_features, content_loss, feature_weights, nnfm_loss, weighted_mean
 
@@ -100,12 +106,20 @@ class Evaluator:
             f = self.vgg(to_bchw(img))
             g = self.vgg(to_bchw(gt))
             stacked = concat_features(f)
+            w = None if coverage is None else feature_weights(
+                torch.as_tensor(np.asarray(coverage[i], np.float32)), stacked.shape[-2:])
             for k, target in enumerate(self.targets):
-                d = nnfm_loss(stacked, target, reduction="none")[0]
-                per_style_full[k, i] = float(d.mean())
-                w = None if coverage is None else feature_weights(
-                    torch.as_tensor(np.asarray(coverage[i], np.float32)), d.shape)
-                per_style[k, i] = float(weighted_mean(d[None, None], w))
+                if whole_frame or w is None:
+                    d = nnfm_loss(stacked, target, reduction="none")[0]
+                    per_style_full[k, i] = float(d.mean())
+                    per_style[k, i] = float(weighted_mean(d[None, None], w))
+                else:  # the covered vectors only: those the weighted mean counts
+                    keep = w.flatten() > 0
+                    vectors = stacked.flatten(2)[..., keep][..., None]  # [1, C, n, 1]
+                    d = nnfm_loss(vectors, target, reduction="none").flatten() if keep.any() else torch.zeros(1)
+                    kept = w.flatten()[keep] if keep.any() else torch.zeros(1)
+                    per_style[k, i] = float((d * kept).sum() / kept.sum().clamp_min(1e-8))
+                    per_style_full[k, i] = float("nan")
             if coverage is not None:
                 pixels.append(img.reshape(-1, 3)[np.asarray(coverage[i]).reshape(-1) > 0.5])
             else:

@@ -106,3 +106,22 @@ def network_area_note(s: StylizeSettings, from_photos: bool, coverage: list, reg
     share = float(np.mean([box_fraction(scene_box(c), *c.shape) for c in coverage]))
     return (f"the box of each view that the scene covers (+{SCENE_BOX_MARGIN_PX} px): {100 * share:.0f} % of the "
             f"frame's pixels on average")
+
+
+def note_levels(decisions: Decisions, s: StylizeSettings) -> None:
+    """The widths the run works at, coarse to fine (``phases/refine.py``), and how the colour matches treat each
+    Gaussian's own colour difference (``phases/colour_match.py``)."""
+    from .levels import level_widths
+
+    widths = level_widths(s.working_width, s.refine_widths)
+    if len(widths) == 1:
+        decisions["levels"] = f"{widths[0]} px only (no finer level)"
+    else:
+        how = ("working-width-sized crops at each finer width, alternating with whole views at the working width"
+               if s.refine_mode == "crops" else "whole views at each finer width")
+        decisions["levels"] = (f"{' → '.join(f'{w} px' for w in widths)}, coarse to fine: {how}, "
+                               f"{s.refine_epochs:g} epochs a level")
+    decisions["colour_match"] = (
+        f"the broad colours (over {s.match_detail_px:g} px) mapped onto the painting's palette, each Gaussian's finer "
+        "difference kept as it is" if s.match_detail_px > 0 and not s.keep_colours else
+        "whole colours mapped onto the painting's palette (the paper's match)")

@@ -31,6 +31,9 @@ STYLE_TERMS = ("clip", "nnfm", "multiscale")  # the terms the style strength mul
 
 MIN_STYLE_SIDE = 16  # below this the painting has next to no relu3 feature vectors (2 poolings: 4 × 4)
 MAX_STYLE_SIDE = 1024  # above this the style features outgrow a CPU's memory and time (768 × 65k vectors at 1024²)
+NNFM_CANDIDATES: int | None = 16384  # at most this many painting feature vectors per painting (a random subset,
+# drawn once from the seed; None: all). The search costs render × painting vectors: a 1024-px level's painting has
+# ~51,000, 16× a 256-px run's; at 256 and 512 px (≤ ~13,000) every vector is kept (docs/tradeoffs.md)
 
 
 def style_side(working_width: int, scale: float) -> tuple[int, bool]:
@@ -61,11 +64,17 @@ class StyleObjective:
     luminance_networks = True  # keep colours: networks see luminance (False: colour, chroma restored only; the
     # variant bench/keep_colours.py compares)
 
-    def __init__(self, style: np.ndarray | Sequence[np.ndarray], settings: StylizeSettings, vgg=None) -> None:
+    def __init__(self, style: np.ndarray | Sequence[np.ndarray], settings: StylizeSettings, vgg=None,
+                 width: int | None = None, terms: Sequence[str] | None = None) -> None:
+        """``width``: the render width the painting is matched for (default: the settings' working width; a finer
+        level's objective gives its own, ``phases/refine.py``). ``terms``: the only terms this objective computes
+        (None: all; a crop of a finer level leaves the large-pattern terms to the whole views)."""
         from ..style.losses import StyleLoss
         from ..style.precision import resolve_precision, torch_dtype
         from ..style.vgg import load_vgg
 
+        self.width = width
+        self.terms = None if terms is None else frozenset(terms)
         self.precision, self.precision_status = resolve_precision(settings, vgg)  # fp32 | bf16, and why
         dtype = torch_dtype(self.precision)
         if vgg is None:
@@ -78,10 +87,11 @@ class StyleObjective:
         self._built_for: tuple[bool, float] | None = None
         self._build_style_target()
         self.clip_status = CLIP_OFF
-        clip_term = self._build_clip_term() if settings.weights.clip > 0 else None
-        multiscale_term = self._build_multiscale_term() if settings.weights.multiscale > 0 else None
-        self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=self._effective(settings.weights),
-                              multiscale_term=multiscale_term)
+        wanted = self._effective(settings.weights)
+        clip_term = self._build_clip_term() if wanted["clip"] > 0 else None
+        multiscale_term = self._build_multiscale_term() if wanted["multiscale"] > 0 else None
+        self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=wanted, multiscale_term=multiscale_term)
+        self.loss.chroma_floor = self._chroma_floor()
         self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
         self._boxes: dict[tuple[int, tuple[int, ...]], tuple[slice, slice] | None] = {}
 
@@ -107,17 +117,22 @@ class StyleObjective:
         from ..style.losses import StyleTarget, WeightedTargets
 
         s = self._settings
-        side, clamped = style_side(s.working_width, s.style_scale)
+        side, clamped = style_side(self.width or s.working_width, s.style_scale)
         self._styles_small = [to_bchw(resize_long_side(self._style_input(style), side)) for style in self._styles]
         self._style_small = self._styles_small[0]
-        targets = [StyleTarget.from_image(self.vgg, small) for small in self._styles_small]
+        targets = [StyleTarget.from_image(self.vgg, small, max_vectors=NNFM_CANDIDATES,
+                                          generator=torch.Generator().manual_seed(s.seed))
+                   for small in self._styles_small]
         weights = self._style_weights()
         self.target = targets[0] if weights is None else WeightedTargets(targets, weights)
         sizes = " and ".join(f"{small.shape[-1]}×{small.shape[-2]}" for small in self._styles_small)
         limits = f" (clamped to {MIN_STYLE_SIDE}-{MAX_STYLE_SIDE} px)" if clamped else ""
         vectors = sum(t.matrix.shape[1] for t in targets)
-        self._matched_note = (f"matched at {sizes} px{limits}: stroke size {s.style_scale:g} × the working width; "
-                              f"{vectors:,} feature vectors"
+        budget = (f" (a random {NNFM_CANDIDATES:,} of each painting's)" if NNFM_CANDIDATES is not None
+                  and any(t.matrix.shape[1] == NNFM_CANDIDATES for t in targets) else "")
+        width = "the working width" if self.width is None else f"{self.width} px"
+        self._matched_note = (f"matched at {sizes} px{limits}: stroke size {s.style_scale:g} × {width}; "
+                              f"{vectors:,} feature vectors{budget}"
                               + ("; luminance only (keep colours)" if self._luminance_only() else ""))
         self._write_style_note()
         self._built_for = (bool(s.keep_colours), float(s.style_scale))
@@ -141,6 +156,7 @@ class StyleObjective:
                 new_gen.set_state(old_gen.get_state())  # CLIP's random crops go on where they were
         if self.loss.multiscale_term is not None:
             self.loss.multiscale_term = self._build_multiscale_term()
+        self.loss.chroma_floor = self._chroma_floor()
         if colours_changed:  # content features are of grey or colour views
             self._content_cache.clear()
         return True
@@ -158,6 +174,7 @@ class StyleObjective:
             self.loss.clip_term.set_style_weights(weights)
         if self.loss.multiscale_term is not None:
             self.loss.multiscale_term.set_style_weights(weights)
+        self.loss.chroma_floor = self._chroma_floor()
         self._write_style_note()
 
     def _write_style_note(self) -> None:
@@ -165,6 +182,15 @@ class StyleObjective:
         mixed = "painting" if weights is None else (
             f"{len(weights)} paintings mixed {' / '.join(f'{w:.2f}' for w in weights)}, each")
         self.style_note = f"{mixed} {self._matched_note}"
+
+    def _chroma_floor(self) -> float:
+        """The colour-smoothness term's floor: the chroma variation per pixel (``chroma_tv_loss``) of the painting(s)
+        as matched (weighted over a mix): the render may be as grainy in colour as the painting, not more."""
+        from ..style.losses import chroma_tv_loss
+
+        weights = self._style_weights() or (1.0,)
+        with torch.no_grad():
+            return float(sum(w * chroma_tv_loss(small) for w, small in zip(weights, self._styles_small, strict=True)))
 
     def clear_content_cache(self) -> None:
         """Forget the content views' features (the engine changed its content targets)."""
@@ -202,6 +228,8 @@ class StyleObjective:
         strength = float(self._settings.strength)
         for term in STYLE_TERMS:
             w[term] *= strength
+        if self.terms is not None:
+            w = {name: value if name in self.terms else 0.0 for name, value in w.items()}
         return w
 
     def set_weights(self, weights) -> None:
@@ -214,12 +242,12 @@ class StyleObjective:
             self.loss.multiscale_term = self._build_multiscale_term()
         self.loss.weights = w
 
-    def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int,
+    def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int | None,
                  coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, dict]:
         """Loss of a render [H,W,3] of training view ``view``; ``content`` is its colour-matched ground truth and
         ``coverage`` [H,W] the scene's alpha there (None for photos: the whole frame is the scene). With
         ``crop_to_scene`` VGG sees only the box the scene covers (``pipeline/scene_box.py``); with ``keep_colours``
-        the networks see the luminance of both."""
+        the networks see the luminance of both. ``view`` None: a one-off image (a crop): nothing of it is cached."""
         if self._luminance_only():
             from ..style.keep_colours import grey
 
@@ -235,19 +263,22 @@ class StyleObjective:
         render = image.permute(2, 0, 1)[None]
         gt_feats = None
         if self.loss.weights.content > 0:
-            gt_feats = self._content_cache.get(view)
+            gt_feats = self._content_cache.get(view) if view is not None else None
             if gt_feats is None:
                 gt_feats = self.loss.content_features(content.permute(2, 0, 1)[None], render.shape[-2:])
-                self._content_cache[view] = gt_feats
+                if view is not None:
+                    self._content_cache[view] = gt_feats
         return self.loss(render, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view,
                          multiscale_view=multiscale_view)
 
-    def network_box(self, view: int, coverage: torch.Tensor | None, grow: int = 1) -> tuple[slice, slice] | None:
+    def network_box(self, view: int | None, coverage: torch.Tensor | None, grow: int = 1) -> tuple[slice, slice] | None:
         """The view's scene box (fixed per view: the coverage is the ground truth's), None for the whole frame.
         ``grow``: margin and alignment times this (the broad-strokes term's coarsest downsampling factor: at ×4 a
         pixel of its level is 4 of the render's, so the same context and pooling grid need 4× the pixels)."""
         if coverage is None or not self._settings.crop_to_scene or self.loss.working_width is not None:
             return None
+        if view is None:
+            return scene_box(coverage, SCENE_BOX_MARGIN_PX * grow, SCENE_BOX_ALIGN_PX * grow)
         key = (view, tuple(coverage.shape), grow)
         if key not in self._boxes:
             self._boxes[key] = scene_box(coverage, SCENE_BOX_MARGIN_PX * grow, SCENE_BOX_ALIGN_PX * grow)

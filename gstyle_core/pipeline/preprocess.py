@@ -37,6 +37,24 @@ def flat_split_mask(log_scales: torch.Tensor, gamma: float, cap: float) -> torch
     return mask
 
 
+@torch.no_grad()
+def projected_size_px(means: torch.Tensor, log_scales: torch.Tensor, cameras) -> torch.Tensor:
+    """Each Gaussian's largest σ in pixels of ``cameras`` where it shows largest: its largest scale × the cameras'
+    median focal length / its distance to the nearest camera centre, [N]."""
+    import numpy as np
+
+    centres = torch.as_tensor(np.stack([c.position for c in cameras]), dtype=torch.float32)  # [V, 3]
+    fx = float(np.median([c.fx for c in cameras]))
+    nearest = torch.cdist(means.detach().to(torch.float32), centres).min(dim=1).values.clamp_min(1e-9)
+    return torch.exp(log_scales.detach().max(dim=-1).values) * fx / nearest
+
+
+def shown_split_mask(mask: torch.Tensor, size_px: torch.Tensor, divisor: float, min_child_px: float) -> torch.Tensor:
+    """``mask`` without the Gaussians too small to show their split: children (σ / ``divisor``) below
+    ``min_child_px`` at the final width add Gaussians and refit time and nothing a render at that width can show."""
+    return mask & (size_px / float(divisor) >= min_child_px)
+
+
 def size_evenness(log_scales: torch.Tensor, gamma: float) -> dict[str, float]:
     """The criterion for skipping pre-processing: how uneven Gaussian areas are.
 

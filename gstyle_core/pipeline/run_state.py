@@ -72,7 +72,9 @@ class RunState:
         self.reduction_note = ""  # a split cut back by max_gaussians (reported with the step)
         self._objective_factory = objective_factory
         self._objective: Any = None
+        self.level_objectives: dict[tuple[int, tuple[str, ...] | None], Any] = {}  # finer levels' (level_objective)
         self._objective_rng: torch.Tensor | None = None  # a resumed run's CLIP crops, for an objective built later
+        self._level_rngs: dict[tuple, torch.Tensor] = {}  # the same for the finer levels' objectives
 
     # ------------------------------------------------------------------------------------------------ basics
     @property
@@ -115,6 +117,28 @@ class RunState:
             note_loss_terms(self.decisions, self.settings, self._objective)
         return self._objective
 
+    def level_objective(self, width: int, terms: tuple[str, ...] | None) -> Any:
+        """The objective of a finer level (``phases/refine.py``): the painting matched for renders ``width`` px wide,
+        computing only ``terms`` (None: all), on the run objective's network; built once per (width, terms)."""
+        key = (int(width), terms)
+        if key not in self.level_objectives:
+            base = self.objective_fn()
+            if self._objective_factory is None:
+                from .objective import StyleObjective
+
+                self.level_objectives[key] = StyleObjective(self.style_input(), self.settings, vgg=base.vgg,
+                                                            width=width, terms=terms)
+            else:  # test objectives know no widths
+                self.level_objectives[key] = self._objective_factory(self.style_input(), self.settings)
+            gen = objective_generator(self.level_objectives[key])
+            if gen is not None and key in self._level_rngs:  # resumed: its random crops go on where they were
+                gen.set_state(self._level_rngs.pop(key))
+        return self.level_objectives[key]
+
+    def objectives(self) -> list[Any]:
+        """Every objective built so far: the run's, then the finer levels' (live controls reach all of them)."""
+        return ([] if self._objective is None else [self._objective]) + list(self.level_objectives.values())
+
     def objective_coverage(self, view: int) -> torch.Tensor | None:
         """The scene's coverage of a training view as the objective gets it: None for photos (they are all scene).
         A region run: the selected Gaussians' weight (photos too), so the losses see only the selected part."""
@@ -132,7 +156,10 @@ class RunState:
         return self.caches.get_or_build(view, self.geometry_version, lambda: self._build_cache(view))
 
     def _build_cache(self, view: int) -> ColourCache:
-        cam = self.cameras[view]
+        return self.build_cache(self.cameras[view])
+
+    def build_cache(self, cam: Camera) -> ColourCache:
+        """A colour cache of any camera (a finer level's view or crop) over the seen Gaussians, not stored."""
         p = {k: self.active.gather_seen(self.params[k].detach())
              for k in ("means", "quats", "log_scales", "opacity_logits")}
         viewmat, K = camera_tensors(cam)
@@ -207,6 +234,9 @@ class RunState:
             "timings": dict(self.timings),
             "generator": self.generator.get_state(),
             "objective_rng": gen.get_state() if gen is not None else self._objective_rng,
+            "level_rngs": {**self._level_rngs, **{key: objective_generator(o).get_state()
+                                                  for key, o in self.level_objectives.items()
+                                                  if objective_generator(o) is not None}},
             "active": self.active.state_dict(),
         }
 
@@ -229,6 +259,11 @@ class RunState:
         self.timings = dict(state["timings"])
         self.generator.set_state(state["generator"])
         self._objective_rng = state["objective_rng"]
+        self._level_rngs = dict(state.get("level_rngs") or {})
+        for key, objective in self.level_objectives.items():
+            gen = objective_generator(objective)
+            if gen is not None and key in self._level_rngs:
+                gen.set_state(self._level_rngs.pop(key))
         gen = objective_generator(self._objective)
         if gen is not None and self._objective_rng is not None:
             gen.set_state(self._objective_rng)

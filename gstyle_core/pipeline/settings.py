@@ -7,6 +7,7 @@ the working resolution. What each costs and buys is measured by ``bench/tradeoff
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, replace
 
 from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
@@ -36,10 +37,18 @@ class StylizeSettings:
     views_per_step: int = 1  # training views whose mean loss makes one optimiser step
     view_order: str = "orbit"  # "orbit": views in camera order; "random": a new permutation every epoch
     working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
+    refine_widths: tuple[int, ...] = ()  # finer levels after the stylization, coarse to fine (phases/refine.py): the
+    # run goes on from its colours at each of these widths (px), each above the one before and the working width
+    refine_mode: str = "crops"  # "crops": working-width-sized windows at the level's width, alternating with whole
+    # views at the working width; "whole": whole views at the level's width
+    refine_epochs: float = 2.0  # a level's optimiser steps: epochs × the number of views / views per step
+    refine_lr: float | None = None  # a level's learning rate (None: lr_end, where the stylization ended)
     style_scale: float = 1.0  # stroke size: the painting is matched at this × the working width (objective.py)
     colour_field: bool = False  # coherent strokes: a coarse colour field steps beside each Gaussian's colour
     # (pipeline/colour_field.py; on with the broad-strokes term)
     keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
+    match_detail_px: float = 0.0  # colour matches map the colours smoothed over this many working-width px and keep
+    # each Gaussian's finer difference unscaled (phases/colour_match.py); 0: whole colours mapped, as the paper
     style_weights: tuple[float, ...] = ()  # several paintings: their weights (style/mix.py; the engine normalises
     # them to sum 1; empty: equal shares)
     region: tuple[float, ...] | None = None  # x0,y0,z0,x1,y1,z1: stylize only the Gaussians centred in this box
@@ -54,6 +63,8 @@ class StylizeSettings:
     preprocess_children: int = 4
     preprocess_scale_divisor: float = 8.0
     preprocess_cap: float = 0.05  # at most this fraction of Gaussians split per round
+    preprocess_min_child_px: float = 0.5  # a flat Gaussian is split only if its children stay at least this σ (px) at
+    # the width the run ends at: a scene grows only as far as that width can show (0: every flat one, as the paper)
     elongation_limit: float = 1.5
     refit_iterations: int = 100  # per pre-processing round and after each colour-gradient split
     split_rate: float = 0.05  # fraction of Gaussians split by accumulated ‖∂L/∂c_s‖
@@ -100,11 +111,17 @@ PRESETS = {
     # Splits happen at fractions of the stylization (split_at), so every preset performs them.
     "preview": dict(working_width=192, epochs=3.0, min_steps=30, preprocess_rounds=1, refit_iterations=60,
                     max_views=16),
-    "balanced": dict(working_width=256, epochs=10.0, min_steps=150, preprocess_rounds=2, refit_iterations=200,
-                     max_views=24),
-    "final": dict(working_width=512, epochs=15.0, min_steps=450, preprocess_rounds=-1, refit_iterations=-1,
-                  max_views=10_000),
+    # balanced and final go on coarse to fine (phases/refine.py): to 512 and to 1024 px, a display's size
+    "balanced": dict(working_width=256, epochs=8.0, min_steps=150, preprocess_rounds=2, refit_iterations=200,
+                     max_views=24, refine_widths=(512,), refine_epochs=6.0),
+    "final": dict(working_width=256, epochs=10.0, min_steps=300, preprocess_rounds=3, refit_iterations=300,
+                  max_views=10_000, refine_widths=(512, 1024), refine_epochs=6.0),
 }
+# Defaults for the display's size, every scene kind and both ``defaults`` (docs/tradeoffs.md, "At the display's
+# size"): the colour matches map the broad colours and keep each Gaussian's finer difference unscaled, and the
+# colour-smoothness term (λ per λ_NNFM) keeps single splats from taking hues of their own. ``match_detail_px=0`` and
+# ``lambda_chroma_tv=0`` give the paper's plain match and objective.
+DISPLAY = dict(match_detail_px=4.0, chroma_tv_per_nnfm=15.0)
 
 
 # 360° defaults calibrated on this machine's networks and budgets (README "360° scenes: what differs from the
@@ -133,7 +150,8 @@ CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0)}  # str
 # −38.0 % / 0.56 without the split; The Starry Night −31.1 % / 0.58 and −31.4 % / 0.62).
 FORWARD_PRESETS = {"preview": dict(split_scale_divisor=1.6)}
 # The settings that take one of a few words, and the words.
-CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS}
+CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS,
+           "refine_mode": ("crops", "whole")}
 
 
 def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_views: int = 1,
@@ -183,6 +201,23 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         s.weights = replace(s.weights, multiscale=s.weights.nnfm * BROAD_STROKES["multiscale_per_nnfm"])
     if broad_strokes and live.get("colour_field") is None:
         s.colour_field = BROAD_STROKES["colour_field"]
+    _display_defaults(s, live, overrides)
+    return check_settings(s)
+
+
+def _display_defaults(s: StylizeSettings, live: dict, overrides: dict) -> None:
+    """The defaults for the display's size (``DISPLAY``), where the caller gave no value."""
+    if overrides.get("match_detail_px") is None:
+        s.match_detail_px = DISPLAY["match_detail_px"]
+    if live.get("lambda_chroma_tv") is None:
+        s.weights = replace(s.weights, chroma_tv=s.weights.nnfm * DISPLAY["chroma_tv_per_nnfm"])
+
+
+def check_settings(s: StylizeSettings) -> StylizeSettings:
+    """``s`` with its choices, a mix's weights, a region and the levels' widths checked (``ValueError`` saying why
+    one is refused) and put in their canonical types."""
+    from .levels import check_refine_widths
+
     for name, allowed in CHOICES.items():
         if getattr(s, name) not in allowed:
             raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {getattr(s, name)!r}")
@@ -197,6 +232,12 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         s.region = check_region(s.region)
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
+    s.refine_widths = check_refine_widths(s.refine_widths, s.working_width)
+    for name in ("match_detail_px", "preprocess_min_child_px", "refine_epochs"):
+        value = float(getattr(s, name))
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be a finite number, 0 or more, got {getattr(s, name)!r}")
+        setattr(s, name, value)
     return s
 
 

@@ -35,8 +35,9 @@ from ..style.clip import clip_term_name
 from ..style.mix import normalise_style_weights
 from .active import ActiveSet
 from .controls import Effect, apply_controls
-from .notes import note_loss_terms, note_networks, note_planned_clip, note_style, sh_note
-from .phases import ColourMatch, GroundTruth, Phase, Preprocess, StepReport, Stylize
+from .levels import check_refine_widths, level_widths, next_width
+from .notes import note_levels, note_loss_terms, note_networks, note_planned_clip, note_style, sh_note
+from .phases import ColourMatch, GroundTruth, Phase, Preprocess, Refine, StepReport, Stylize
 from .phases.colour_match import match_content_targets
 from .region import region_note, selection_mask
 from .run_state import RunState
@@ -71,6 +72,7 @@ class Stylizer:
         if not cameras:
             raise ValueError("stylization needs at least one camera")
         torch.manual_seed(settings.seed)
+        self.camera_count = len(cameras)  # all the scene's cameras (the run trains on at most max_views of them)
         view_ids = choose_views(list(cameras), settings.max_views)
         # one painting, or several mixed with settings.style_weights (style/mix.py)
         styles = [np.asarray(s, np.float32) for s in ([style] if isinstance(style, np.ndarray) else style)]
@@ -89,10 +91,13 @@ class Stylizer:
         note_planned_clip(run.decisions, settings)
         note_loss_terms(run.decisions, settings, None)
         note_style(run.decisions, settings, None, len(styles))
+        note_levels(run.decisions, settings)
         self.ground_truth, self.preprocess, self.colour_match = GroundTruth(run), Preprocess(run), ColourMatch(run)
         self.stylize = Stylize(run)
+        levels = [Refine(run, width, i) for i, width in enumerate(settings.refine_widths)]
         finish = [ColourMatch(run, final=True)] if settings.colour_match_after else []
-        self.phases: list[Phase] = [self.ground_truth, self.preprocess, self.colour_match, self.stylize, *finish]
+        self.phases: list[Phase] = [self.ground_truth, self.preprocess, self.colour_match, self.stylize, *levels,
+                                    *finish]
         run.max_gaussians, how = settings.max_gaussians, "max_gaussians setting"
         if run.max_gaussians <= 0:  # 0: derived from the memory available now (pipeline/resources.py)
             from .resources import default_max_gaussians
@@ -203,10 +208,12 @@ class Stylizer:
         """Advance by one step of the current phase."""
         run, current = self.run_state, self._current()
         if current is None:
-            return StepReport("done", run.global_step, self.total_steps(), gaussians=self.gaussian_count, done=True)
+            return StepReport("done", run.global_step, self.total_steps(), gaussians=self.gaussian_count, done=True,
+                              width=self.current_width)
         t0 = time.perf_counter()
-        phase = current.current
+        phase, width = current.current, self.current_width
         rep = current.step()
+        rep.width = width
         rep.seconds = time.perf_counter() - t0
         run.timings[phase] = run.timings.get(phase, 0.0) + rep.seconds
         run.global_step += 1
@@ -233,6 +240,55 @@ class Stylizer:
             if callback is not None:
                 callback(rep)
 
+    def preset_plans(self) -> dict[str, dict[str, float]]:
+        """Every preset's steps of each kind on this scene (``plan.planned_steps``), for the studio's estimates."""
+        from .plan import planned_steps
+        from .settings import PRESETS, resolve_settings
+
+        s = self.settings
+        clip = self.clip_name == "CLIP"
+        return {name: planned_steps(resolve_settings(name, s.scene_kind, self.camera_count, defaults=s.defaults,
+                                                     clip_available=clip), self.camera_count) for name in PRESETS}
+
+    # ----------------------------------------------------------------- levels
+    @property
+    def levels(self) -> tuple[int, ...]:
+        """Every width the run works at, coarse to fine: the working width, then its finer levels."""
+        return level_widths(self.settings.working_width, self.settings.refine_widths)
+
+    @property
+    def current_width(self) -> int:
+        """The width the run works at now: the level under way (or the last one, once done)."""
+        current = self._current()
+        if isinstance(current, Refine):
+            return current.width
+        if current is None or isinstance(current, ColourMatch) and current.final:
+            return self.levels[-1]
+        return int(self.settings.working_width)
+
+    def next_level_width(self) -> int | None:
+        """The width ``refine()`` would add (twice the last), None at the largest a level may have."""
+        width = next_width(self.levels)
+        return width if width > self.levels[-1] else None
+
+    def refine(self, width: int | None = None) -> int:
+        """Carry the run on at a finer level after its last one (default: twice the last width): a new ``Refine``
+        phase goes before the final colour match, which runs again after it. Works at any point of a run, a finished
+        one included; returns the level's width. ``ValueError`` for a width not finer than the last level's."""
+        width = self.next_level_width() if width is None else int(width)
+        if width is None:
+            raise ValueError(f"the run already ends at {self.levels[-1]} px, the largest a level may have")
+        s = self.settings
+        s.refine_widths = check_refine_widths((*s.refine_widths, width), s.working_width)
+        level = Refine(self.run_state, width, len(s.refine_widths) - 1)
+        finish = [p for p in self.phases if isinstance(p, ColourMatch) and p.final]
+        self.phases = [p for p in self.phases if p not in finish] + [level] + finish
+        for p in finish:
+            p.done = False
+        note_levels(self.run_state.decisions, s)
+        self._settle()
+        return width
+
     # ----------------------------------------------------------------- live controls
     def set_params(self, **kw: float) -> None:
         """Change live controls (``controls.CONTROLS``: λ weights, strength, stroke size, keep colours, split rate,
@@ -245,6 +301,8 @@ class Stylizer:
         """What the engine does now for controls that changed (``controls.Effect``)."""
         s, run = self.settings, self.run_state
         if effects & Effect.REWEIGHT:
+            for objective in run.level_objectives.values():
+                objective.set_weights(s.weights)
             if run.objective is not None:
                 run.objective.set_weights(s.weights)
                 note_networks(run.decisions, run.objective)
@@ -256,18 +314,19 @@ class Stylizer:
             if effects & Effect.RESTORE_CHROMA and s.keep_colours:  # c_s takes c_gt's chroma
                 self.stylize.restore_chroma()
                 run.colour_version += 1
-        if effects & Effect.CONTENT_TARGETS and hasattr(run.objective, "clear_content_cache"):
-            run.objective.clear_content_cache()
-        if effects & Effect.STYLE_FEATURES:  # the painting's features for the settings as they are now, their note
-            if hasattr(run.objective, "refresh_style"):  # test objectives may have no style features
-                run.objective.refresh_style()
+        for objective in run.objectives():
+            if effects & Effect.CONTENT_TARGETS and hasattr(objective, "clear_content_cache"):
+                objective.clear_content_cache()
+            if effects & Effect.STYLE_FEATURES and hasattr(objective, "refresh_style"):  # test objectives: none
+                objective.refresh_style()  # the painting's features for the settings as they are now
+        if effects & Effect.STYLE_FEATURES:
             note_style(run.decisions, s, run.objective, len(run.styles))
 
     # ----------------------------------------------------------------- outputs
     def snapshot(self) -> dict[str, Any]:
         """Arrays a viewer needs (numpy copies): geometry, stylized and ground-truth colours, versions."""
         p, run = self.params, self.run_state
-        colors = run.c_s if self.phase in ("stylize", "refit", "finish", "done") else run.gt_rgb()
+        colors = run.c_s if self.phase in ("stylize", "refit", "refine", "finish", "done") else run.gt_rgb()
         return {
             "means": p["means"].detach().numpy().copy(),
             "log_scales": p["log_scales"].detach().numpy().copy(),
@@ -300,6 +359,11 @@ class Stylizer:
         (its layout, its phases and a region's presence are checked before anything changes)."""
         if state.get("engine_state") != ENGINE_STATE:
             raise ValueError(f"engine state layout {state.get('engine_state')!r}, this engine reads {ENGINE_STATE}")
+        saved_widths = tuple((state.get("settings") or {}).get("refine_widths") or ())
+        for width in saved_widths[len(self.settings.refine_widths):]:  # levels added to the saved run (refine())
+            if saved_widths[:len(self.settings.refine_widths)] != self.settings.refine_widths:
+                break
+            self.refine(width)
         names = {p.name for p in self.phases}
         if set(state["phases"]) != names:
             raise ValueError(f"the checkpoint's phases {sorted(state['phases'])} differ from this run's "

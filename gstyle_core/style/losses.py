@@ -41,6 +41,7 @@ class StyleWeights:
     content: float = 0.05
     tv: float = 1e-4
     multiscale: float = 0.0
+    chroma_tv: float = 0.0  # colour smoothness (``chroma_tv_loss``), not the paper's: 0 here, the settings set it
 
     @classmethod
     def for_scene_kind(cls, kind: str) -> StyleWeights:
@@ -225,6 +226,29 @@ def tv_loss(img: torch.Tensor, kind: str = "squared") -> torch.Tensor:
     raise ValueError(f"tv kind must be 'squared' or 'abs', got {kind!r}")
 
 
+def opponent_chroma(img: torch.Tensor) -> torch.Tensor:
+    """[B, 3, H, W] RGB → [B, 2, H, W] opponent chroma r − g and (r + g)/2 − b (``style/speckle.py``'s channels)."""
+    r, g, b = img[:, 0], img[:, 1], img[:, 2]
+    return torch.stack([r - g, 0.5 * (r + g) - b], dim=1)
+
+
+def chroma_tv_loss(img: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
+    """Colour smoothness: the **mean** squared difference of the opponent chroma of neighbouring pixels of ``img``
+    [B, 3, H, W] (horizontal and vertical pairs, summed), each pair weighted by the product of the two pixels'
+    ``coverage`` ([H, W] in [0, 1]; None: 1), so the scene's silhouette against an empty background does not count.
+    A mean, not a sum: its weight means the same at every render size. Luminance is left free: edges and shading
+    carry the scene's structure."""
+    c = opponent_chroma(img)
+    dx, dy = c[..., :, 1:] - c[..., :, :-1], c[..., 1:, :] - c[..., :-1, :]
+    if coverage is None:
+        return (dx * dx).mean() + (dy * dy).mean()
+    w = torch.as_tensor(coverage, dtype=img.dtype).reshape(img.shape[-2:])
+    wx, wy = w[:, 1:] * w[:, :-1], w[1:, :] * w[:-1, :]
+    eps = 1e-8
+    return ((dx * dx).sum(1) * wx).sum() / (wx.sum() * img.shape[0] + eps) + \
+        ((dy * dy).sum(1) * wy).sum() / (wy.sum() * img.shape[0] + eps)
+
+
 def vgg_input_size(size: tuple[int, int] | torch.Size) -> tuple[int, int]:
     """``size`` (h, w) with each side raised to at least ``MIN_VGG_SIDE``."""
     return max(int(size[0]), MIN_VGG_SIDE), max(int(size[1]), MIN_VGG_SIDE)
@@ -271,6 +295,7 @@ class StyleLoss(nn.Module):
         self.multiscale_term = multiscale_term
         self.working_width = working_width
         self.nnfm_chunk = nnfm_chunk
+        self.chroma_floor = 0.0  # the colour-smoothness term counts only chroma variation above this (the painting's)
         self.calls = {"vgg": 0, "clip": 0}
         self._weights = StyleWeights()
         self.weights = weights if weights is not None else StyleWeights()
@@ -313,7 +338,7 @@ class StyleLoss(nn.Module):
         (a wider crop: its coarse levels need more context and a coarser pixel grid than NNFM's)."""
         w = self._weights
         zero = render.new_zeros(())
-        terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero, "multiscale": zero}
+        terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero, "multiscale": zero, "chroma_tv": zero}
         small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip or w.multiscale) \
             else render
         if w.nnfm > 0 or w.content > 0:
@@ -340,10 +365,14 @@ class StyleLoss(nn.Module):
             self.calls["vgg"] += len(self.multiscale_term.factors)
         if w.tv > 0:
             terms["tv"] = tv_loss(render)
+        if w.chroma_tv > 0:  # only the colour variation beyond the painting's own
+            terms["chroma_tv"] = (chroma_tv_loss(render, coverage) - self.chroma_floor).clamp_min(0.0)
         total = (w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"]
                  + w.tv * terms["tv"])
         if w.multiscale > 0:  # added last: with the term off the total is the same sum, bit for bit
             total = total + w.multiscale * terms["multiscale"]
+        if w.chroma_tv > 0:
+            total = total + w.chroma_tv * terms["chroma_tv"]
         return total, {name: float(value.detach()) for name, value in terms.items()}
 
     @torch.no_grad()

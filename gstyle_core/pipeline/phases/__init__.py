@@ -6,7 +6,10 @@
    (``colour_match.py``).
 4. ``stylize``: optimiser steps on c_s, with colour-gradient splits (``colour_split.py``) each followed by a
    ``refit`` (``refit.py``; reported as the phase ``refit``).
-5. ``finish``: one step: the stylized colours matched to the painting once more (the same ``ColourMatch``), when
+5. ``refine_K``: one per finer level (``settings.refine_widths``, coarse to fine): the ground truth at the level's
+   width, then optimiser steps on c_s from the colours as they are, on crops or whole views at that width
+   (``refine.py``; reported as the phase ``refine``).
+6. ``finish``: one step: the stylized colours matched to the painting once more (the same ``ColourMatch``), when
    ``settings.colour_match_after``.
 They share a ``RunState`` (``pipeline/run_state.py``) and its active set (``pipeline/active.py``); the runner
 ``pipeline/stylizer.Stylizer`` steps them and collects their checkpoints.
@@ -17,7 +20,9 @@ from .colour_match import ColourMatch
 from .colour_split import ColourSplit
 from .ground_truth import GroundTruth
 from .preprocess import Preprocess
+from .refine import Refine
 from .refit import Refit
 from .stylize import Stylize
 
-__all__ = ["Phase", "StepReport", "GroundTruth", "Preprocess", "Refit", "ColourMatch", "ColourSplit", "Stylize"]
+__all__ = ["Phase", "StepReport", "GroundTruth", "Preprocess", "Refit", "ColourMatch", "ColourSplit", "Stylize",
+           "Refine"]

@@ -28,6 +28,7 @@ class StepReport:
     geometry_changed: bool = False
     done: bool = False
     message: str = ""
+    width: int = 0  # the width (px) the step worked at: the working width, or a finer level's
 
 
 class Phase:

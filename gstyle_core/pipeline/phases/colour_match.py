@@ -19,6 +19,47 @@ from ...style.colour_match import Palette, apply_colour_transform
 from .base import Phase, StepReport
 
 
+def detail_base(run, colours: torch.Tensor, px: float | None = None) -> torch.Tensor:
+    """``colours`` [N, 3] of every Gaussian smoothed over ``px`` (default ``settings.match_detail_px``) working-width
+    pixels at the scene's median distance: the opacity-weighted mean on a trilinear lattice of that cell over the
+    active Gaussians (seen, and selected in a region run), read back at each of them
+    (``colour_field.TrilinearLattice.average``); the others keep their own colour as their base."""
+    from ..colour_field import TrilinearLattice, pixel_footprint
+
+    active = run.active
+    means = active.gather(run.params["means"].detach())
+    if means.shape[0] == 0:
+        return colours.clone()
+    cell = (run.settings.match_detail_px if px is None else px) * pixel_footprint(means.numpy(), run.cameras)
+    opacity = torch.sigmoid(active.gather(run.params["opacity_logits"].detach()))
+    base = colours.clone()
+    active.scatter(base, TrilinearLattice(means, cell).average(active.gather(colours), opacity))
+    return base
+
+
+def matched_colours(run, source: torch.Tensor, A: np.ndarray, b: np.ndarray) -> torch.Tensor:
+    """``source`` [N, 3] under the colour match c -> A c + b. With ``settings.match_detail_px`` > 0 only the broad
+    colours are mapped (``detail_base``) and each Gaussian keeps its own difference from them at its own size:
+    c' = A·base + b + (c − base). A plain match of a scene far less colourful than the painting multiplies the
+    per-Gaussian colour differences of the fit (invisible in the scene) by the map's gain (4–17× measured on the
+    bundled captures), which shows as single-splat confetti at the display's size (docs/tradeoffs.md). With keep
+    colours the luminance map is applied to the whole colour, unclipped (c_gt's chroma is restored after)."""
+    keep = run.settings.keep_colours
+    if run.settings.match_detail_px > 0 and not keep:
+        base = detail_base(run, source)
+        mapped = torch.as_tensor(apply_colour_transform(base.numpy(), A, b, clip=False), dtype=torch.float32)
+        return (mapped + (source - base)).clamp(0.0, 1.0)
+    return torch.as_tensor(apply_colour_transform(source.numpy(), A, b, clip=not keep), dtype=torch.float32)
+
+
+def detail_sigma(run, scale: float = 1.0) -> float:
+    """The image-space counterpart of ``detail_base``'s smoothing: σ (px) of a Gaussian blur as wide as a lattice
+    average of ``match_detail_px`` cells (splat then read: two trilinear hats, variance cell²/3), in pixels of an
+    image ``scale`` × the working width; 0 when the match maps whole colours."""
+    s = run.settings
+    return 0.0 if s.match_detail_px <= 0 or s.keep_colours else float(s.match_detail_px) / 3 ** 0.5 * scale
+
+
 def surface_pixels(image: torch.Tensor, alpha: torch.Tensor, keep_colours: bool) -> torch.Tensor:
     """The pixels [M, 3] the scene covers (alpha > 0.5) whose statistics the colour match maps. With keep colours
     they are divided by alpha (the surface's colour, not its blend with the black background): the luminance map
@@ -48,22 +89,50 @@ def match_content_targets(run) -> tuple[np.ndarray, np.ndarray]:
     """Colour-match the ground truth to the style: sets ``run.colour_transform`` and the content targets."""
     A, b = transfer(run, run.gt_images, run.match_coverage())
     run.colour_transform = (A, b)
-    # The content targets are what the colour-matched Gaussians render: a render is Σ w_i c_i with Σ w_i = alpha
-    # over a black background, so c -> A c + b turns a pixel p into A p + alpha b. The background stays black
-    # (transforming it too would ask c_s for a change no Gaussian can make, and pull at every silhouette).
-    run.content_images = []
-    for i, (g, a) in enumerate(zip(run.gt_images, run.coverage, strict=True)):
-        p = apply_colour_transform(g.reshape(-1, 3).numpy(), A, np.zeros(3), clip=False)
-        p = torch.as_tensor(p + a.reshape(-1, 1).numpy() * b, dtype=torch.float32)
-        if run.settings.keep_colours:  # the view's own hues at the new luminance (as c_s gets them)
-            from ...style.keep_colours import with_chroma_of
-
-            p = with_chroma_of(p, g.reshape(-1, 3))
-        if run.region_coverage:  # region: the selected share of each pixel matched, the rest as it was
-            share = (run.region_coverage[i] / a.clamp_min(1e-6)).clamp(0.0, 1.0).reshape(-1, 1)
-            p = g.reshape(-1, 3) + share * (p - g.reshape(-1, 3))
-        run.content_images.append(p.clamp(0.0, 1.0).reshape(g.shape))
+    run.content_images = [content_target(run, g, a, run.region_coverage[i] if run.region_coverage else None)
+                          for i, (g, a) in enumerate(zip(run.gt_images, run.coverage, strict=True))]
     return A, b
+
+
+def content_target(run, gt: torch.Tensor, alpha: torch.Tensor, region: torch.Tensor | None = None,
+                   scale: float = 1.0) -> torch.Tensor:
+    """The content target of a ground-truth image ``gt`` [H, W, 3] with coverage ``alpha`` [H, W] under the run's
+    colour transform (``region``: the selected Gaussians' weight per pixel in a region run, else None; ``scale``: the
+    image's pixels per working-width pixel).
+
+    The content targets are what the colour-matched Gaussians render: a render is Σ w_i c_i with Σ w_i = alpha over a
+    black background, so c -> A c + b turns a pixel p into A p + alpha b. The background stays black (transforming it
+    too would ask c_s for a change no Gaussian can make, and pull at every silhouette). With ``match_detail_px`` the
+    Gaussians' broad colours alone are mapped (``matched_colours``), so the pixel becomes
+    p + alpha·((A − I)·base + b), base the surface colour blurred as widely (``detail_sigma``)."""
+    A, b = run.colour_transform
+    g = gt.reshape(-1, 3)
+    sigma = detail_sigma(run, scale)
+    if sigma > 0:
+        base = surface_blur(gt, alpha, sigma).reshape(-1, 3)
+        change = apply_colour_transform(base.numpy(), A - np.eye(3), b, clip=False)
+        p = g + alpha.reshape(-1, 1) * torch.as_tensor(change, dtype=torch.float32)
+    else:
+        p = apply_colour_transform(g.numpy(), A, np.zeros(3), clip=False)
+        p = torch.as_tensor(p + alpha.reshape(-1, 1).numpy() * b, dtype=torch.float32)
+    if run.settings.keep_colours:  # the view's own hues at the new luminance (as c_s gets them)
+        from ...style.keep_colours import with_chroma_of
+
+        p = with_chroma_of(p, g)
+    if region is not None:  # region: the selected share of each pixel matched, the rest as it was
+        share = (region / alpha.clamp_min(1e-6)).clamp(0.0, 1.0).reshape(-1, 1)
+        p = g + share * (p - g)
+    return p.clamp(0.0, 1.0).reshape(gt.shape)
+
+
+def surface_blur(image: torch.Tensor, alpha: torch.Tensor, sigma: float) -> torch.Tensor:
+    """The surface colour of ``image`` [H, W, 3] (a render over black with coverage ``alpha`` [H, W]) blurred by a
+    Gaussian of ``sigma`` px: blur(image) / blur(alpha), so the empty background does not darken the scene's rim."""
+    from ...style.texture_scale import gaussian_blur
+
+    planes = torch.cat([image.permute(2, 0, 1), alpha[None]]).to(torch.float32)
+    blurred = gaussian_blur(planes, sigma)
+    return (blurred[:3] / blurred[3:].clamp_min(1e-6)).permute(1, 2, 0)
 
 
 class ColourMatch(Phase):
@@ -94,8 +163,7 @@ class ColourMatch(Phase):
                 run.region_coverage = [run.selected_weight(v) for v in range(len(run.cameras))]
             A, b = match_content_targets(run)
             source = run.gt_rgb().to(torch.float32)
-        # with keep colours the luminance map is unclipped, then c_gt's chroma is restored as far as it fits
-        matched = torch.as_tensor(apply_colour_transform(source.numpy(), A, b, clip=not keep), dtype=torch.float32)
+        matched = matched_colours(run, source, A, b)
         run.c_s = run.active.keep_unselected(matched, source)  # outside a region the colours stay
         if keep:
             run.restore_chroma()

@@ -10,6 +10,18 @@ from ...fit.model import params_from_scene, render_params
 from .base import Phase, StepReport
 
 
+def ground_truth_view(run, cam, view: int, input_params) -> tuple[torch.Tensor, torch.Tensor]:
+    """The ground truth of training view ``view`` seen by ``cam`` (that view at any size): its photo resized, or a
+    render of the input scene (``input_params``, with its SH); and its coverage (the render's alpha; 1 for photos)."""
+    if run.photos is not None:
+        photo = np.clip(np.asarray(run.photos[view], np.float32), 0, 1)
+        gt = torch.as_tensor(resize_image(photo, (cam.width, cam.height)))
+        return gt, torch.ones(gt.shape[:2])
+    with torch.no_grad():
+        out = render_params(input_params, cam, sh_degree=run.gt_sh_degree, backend=run.settings.raster_backend)
+    return out.image.clamp(0, 1), out.alpha.clamp(0, 1)
+
+
 class GroundTruth(Phase):
     """Fills ``run.gt_images`` and ``run.coverage`` (the render's alpha; 1 for photos), one view per step."""
 
@@ -29,19 +41,9 @@ class GroundTruth(Phase):
     def step(self) -> StepReport:
         run = self.run
         i = len(run.gt_images)
-        cam = run.cameras[i]
-        if run.photos is not None:
-            photo = np.clip(np.asarray(run.photos[i], np.float32), 0, 1)
-            gt = torch.as_tensor(resize_image(photo, (cam.width, cam.height)))
-            covered = torch.ones(gt.shape[:2])
-        else:
-            if self._input_params is None:
-                self._input_params = params_from_scene(run.input_scene, requires_grad=False)
-            with torch.no_grad():
-                out = render_params(self._input_params, cam, sh_degree=run.gt_sh_degree,
-                                    backend=run.settings.raster_backend)
-            gt = out.image.clamp(0, 1)
-            covered = out.alpha.clamp(0, 1)
+        if run.photos is None and self._input_params is None:
+            self._input_params = params_from_scene(run.input_scene, requires_grad=False)
+        gt, covered = ground_truth_view(run, run.cameras[i], i, self._input_params)
         run.gt_images.append(gt)
         run.coverage.append(covered)
         if self.finished:

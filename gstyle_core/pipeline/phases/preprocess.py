@@ -8,7 +8,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..preprocess import evenness_verdict, flat_split_mask, gaussian_areas, size_evenness
+from ..levels import level_widths
+from ..preprocess import (
+    evenness_verdict,
+    flat_split_mask,
+    gaussian_areas,
+    projected_size_px,
+    shown_split_mask,
+    size_evenness,
+)
 from .base import Phase, StepReport
 from .refit import Refit
 
@@ -22,6 +30,7 @@ class Preprocess(Phase):
         super().__init__(run)
         self.rounds = 0  # decided by ``start``
         self.round = 0
+        self.too_small = 0  # flat Gaussians not split because their children could not show
         self.refit: Refit | None = None
 
     def start(self) -> None:
@@ -72,20 +81,30 @@ class Preprocess(Phase):
         gamma = s.preprocess_gamma * s.preprocess_gamma_growth**self.round
         log_scales = run.params["log_scales"]
         mask = run.active.expand(flat_split_mask(run.active.gather(log_scales), gamma, s.preprocess_cap), fill=False)
+        flat = int(mask.sum())
+        final_cams = [c.resized_to_width(level_widths(s.working_width, s.refine_widths)[-1]) for c in run.cameras]
+        mask = shown_split_mask(mask, projected_size_px(run.params["means"], log_scales, final_cams),
+                                s.preprocess_scale_divisor, s.preprocess_min_child_px)
         n = run.split(mask, s.preprocess_children, s.preprocess_scale_divisor,
                       priority=gaussian_areas(run.params["log_scales"]))
+        self.too_small += flat - int(mask.sum())
+        run.decisions["preprocess_unsplit"] = (
+            f"{self.too_small:,} flat Gaussian(s) left whole: their children would be below "
+            f"{s.preprocess_min_child_px:g} px "
+            f"at {final_cams[0].width} px, the width the run ends at")
         self.refit = Refit.preprocessing(run)
         self.refit.start()
         return self.report(geometry_changed=True,
                            message=f"pre-processing round {self.round + 1}: split {n} flat Gaussians (γ={gamma:.3f})")
 
     def state_dict(self) -> dict[str, Any]:
-        return {**super().state_dict(), "rounds": self.rounds, "round": self.round,
+        return {**super().state_dict(), "rounds": self.rounds, "round": self.round, "too_small": self.too_small,
                 "refit": None if self.refit is None else self.refit.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         super().load_state_dict(state)
         self.rounds, self.round = int(state["rounds"]), int(state["round"])
+        self.too_small = int(state.get("too_small", 0))
         self.refit = None
         if state["refit"] is not None:  # built as a fresh round's refit is, then its saved state
             self.refit = Refit.preprocessing(self.run)

@@ -13,13 +13,12 @@ c_s takes the chroma of c_gt back.
 
 from __future__ import annotations
 
-import copy
 import math
 from typing import Any
 
 import torch
 
-from ..colour_field import ColourField, build_colour_field
+from ..colour_steps import ColourSteps
 from ..notes import network_area_note
 from .base import Phase, StepReport
 from .colour_split import ColourSplit
@@ -42,11 +41,12 @@ class Stylize(Phase):
         self.accumulate_from = int(round(s.grad_accumulate_from * self.steps))
         self.step_index = 0  # optimiser steps taken
         self.splits_done = 0
-        self.optimiser: Any = None
-        self.c_opt: torch.Tensor | None = None  # the optimised copy of the active rows of c_s
-        self.field: ColourField | None = None  # the coarse colour field over c_opt's Gaussians (colour_field on)
-        self._field_for: tuple[bool, float] | None = None  # (switch, stroke size) the field was built for
+        self.colour_steps = ColourSteps(run)  # Adam on the active rows of c_s, with the colour field
         self.refit: Refit | None = None
+
+    optimiser = property(lambda self: self.colour_steps.optimiser, doc="The colours' optimiser (None between runs).")
+    c_opt = property(lambda self: self.colour_steps.c_opt, doc="The optimised copy of the active rows of c_s.")
+    field = property(lambda self: self.colour_steps.field, doc="The coarse colour field (None when off).")
 
     @property
     def current(self) -> str:
@@ -104,7 +104,7 @@ class Stylize(Phase):
     def _split(self) -> StepReport:
         self.split_steps.remove(self.step_index)
         self.splits_done += 1
-        self.optimiser, self.c_opt, self.field = None, None, None  # new rows: a new optimiser after the refit
+        self.colour_steps.stop()  # new rows: a new optimiser after the refit
         rep = ColourSplit(self.run).step()
         if self.run.settings.refit_iterations > 0:
             self.refit = Refit.after_split(self.run)
@@ -112,24 +112,10 @@ class Stylize(Phase):
         return rep
 
     def _optimise(self) -> StepReport:
-        run, s = self.run, self.run.settings
-        if self.optimiser is None:
-            self._start_optimiser()
-        elif self._field_for != (bool(s.colour_field), float(s.style_scale)):
-            self._sync_field()
-        field = self.field
-        for g in self.optimiser.param_groups:
-            g["lr"] = self.lr() * (field.colour_share if field is not None else 1.0)
+        run, steps = self.run, self.colour_steps
         views = self.views_of_step()
-        self.optimiser.zero_grad(set_to_none=True)
-        if field is not None:
-            field.set_lr(self.lr() * field.field_share)
-            field.zero_grad()
+        colours = steps.begin(self.lr())
         total, terms = 0.0, {}
-        colours = self.c_opt
-        if field is not None:  # the field read once a step: the views' gradients meet on a leaf, then go through it
-            with_field = self.c_opt + field.sample()
-            colours = with_field.detach().requires_grad_(True)
         for view in views:  # the mean loss over this step's views: gradients add up before one optimiser step
             image = run.render_seen(view, run.active.place_in_seen(run.c_s, colours))
             loss, view_terms = run.objective_fn()(image, run.content_images[view], view,
@@ -138,78 +124,28 @@ class Stylize(Phase):
             total += float(loss.detach()) / len(views)
             for k, v in view_terms.items():
                 terms[k] = terms.get(k, 0.0) + v / len(views)
-        if field is not None and colours.grad is not None:
-            with_field.backward(colours.grad)
-        if self.step_index >= self.accumulate_from and self.c_opt.grad is not None:
-            run.active.scatter_add(run.grad_acc, self.c_opt.grad.detach().norm(dim=-1))
-        self.optimiser.step()
-        if field is not None:
-            field.step()
-            field.fold_into(self.c_opt)
-        with torch.no_grad():
-            self.c_opt.clamp_(0.0, 1.0)
-            run.active.scatter(run.c_s, self.c_opt)
-        if s.keep_colours:
-            self.restore_chroma()
+        steps.finish(accumulate=self.step_index >= self.accumulate_from)
         self.step_index += 1
         if self.step_index >= self.steps:
-            self.optimiser, self.c_opt, self.field = None, None, None
+            steps.stop()
         return self.report(losses={"total": total, **terms}, colours_changed=True,
                            message=f"stylize view{'s' if len(views) > 1 else ''} {', '.join(map(str, views))}")
 
-    def _start_optimiser(self) -> None:
-        """Adam on a copy of the active rows of c_s (the others get no gradient and keep their colour)."""
-        from ..visible_adam import VisibleAdam
-
-        run = self.run
-        run.c_s = run.c_s.detach()
-        self.c_opt = run.active.gather(run.c_s).clone().requires_grad_(True)
-        run.counters["optimised_colours"] = int(self.c_opt.shape[0])
-        if run.settings.optimizer == "visible_adam":
-            self.optimiser = VisibleAdam(self.c_opt, lr=self.lr())
-        else:
-            self.optimiser = torch.optim.Adam([self.c_opt], lr=self.lr())
-        self._sync_field()
-
-    def _sync_field(self) -> None:
-        """Build the colour field over the optimised Gaussians when the settings ask for it (for their stroke size),
-        drop it when they do not."""
-        run, s = self.run, self.run.settings
-        self.field = None
-        if s.colour_field:
-            points = run.active.gather(run.params["means"].detach())
-            self.field = build_colour_field(points, run.cameras, s.style_scale, self.lr(),
-                                            visible=s.optimizer == "visible_adam")
-            run.counters["field_cells"] = self.field.cells
-            run.decisions["colour_field"] = self.field.describe(s.style_scale)
-        else:
-            run.decisions["colour_field"] = "off"
-        self._field_for = (bool(s.colour_field), float(s.style_scale))
-
-    @torch.no_grad()
     def restore_chroma(self) -> None:
         """Keep colours: c_s (and the optimised copy) take the chroma of c_gt back."""
-        self.run.restore_chroma()
-        if self.c_opt is not None:
-            self.c_opt.copy_(self.run.active.gather(self.run.c_s))
+        self.colour_steps.restore_chroma()
 
     def state_dict(self) -> dict[str, Any]:
         return {**super().state_dict(), "step_index": self.step_index, "split_steps": list(self.split_steps),
-                "splits_done": self.splits_done,
-                "adam": None if self.optimiser is None else copy.deepcopy(self.optimiser.state_dict()),
-                "field": None if self.field is None else copy.deepcopy(self.field.state_dict()),
+                "splits_done": self.splits_done, **self.colour_steps.state_dict(),
                 "refit": None if self.refit is None else self.refit.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         super().load_state_dict(state)
         self.step_index, self.splits_done = int(state["step_index"]), int(state["splits_done"])
         self.split_steps = [int(k) for k in state["split_steps"]]
-        self.optimiser, self.c_opt, self.field, self.refit = None, None, None, None
-        if state["adam"] is not None:
-            self._start_optimiser()
-            self.optimiser.load_state_dict(state["adam"])
-            if self.field is not None and state.get("field") is not None:
-                self.field.load_state_dict(state["field"])
+        self.refit = None
+        self.colour_steps.load_state_dict(state, self.lr())
         if state["refit"] is not None:  # built as a fresh one is, then its saved state
             self.refit = Refit.after_split(self.run)
             self.refit.load_state_dict(state["refit"])

@@ -1,0 +1,128 @@
+"""Where the speckle at the display's size comes from: one stylization probed at every phase boundary.
+
+Builds the engine ``gstyle stylize`` builds for the same options, steps it to the end and renders the evaluation views
+(those ``evaluate_run`` measures) ``--display-width`` px wide at each boundary: after the first colour match (the start
+of stylization), after the stylization at the working width (before any finer level), after each finer level
+(``refine_K``), and the result. For each stage it prints the speckle ratio (``style/speckle.py``: the fine share of the
+chroma added since the input, against the painting's at its matched size in display pixels), per view and over the
+views, the added chroma's fine and whole energy (summed over the views), the energy and fine share of the stage's own
+change (against the stage before), and the seconds the engine had spent by then. After pre-processing the new geometry
+is rendered with the ground-truth colours. Last a ``RESULT`` line with the ratio after the working width and
+at the end.
+
+    python bench/display_phases.py --style ../shared/data/styles/the_scream_munch.jpg --refine-widths 512,1024
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
+from gstyle_core.pipeline.cli import add_stylize_arguments, build_request, evaluation_cameras  # noqa: E402
+from gstyle_core.render_cli import render_scene_image  # noqa: E402
+from gstyle_core.style.speckle import FINE_BANDS, chroma_energies, display_speckle, fine_share  # noqa: E402
+from gstyle_core.style.texture_scale import matched_side  # noqa: E402
+
+EVAL_VIEWS = 3  # as evaluate_run
+
+
+def ground_truth_scene(engine):
+    """The current geometry with the ground-truth colours (SH degree 0)."""
+    from gstyle_core.fit.model import scene_from_params
+    from gstyle_core.scene import rgb_to_sh_dc
+
+    scene = scene_from_params(engine.params)
+    scene.sh_dc = rgb_to_sh_dc(engine.run_state.gt_rgb().detach().clamp(0, 1).numpy())
+    return scene
+
+
+def stage_speckles(engine, scene_in, style, width: int) -> list[dict]:
+    """Run ``engine`` to the end; the speckle figure at each phase boundary (module docstring), in order."""
+    s = engine.settings
+    cameras = evaluation_cameras(engine, EVAL_VIEWS, width)
+    before, alphas = zip(*(render_scene_image(scene_in, c, with_alpha=True) for c in cameras), strict=True)
+    paintings = [style] if isinstance(style, np.ndarray) else list(style)
+    side = matched_side(s.working_width, s.style_scale, width)
+    channels = "luminance" if s.keep_colours else "chroma"
+
+    previous = {"images": list(before)}
+
+    def figure(name: str, seconds: float, scene=None) -> dict:
+        after = [render_scene_image(scene or engine.stylized_scene(), c) for c in cameras]
+        fig = display_speckle(list(before), after, list(alphas), paintings, side,
+                              None if len(paintings) == 1 else s.style_weights, channels)
+        added = sum(chroma_energies(np.asarray(a, np.float64) - b, w, channels)
+                    for a, b, w in zip(after, before, alphas, strict=True))
+        step = sum(chroma_energies(np.asarray(a, np.float64) - b, w, channels)
+                   for a, b, w in zip(after, previous["images"], alphas, strict=True))
+        previous["images"] = after
+        return {"stage": name, "seconds": round(seconds, 1), "gaussians": engine.gaussian_count,
+                "added_fine_energy": float(added[:FINE_BANDS].sum()), "added_energy": float(added.sum()),
+                "change_fine_share": fine_share(step), "change_energy": float(step.sum()), **fig.to_dict()}
+
+    def current() -> str:  # the phase object that runs now (a refit belongs to the stylization)
+        return next((ph.name for ph in engine.phases if not ph.finished), "done")
+
+    rows, engine_seconds, last = [], 0.0, current()
+    while not engine.done:
+        t0 = time.perf_counter()
+        engine.step()
+        engine_seconds += time.perf_counter() - t0
+        now = current()
+        if now != last and last == "preprocess":  # the new geometry with the ground-truth colours
+            rows.append(figure("after preprocess (c_gt)", engine_seconds, ground_truth_scene(engine)))
+        if now != last and (last in ("colour_match", "stylize") or last.startswith("refine_")) and now != "done":
+            rows.append(figure(f"after {last}", engine_seconds))
+        last = now
+    rows.append(figure("result", engine_seconds))
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_stylize_arguments(p)
+    p.add_argument("--json", default=None, help="also write the rows to this file")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="any StylizeSettings field on top of the options (a Python literal: 6, 0.5, (512,), 'whole')")
+    args = p.parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    request = build_request(args)
+    for item in args.set:
+        name, _, value = item.partition("=")
+        request.overrides[name.strip()] = ast.literal_eval(value.strip())
+    engine, scene_in, _, _, style = build_stylizer(request)
+    width = args.display_width or 1024
+    rows = stage_speckles(engine, scene_in, style, width)
+    print(f"{args.scene or 'demo'} × {', '.join(args.style or ['the bundled painting'])}: preset "
+          f"{engine.settings.preset}, working width {engine.settings.working_width}, levels "
+          f"{list(engine.settings.refine_widths)} ({engine.settings.refine_mode}); speckle at {width} px, painting "
+          f"at {rows[-1]['painting_side']} px (fine share {rows[-1]['painting_fine_share']})")
+    print(f"{'stage':28s} {'engine s':>9s} {'Gaussians':>10s} {'speckle':>8s}  {'per view':18s} "
+          f"{'added fine / all':>18s}  {'this stage: energy, fine share':>30s}")
+    for r in rows:
+        views = " / ".join("-" if v is None else f"{v:.2f}" for v in r["speckle_ratio_per_view"])
+        ratio = "-" if r["speckle_ratio"] is None else f"{r['speckle_ratio']:.2f}"
+        print(f"{r['stage']:28s} {r['seconds']:9.1f} {r['gaussians']:10,d} {ratio:>8s}  {views:18s} "
+              f"{r['added_fine_energy']:8.0f} / {r['added_energy']:7.0f}  {r['change_energy']:19.0f}, "
+              f"{r['change_fine_share']:.2f}")
+    working = next((r for r in rows if r["stage"] == "after stylize"), rows[-1])
+    print(f"RESULT speckle_after_working_width={working['speckle_ratio']} speckle_result={rows[-1]['speckle_ratio']} "
+          f"engine_seconds={rows[-1]['seconds']}")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,82 @@
+"""The studio's quality section (issue #34): each preset's estimate for this scene, the width the run is at, Refine
+(the next finer level from the colours as they are, no restart) and the finished run's speckle figure (headless GL
+window, real small engine in a worker thread)."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("imgui_bundle")
+pytest.importorskip("moderngl")
+
+from fakes import BUILT, keep_small_stylizer  # noqa: E402
+from imgui_driver import paused_studio_driver  # noqa: E402
+from PIL import Image  # noqa: E402
+from synthetic import blob_scene, ring_cameras  # noqa: E402
+
+from app.studio import LoadedScene, StudioApp  # noqa: E402
+from gstyle_core.pipeline.plan import StepTimes, estimate_seconds, planned_steps  # noqa: E402
+from gstyle_core.pipeline.settings import resolve_settings  # noqa: E402
+
+W, H = 700, 1300  # tall enough for the whole panel
+
+
+def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_path):
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    style = tmp_path / "style.png"
+    Image.fromarray(np.random.default_rng(0).integers(0, 255, (16, 16, 3), dtype=np.uint8)).save(style)
+    loaded = LoadedScene(str(tmp_path / "ring.ply"), blob_scene(150, seed=5), ring_cameras(3))
+    BUILT.clear()
+    app = StudioApp(window.ctx, loaded=loaded, style_path=str(style), engine_factory=keep_small_stylizer,
+                    output_dir=tmp_path / "out", worker_mode="thread")
+    try:
+        driver = paused_studio_driver(window, monkeypatch, app)
+        assert app.bridge.wait_until(lambda s: bool(s.plans), 30)
+        driver.frame()
+        assert set(app.panel.quality_estimates) == {"preview", "balanced", "final"}
+        assert all(v is None for v in app.panel.quality_estimates.values())  # nothing measured yet
+        assert "Width: 32 px" in driver.recorder.texts
+        app.bridge.resume()
+        assert app.bridge.wait_until(lambda s: s.done and s.summary is not None or s.error, 120), \
+            app.bridge.state.error
+        driver.frame()
+        estimates = app.panel.quality_estimates
+        assert 0 < estimates["preview"] < estimates["balanced"] < estimates["final"]  # priced at this run's steps
+        result = [t for t in driver.recorder.texts if t.startswith("Result: speckle at 1024 px")]
+        assert result, driver.recorder.texts
+        colours = BUILT[-1].c_s.clone()
+        commands = driver.click("Refine -> 64 px")
+        assert [c.name for c in commands] == ["refine"]
+        assert driver.recorder.find("Refine -> 64 px").tooltip
+        assert app.bridge.wait_until(lambda s: s.done and s.summary is not None and s.plans.get("levels") == [32, 64]
+                                     or s.error, 120), app.bridge.state.error
+        engine = BUILT[-1]
+        assert len(BUILT) == 1 and engine.levels == (32, 64)  # the same engine went on: no restart
+        assert not np.array_equal(engine.c_s.numpy(), colours.numpy())
+        driver.frame()
+        assert "Width: 64 px (levels 32 px → 64 px)" in driver.recorder.texts
+        commands = driver.click("balanced (~" + [w.path for w in driver.recorder.widgets
+                                                 if w.path.endswith("###q_balanced")][0].split("(~", 1)[1])
+        assert [c.args for c in commands if c.name == "set_quality"] == [{"preset": "balanced"}]
+        driver.frame()
+        commands = driver.click("Restart at balanced")
+        assert [c.name for c in commands] == ["restart_quality"] and app.engine_config["preset"] == "balanced"
+    finally:
+        app.close(timeout=60)
+
+
+def test_a_plan_prices_each_kind_of_step_and_grows_with_the_preset():
+    plans = {name: planned_steps(resolve_settings(name, "360", 24, clip_available=False), 24)
+             for name in ("preview", "balanced", "final")}
+    assert "refine_512" not in plans["preview"] and plans["balanced"]["refine_targets_512"] == 24
+    assert set(plans["final"]) >= {"refine_512", "refine_1024", "refine_targets_1024"}
+    times = StepTimes()
+    assert estimate_seconds(plans["preview"], times, 256) is None  # nothing measured: no figure
+    times.add({"phase": "stylize", "seconds": 1.0})
+    times.add({"phase": "ground_truth", "seconds": 0.2})
+    times.add({"phase": "refine", "width": 512, "message": "level 512 px: crops at 512 px", "seconds": 2.0})
+    times.add({"phase": "colour_match", "seconds": 5.0})  # one step, priced as nothing
+    assert times.mean("refine_512") == 2.0 and times.mean("stylize") == 1.0
+    preview, balanced, final = (estimate_seconds(plans[n], times, 256) for n in ("preview", "balanced", "final"))
+    assert 0 < preview < balanced < final
+    p = plans["preview"]
+    assert preview == pytest.approx(p["stylize"] * 1.0 + p["ground_truth"] * 0.2 + p["refit"] * 0.15)
