@@ -4,6 +4,8 @@ A mixin of ``StudioApp`` (it uses the app's scene, camera control, renderers, pa
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .studio_framing import framebuffer_scale
@@ -12,6 +14,18 @@ from .studio_framing import framebuffer_scale
 class RegionTool:
     """``StudioApp``'s region methods; the state lives on the app (``region_enabled``, ``region_box``,
     ``region_rect_mask``, ``engine_region``, ``_region_version``, ``_selection_shown``, ``_box_mask_cache``)."""
+
+    def init_region_state(self) -> None:
+        """The selection tool's state (issue #15 item 4): a box in scene coordinates or a screen rectangle's mask of
+        the input's Gaussians; highlighted in both renderers; handed to the engine when it (re)starts."""
+        self.region_enabled = False
+        self.region_box: tuple[float, ...] | None = None
+        self.region_rect_mask: np.ndarray | None = None  # the last rectangle's selection (mode "rectangle")
+        self._region_version = 0
+        self._box_mask_cache: tuple[tuple, np.ndarray] | None = None  # (scene and box, its selection)
+        self._selection_shown: dict[str, Any] = {}
+        self._rect_start: tuple[float, float] | None = None
+        self.engine_region: str = ""
 
     def scene_box(self) -> tuple[float, ...]:
         """The input scene's bounds as a box (x0,y0,z0,x1,y1,z1)."""

@@ -101,21 +101,12 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.video_job: VideoJob | None = None
         self._exports_seen: tuple[int, int] = (0, 0)
         self._export_failures_seen: tuple[int, int] = (0, 0)  # the same for failed exports (their one line)
-        # Selection tool (issue #15 item 4): a box in scene coordinates or a screen rectangle's mask of the input's
-        # Gaussians; highlighted in both renderers; handed to the engine when it (re)starts.
-        self.region_enabled = False
-        self.region_box: tuple[float, ...] | None = None
-        self.region_rect_mask: np.ndarray | None = None  # the last rectangle's selection (mode "rectangle")
-        self._region_version = 0
-        self._box_mask_cache: tuple[tuple, np.ndarray] | None = None  # (scene and box, its selection)
-        self._selection_shown: dict[str, Any] = {}
-        self._rect_start: tuple[float, float] | None = None
+        self.init_region_state()
         self._view_size: tuple[int, int] = (1, 1)
         self._scene_box: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.ones(3))  # robust box of the centres
         self._framed: tuple[tuple[int, int] | None, int] | None = None  # (view size, camera version) of the framed
         # home pose (``_keep_framed``); None: the home pose is a scene camera's
         self.scene_viewport: tuple[int, int, int, int] | None = None  # the last frame's scene view (GL viewport)
-        self.engine_region: str = ""
         if loaded is not None:
             self.set_scene(loaded)
         if style_path:

@@ -189,3 +189,20 @@ def engine_at_stylize(vgg, scene, style, **overrides):
     while engine.phase != "stylize":
         engine.step()
     return engine
+
+
+def small_studio(window, monkeypatch, tmp_path, factory=keep_small_stylizer):
+    """A studio on a 150-Gaussian ring scene and a random painting (``style.png`` in ``tmp_path``) whose engine is
+    built by ``factory`` in a worker thread; the cache folder is private to the test and ``BUILT`` starts empty."""
+    from PIL import Image
+    from synthetic import blob_scene, ring_cameras
+
+    from app.studio import LoadedScene, StudioApp
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    style = tmp_path / "style.png"
+    Image.fromarray(np.random.default_rng(0).integers(0, 255, (16, 16, 3), dtype=np.uint8)).save(style)
+    loaded = LoadedScene(str(tmp_path / "ring.ply"), blob_scene(150, seed=5), ring_cameras(3))
+    BUILT.clear()
+    return StudioApp(window.ctx, loaded=loaded, style_path=str(style), engine_factory=factory,
+                     output_dir=tmp_path / "out", worker_mode="thread")

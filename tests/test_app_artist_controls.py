@@ -8,7 +8,7 @@ import pytest
 pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
-from fakes import BUILT, keep_small_stylizer  # noqa: E402
+from fakes import BUILT, small_studio  # noqa: E402
 from imgui_driver import paused_studio_driver  # noqa: E402
 from PIL import Image  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
@@ -21,15 +21,8 @@ W, H = 700, 1300  # tall enough for the whole panel
 
 
 def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, monkeypatch, tmp_path):
-    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
-    style = tmp_path / "style.png"
-    Image.fromarray(np.random.default_rng(0).integers(0, 255, (16, 16, 3), dtype=np.uint8)).save(style)
-    loaded = LoadedScene(str(tmp_path / "ring.ply"), blob_scene(150, seed=5), ring_cameras(3))
-    BUILT.clear()
-
     def studio():
-        return StudioApp(window.ctx, loaded=loaded, style_path=str(style), engine_factory=keep_small_stylizer,
-                         output_dir=tmp_path / "out", worker_mode="thread")
+        return small_studio(window, monkeypatch, tmp_path)
 
     app = studio()
     try:

@@ -8,12 +8,9 @@ import pytest
 pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
-from fakes import BUILT, keep_small_stylizer  # noqa: E402
+from fakes import BUILT, small_studio  # noqa: E402
 from imgui_driver import paused_studio_driver  # noqa: E402
-from PIL import Image  # noqa: E402
-from synthetic import blob_scene, ring_cameras  # noqa: E402
 
-from app.studio import LoadedScene, StudioApp  # noqa: E402
 from gstyle_core.pipeline.plan import StepTimes, estimate_seconds, planned_steps  # noqa: E402
 from gstyle_core.pipeline.settings import resolve_settings  # noqa: E402
 
@@ -21,13 +18,7 @@ W, H = 700, 1300  # tall enough for the whole panel
 
 
 def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_path):
-    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
-    style = tmp_path / "style.png"
-    Image.fromarray(np.random.default_rng(0).integers(0, 255, (16, 16, 3), dtype=np.uint8)).save(style)
-    loaded = LoadedScene(str(tmp_path / "ring.ply"), blob_scene(150, seed=5), ring_cameras(3))
-    BUILT.clear()
-    app = StudioApp(window.ctx, loaded=loaded, style_path=str(style), engine_factory=keep_small_stylizer,
-                    output_dir=tmp_path / "out", worker_mode="thread")
+    app = small_studio(window, monkeypatch, tmp_path)
     try:
         driver = paused_studio_driver(window, monkeypatch, app)
         assert app.bridge.wait_until(lambda s: bool(s.plans), 30)
@@ -44,9 +35,9 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
         result = [t for t in driver.recorder.texts if t.startswith("Result: speckle at 1024 px")]
         assert result, driver.recorder.texts
         colours = BUILT[-1].c_s.clone()
+        assert driver.recorder.find("Refine -> 64 px").tooltip
         commands = driver.click("Refine -> 64 px")
         assert [c.name for c in commands] == ["refine"]
-        assert driver.recorder.find("Refine -> 64 px").tooltip
         assert app.bridge.wait_until(lambda s: s.done and s.summary is not None and s.plans.get("levels") == [32, 64]
                                      or s.error, 120), app.bridge.state.error
         engine = BUILT[-1]

@@ -1,11 +1,12 @@
 """Command-line value types of the stylization options (``--style-scale``, ``--style-weights``, ``--region``,
-``--colour-field``), shared by ``gstyle stylize`` and ``gstyle-studio``: a bad value is one line from argparse (exit
-status 2), not a traceback.
-Nothing here imports torch."""
+``--colour-field``, ``--display-width``, ``--refine-widths``), shared by ``gstyle stylize`` and ``gstyle-studio``: a bad
+value is one line from argparse (exit status 2), not a traceback; and the stroke size's own check, which the controls
+table uses too. Nothing here imports torch, the settings or the controls (no import cycle through them)."""
 
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -22,10 +23,20 @@ def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
     return checked
 
 
+def check_style_scale(scale: float) -> float:
+    """``scale`` as a float if it is a usable stroke size (finite, > 0), else ``ValueError`` saying why."""
+    try:
+        value = float(scale)
+    except (TypeError, ValueError):
+        raise ValueError(f"style scale must be a number, got {scale!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"style scale must be a finite number above 0 (1 = the painting at the working "
+                         f"resolution, 2 = the painting at twice that size), got {scale}")
+    return value
+
+
 def _style_scale(text: str) -> float:
     """``--style-scale``: a finite number above 0."""
-    from .settings import check_style_scale
-
     return check_style_scale(float(text))
 
 

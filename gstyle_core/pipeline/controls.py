@@ -16,13 +16,12 @@ from __future__ import annotations
 import argparse
 import copy
 import enum
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from ..style.mix import weights_with_mix
-from .arg_types import on_off_arg, style_scale_arg
+from .arg_types import check_style_scale, on_off_arg, style_scale_arg
 
 if TYPE_CHECKING:
     from .settings import StylizeSettings
@@ -77,18 +76,6 @@ class Control:
     def flag(self) -> str:
         """The command-line option, e.g. ``--lambda-nnfm``."""
         return "--" + self.name.replace("_", "-")
-
-
-def check_style_scale(scale: float) -> float:
-    """``scale`` as a float if it is a usable stroke size (finite, > 0), else ``ValueError`` saying why."""
-    try:
-        value = float(scale)
-    except (TypeError, ValueError):
-        raise ValueError(f"style scale must be a number, got {scale!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"style scale must be a finite number above 0 (1 = the painting at the working "
-                         f"resolution, 2 = the painting at twice that size), got {scale}")
-    return value
 
 
 def _write_weight(term: str) -> Callable[[StylizeSettings, Any], None]:

@@ -12,8 +12,8 @@ from dataclasses import asdict, dataclass, field, replace
 
 from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
 from ..style.precision import PRECISIONS
+from .arg_types import check_style_scale as check_style_scale  # the engine and the objective import it from here
 from .controls import apply_controls, control_names, read_controls
-from .controls import check_style_scale as check_style_scale  # the engine and the objective import it from here
 
 
 @dataclass
