@@ -169,3 +169,24 @@ def test_refine_carries_a_finished_run_on_at_the_next_width_and_a_resumed_run_ke
     assert resumed.levels == (32, 64) and resumed.done and torch.equal(resumed.c_s, engine.c_s)
     with pytest.raises(ValueError, match="coarse to fine"):
         engine.refine(48)
+
+
+def test_a_levels_objective_matches_the_painting_at_its_width_within_the_candidate_budget(vgg, no_clip_weights):
+    """A finer level's objective resizes the painting for its own width (stroke size × that width) and searches
+    among at most ``nnfm_candidates`` of its feature vectors; a crop's objective leaves the large-pattern terms off."""
+    from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.pipeline.phases.refine import CROP_TERMS
+
+    painting = np.random.default_rng(0).uniform(0, 1, (300, 400, 3)).astype(np.float32)
+    s = resolve_settings("preview", "360", 4, working_width=64, clip_available=False, nnfm_candidates=0)
+    base = StyleObjective(painting, s, vgg=vgg)
+    level = StyleObjective(painting, s, vgg=vgg, width=128)
+    assert base.target.matrix.shape[1] == 16 * 12 and level.target.matrix.shape[1] == 32 * 24  # 64 / 128 px long
+    assert level.loss.weights.multiscale > 0 and level.loss.multiscale_term is not None
+    crop = StyleObjective(painting, s, vgg=vgg, width=128, terms=CROP_TERMS)
+    assert crop.loss.weights.multiscale == 0 and crop.loss.multiscale_term is None and crop.loss.weights.nnfm > 0
+    capped = resolve_settings("preview", "360", 4, working_width=64, clip_available=False, nnfm_candidates=100)
+    again = StyleObjective(painting, capped, vgg=vgg, width=128)
+    assert again.target.matrix.shape[1] == 100 and "at most 100 of each painting's" in again.style_note
+    with pytest.raises(ValueError, match="nnfm_candidates"):
+        resolve_settings("preview", "360", 4, nnfm_candidates=-1)

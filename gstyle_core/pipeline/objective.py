@@ -31,9 +31,6 @@ STYLE_TERMS = ("clip", "nnfm", "multiscale")  # the terms the style strength mul
 
 MIN_STYLE_SIDE = 16  # below this the painting has next to no relu3 feature vectors (2 poolings: 4 × 4)
 MAX_STYLE_SIDE = 1024  # above this the style features outgrow a CPU's memory and time (768 × 65k vectors at 1024²)
-NNFM_CANDIDATES: int | None = 16384  # at most this many painting feature vectors per painting (a random subset,
-# drawn once from the seed; None: all). The search costs render × painting vectors: a 1024-px level's painting has
-# ~51,000, 16× a 256-px run's; at 256 and 512 px (≤ ~13,000) every vector is kept (docs/tradeoffs.md)
 
 
 def style_side(working_width: int, scale: float) -> tuple[int, bool]:
@@ -120,7 +117,8 @@ class StyleObjective:
         side, clamped = style_side(self.width or s.working_width, s.style_scale)
         self._styles_small = [to_bchw(resize_long_side(self._style_input(style), side)) for style in self._styles]
         self._style_small = self._styles_small[0]
-        targets = [StyleTarget.from_image(self.vgg, small, max_vectors=NNFM_CANDIDATES,
+        budget = int(s.nnfm_candidates) or None
+        targets = [StyleTarget.from_image(self.vgg, small, max_vectors=budget,
                                           generator=torch.Generator().manual_seed(s.seed))
                    for small in self._styles_small]
         weights = self._style_weights()
@@ -128,11 +126,11 @@ class StyleObjective:
         sizes = " and ".join(f"{small.shape[-1]}×{small.shape[-2]}" for small in self._styles_small)
         limits = f" (clamped to {MIN_STYLE_SIDE}-{MAX_STYLE_SIDE} px)" if clamped else ""
         vectors = sum(t.matrix.shape[1] for t in targets)
-        budget = (f" (a random {NNFM_CANDIDATES:,} of each painting's)" if NNFM_CANDIDATES is not None
-                  and any(t.matrix.shape[1] == NNFM_CANDIDATES for t in targets) else "")
+        subset = (f" (at most {budget:,} of each painting's, drawn at random)" if budget is not None
+                  and any(t.matrix.shape[1] == budget for t in targets) else "")
         width = "the working width" if self.width is None else f"{self.width} px"
         self._matched_note = (f"matched at {sizes} px{limits}: stroke size {s.style_scale:g} × {width}; "
-                              f"{vectors:,} feature vectors{budget}"
+                              f"{vectors:,} feature vectors{subset}"
                               + ("; luminance only (keep colours)" if self._luminance_only() else ""))
         self._write_style_note()
         self._built_for = (bool(s.keep_colours), float(s.style_scale))

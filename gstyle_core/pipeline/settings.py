@@ -44,6 +44,9 @@ class StylizeSettings:
     refine_epochs: float = 2.0  # a level's optimiser steps: epochs × the number of views / views per step
     refine_lr: float | None = None  # a level's learning rate (None: lr_end, where the stylization ended)
     style_scale: float = 1.0  # stroke size: the painting is matched at this × the working width (objective.py)
+    nnfm_candidates: int = 16384  # the NNFM search looks among at most this many of a painting's feature vectors (a
+    # random subset drawn from the seed; 0: all). A 1024-px level's painting has ~51,000, 16× a 256-px run's; at
+    # 256 and 512 px (≤ ~13,000) every vector is kept (docs/display-size.md)
     colour_field: bool = False  # coherent strokes: a coarse colour field steps beside each Gaussian's colour
     # (pipeline/colour_field.py; on with the broad-strokes term)
     keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
@@ -238,6 +241,8 @@ def check_settings(s: StylizeSettings) -> StylizeSettings:
         if not (math.isfinite(value) and value >= 0):
             raise ValueError(f"{name} must be a finite number, 0 or more, got {getattr(s, name)!r}")
         setattr(s, name, value)
+    if int(s.nnfm_candidates) != s.nnfm_candidates or s.nnfm_candidates < 0:
+        raise ValueError(f"nnfm_candidates must be a whole number, 0 (all) or more, got {s.nnfm_candidates!r}")
     return s
 
 
