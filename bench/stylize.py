@@ -117,11 +117,12 @@ def instrument(engine) -> PartTimer:
 
 
 def floor_time(objective, height: int, width: int, repeats: int = 7,
-               coarse: tuple[int, int] | None = None) -> float:
+               coarse: tuple[int, int] | None = None, content_forward: bool = False) -> float:
     """Median time of every network pass the objective runs on a [1, 3, H, W] view, forward and backward: VGG +
     NNFM, and with the broad-strokes term (``objective.loss.multiscale_term``, weight > 0) VGG + NNFM on each of its
-    levels, taken from a ``coarse`` (h, w) view (the grown box it sees; default the same size). ``objective``: anything
-    with ``vgg`` and ``target`` (and optionally ``loss``), e.g. the run's objective."""
+    levels, taken from a ``coarse`` (h, w) view (the grown box it sees; default the same size); ``content_forward``:
+    also VGG forward on the content target (a level's random crop has no cached content features). ``objective``:
+    anything with ``vgg`` and ``target`` (and optionally ``loss``), e.g. the run's objective."""
     from gstyle_core.style.losses import upsample_for_vgg, vgg_input_size
     from gstyle_core.style.multiscale import downsample
 
@@ -132,6 +133,9 @@ def floor_time(objective, height: int, width: int, repeats: int = 7,
     for _ in range(repeats + 2):
         img = torch.rand(1, 3, height, width, requires_grad=True)
         t0 = time.perf_counter()
+        if content_forward:
+            with torch.no_grad():
+                objective.vgg(torch.rand(1, 3, height, width))
         loss = style_nnfm(concat_features(objective.vgg(img)), objective.target)
         if term is not None:
             wide = torch.rand(1, 3, *(coarse or (height, width)), requires_grad=True)
@@ -275,7 +279,8 @@ def main() -> None:
 
 def time_levels(engine, steps: int, view_floor: float) -> dict[str, float]:
     """Step on into the finer levels and time ``steps`` of each (after 2 untimed ones): their crop steps against the
-    floor of the level's networks on a crop (VGG + NNFM at the level's painting size), their whole-view steps at the
+    floor of the level's networks on a crop (VGG + NNFM at the level's painting size, and VGG forward on the crop's
+    content target), their whole-view steps at the
     working width against the stylization's floor (``view_floor`` a view). Prints a row per level; returns the
     ratios for the RESULT line."""
     from gstyle_core.pipeline.phases.refine import CROP_TERMS, Refine
@@ -295,7 +300,8 @@ def time_levels(engine, steps: int, view_floor: float) -> dict[str, float]:
                 break
         cam = engine.cameras[0]
         terms = CROP_TERMS if level.mode == "crops" else None
-        crop_floor = floor_time(engine.run_state.level_objective(level.width, terms), cam.height, cam.width)
+        crop_floor = floor_time(engine.run_state.level_objective(level.width, terms), cam.height, cam.width,
+                                content_forward=True)
         per = engine.settings.views_per_step
         rows = [("crop" if level.mode == "crops" else "whole view", kinds[True], per * crop_floor),
                 ("whole view at the working width", kinds[False], per * view_floor)]
