@@ -171,11 +171,20 @@ class CameraControl:
         self.pose.eye = target - self.pose.distance * rotation[:, 2]
         self.version += 1
 
-    def zoom(self, steps: float) -> None:
-        """Scroll: move towards (steps > 0) or away from the target by 10 % per step."""
-        target = self.target
-        self.pose.distance = max(self.pose.distance * 0.9 ** steps, MIN_DISTANCE)
-        self.pose.eye = target - self.pose.distance * self.pose.rotation[:, 2]
+    def zoom(self, steps: float, cursor: tuple[float, float] | None = None,
+             size: tuple[int, int] | None = None) -> None:
+        """Scroll: move towards (steps > 0) or away from the target by 10 % per step. With the ``cursor``'s pixel
+        in a view of ``size`` (width, height), towards the point under the cursor at the target's depth: that point
+        stays under the cursor (as in Blender, SuperSplat and map viewers), and the orbit target moves with it."""
+        r, distance = self.pose.rotation, self.pose.distance
+        ray = r[:, 2]
+        if cursor is not None and size is not None and min(size) > 0:
+            f = 0.5 * min(size) / math.tan(math.radians(self.pose.fov_y_deg) / 2)  # as ``camera`` does
+            u, v = (cursor[0] - size[0] / 2) / f, (cursor[1] - size[1] / 2) / f
+            ray = u * r[:, 0] + v * r[:, 1] + r[:, 2]  # to the cursor's point, per unit of depth
+        point = self.pose.eye + distance * ray
+        self.pose.distance = max(distance * 0.9 ** steps, MIN_DISTANCE)
+        self.pose.eye = point - self.pose.distance * ray
         self.version += 1
 
     def pan(self, dx_pixels: float, dy_pixels: float, viewport_height: int) -> None:

@@ -15,7 +15,8 @@ from gstyle_core.errors import GStyleError
 from gstyle_core.pipeline.arg_types import region_arg
 from gstyle_core.style.precision import PRECISIONS
 
-DEFAULT_SIZE = (1280, 800)
+from .window_size import DEFAULT_SIZE
+
 FALLBACK_SCREENSHOT = Path("out") / "gstyle-studio-headless.png"
 HEADLESS_FRAMES = 3
 INTERRUPTED = 130  # exit status after Ctrl+C (128 + SIGINT, as shells report it)
@@ -54,7 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--headless", action="store_true", help="no window: render offscreen (glfw NULL + EGL)")
     p.add_argument("--frames", type=int, default=None, help="stop after N frames (headless default: 3)")
     p.add_argument("--screenshot", default=None, help="write the last frame as PNG here")
-    p.add_argument("--size", type=parse_size, default=DEFAULT_SIZE, help="window size, e.g. 800x600")
+    p.add_argument("--size", type=parse_size, default=None,
+                   help="window size, e.g. 800x600 (default: as the window was left last time, else 80%% of the "
+                        f"screen; headless {DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]})")
     p.add_argument("--fps", type=float, default=60.0, help="frame-rate cap (0 = uncapped; headless: uncapped)")
     p.add_argument("--view", choices=["stylized", "original", "compare", "ground truth"], default="stylized")
     p.add_argument("--camera", type=int, default=None, help="start at scene camera N (1-based)")
@@ -107,12 +110,12 @@ def run(args: argparse.Namespace) -> int:
 
     with deferred_interrupts() as stop:
         try:
-            window = open_window(*args.size, headless=args.headless)
+            window = open_window(*(args.size or (None, None)), headless=args.headless)
         except DisplayUnavailableError as exc:
             if args.headless:
                 raise
             _stylize_without_display(args, exc)
-            window = open_window(*args.size, headless=True)
+            window = open_window(*(args.size or (None, None)), headless=True)
         try:
             return loop(window, args, stop)
         finally:
@@ -204,7 +207,7 @@ def _run_frames(window, app, args: argparse.Namespace, stop: dict[str, bool]) ->
     count = 0
     pacer = None if window.headless or not args.on_demand else OnDemand(window.counter, app.busy,
                                                                          glfw.wait_events_timeout)
-    while not (window.should_close() or stop["stop"]):
+    while not (window.should_close() or stop["stop"] or app.quit_requested):
         if pacer is not None and not pacer.should_draw():
             continue  # nothing changed: no frame (render on demand)
         window.begin_frame()

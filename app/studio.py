@@ -21,6 +21,7 @@ from gstyle_core.pipeline.controls import cli_control_names
 from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
+from .edit_history import EditHistory
 from .keys import KeyPresses
 from .open_files import LoadedScene, OpenFiles
 from .panels import Command, PanelState, draw_panel
@@ -60,6 +61,8 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
                  keys: KeyPresses | None = None) -> None:
         self.ctx = ctx
         self.keys = keys if keys is not None else KeyPresses()  # the window's key presses (app/keys.py)
+        self.quit_requested = False  # Ctrl+Q: the frame loop ends as for the window's close button
+        self.history = EditHistory()  # Ctrl+Z / Ctrl+Shift+Z over the parameter changes (app/edit_history.py)
         self.worker_mode = worker_mode  # "process" (the default, measured better) or "thread" (bench/ui.py)
         self.original = SplatRenderer(ctx)
         self.stylized = SplatRenderer(ctx)

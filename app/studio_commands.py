@@ -41,11 +41,15 @@ class StudioCommands:
         elif name == "resume_session":
             self.start_engine(resume=True)
         elif name == "set_params":
-            self.panel.params.update(args)
-            if painting_controls() & args.keys() and self.panel.style2_path:  # a restarted engine keeps the mix
-                self._update_style_config()
-            if bridge is not None:
-                bridge.set_params(**args)
+            self.history.record({k: self.panel.params.get(k) for k in args}, args)
+            self._apply_params(args)
+        elif name in ("undo", "redo"):
+            edit = self.history.undo() if name == "undo" else self.history.redo()
+            if edit is None:
+                self.panel.status = f"nothing to {name}"
+            else:
+                self._apply_params(edit.before if name == "undo" else edit.after)
+                self.panel.status = f"{name}: {edit.describe()}"
         elif name == "set_quality":
             self.panel.quality = str(args["preset"])
         elif name == "restart_quality":
@@ -64,6 +68,15 @@ class StudioCommands:
         else:
             return False
         return True
+
+    def _apply_params(self, values: dict[str, float]) -> None:
+        """Controls to the panel and the engine (from the next step; a finished run's switch back returns its
+        colours)."""
+        self.panel.params.update(values)
+        if painting_controls() & values.keys() and self.panel.style2_path:  # a restarted engine keeps the mix
+            self._update_style_config()
+        if self.bridge is not None:
+            self.bridge.set_params(**values)
 
     def _view_command(self, name: str, args: dict[str, Any]) -> bool:
         """View mode, field of view, camera (reset, frame all, scene cameras), help, and the region tool."""
@@ -92,6 +105,8 @@ class StudioCommands:
             self.set_region_box(self.scene_box())
         elif name == "toggle_help":
             self.panel.show_help = not self.panel.show_help
+        elif name == "quit":  # the frame loop ends as for the close button (the session is saved on close)
+            self.quit_requested = True
         else:
             return False
         return True

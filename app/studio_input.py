@@ -52,7 +52,7 @@ class StudioInput:
             if io_.mouse_wheel and io_.key_alt and self._box_tool_on():  # Alt + wheel: resize the box
                 self.scale_region_box(BOX_WHEEL_STEP ** io_.mouse_wheel)
             elif io_.mouse_wheel:
-                self.control.zoom(io_.mouse_wheel)
+                self.control.zoom(io_.mouse_wheel, cursor=fb_mouse, size=(width, height))  # toward the cursor
         if not (imgui.is_mouse_down(0) or imgui.is_mouse_down(1)):
             self._dragging = None
         if self._dragging and self._last_mouse is not None:

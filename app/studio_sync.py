@@ -45,6 +45,10 @@ class StudioSync:
         p.resume_available = self.resume_available()
         p.take_names = [t.name for t in self.takes.takes]
         p.take_labels = [t.label for t in self.takes.takes]
+        p.undo_note = self.history.done[-1].describe() if self.history.done else ""
+        p.redo_note = self.history.undone[-1].describe() if self.history.undone else ""
+        now = self.view_key()
+        p.take_differs = [not now or t.view_key != now for t in self.takes.takes]
         shown = [i for i, t in enumerate(self.takes.takes) if t.path == self.take_shown]
         p.take_shown = shown[0] if shown else -1
         p.compare_with_take = self.compare_with_take and p.take_shown >= 0

@@ -29,6 +29,7 @@ class Take:
     path: str
     gaussians: int
     created: float
+    view_key: str = ""  # what the view showed when it was exported (``StudioApp.view_key``): T skips a take equal to it
 
     @property
     def label(self) -> str:
@@ -50,7 +51,8 @@ class TakeShelf:
         """The remembered takes whose files still exist (an unreadable list is ignored: takes are a convenience)."""
         try:
             entries = json.loads((self.folder / TAKES_FILE).read_text())
-            takes = [Take(str(e["name"]), str(e["path"]), int(e["gaussians"]), float(e["created"])) for e in entries]
+            takes = [Take(str(e["name"]), str(e["path"]), int(e["gaussians"]), float(e["created"]),
+                          str(e.get("view_key", ""))) for e in entries]
         except (OSError, ValueError, TypeError, KeyError):
             return []
         return [t for t in takes if Path(t.path).is_file()][: self.limit]
@@ -70,10 +72,11 @@ class TakeShelf:
         error, self.write_error = self.write_error, None
         return error
 
-    def add(self, path: str | Path, gaussians: int, name: str | None = None) -> Take:
-        """Shelve an export (newest first; the oldest beyond ``limit`` is forgotten, its file kept)."""
+    def add(self, path: str | Path, gaussians: int, name: str | None = None, view_key: str = "") -> Take:
+        """Shelve an export (newest first; the oldest beyond ``limit`` is forgotten, its file kept); ``view_key``:
+        what the view showed when it was written."""
         self._counter += 1
-        take = Take(name or f"take {self._counter}", str(Path(path)), int(gaussians), time.time())
+        take = Take(name or f"take {self._counter}", str(Path(path)), int(gaussians), time.time(), view_key)
         self.takes = [take] + [t for t in self.takes if t.path != take.path][: self.limit - 1]
         self._write()
         return take

@@ -61,6 +61,14 @@ class TakesView:
             if self.view_mode == "take":
                 self.view_mode = "stylized"
 
+    def view_key(self) -> str:
+        """What the stylized view shows now: the engine run and its geometry and colour versions ("" before any)."""
+        st = self.bridge.state if self.bridge is not None else None
+        snap = st.snapshot if st is not None else None
+        if not snap:
+            return ""
+        return f"{id(st.exported)}:{snap.get('geometry_version')}:{snap.get('colour_version')}"
+
     def _shelve_exports(self, exported: list[str]) -> None:
         """New exports become takes (the Gaussian count from the export's JSON summary)."""
         for written in exported:
@@ -69,4 +77,4 @@ class TakesView:
                 gaussians = int(json.loads(summary_path(path).read_text())["gaussians"])
             except (OSError, ValueError, KeyError, TypeError):
                 gaussians = self.stylized.count
-            self.takes.add(path, gaussians)
+            self.takes.add(path, gaussians, view_key=self.view_key())

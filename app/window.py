@@ -22,6 +22,7 @@ from gstyle_core.errors import GStyleError
 
 from .keys import KeyPresses
 from .on_demand import EventCounter
+from .window_size import DEFAULT_SIZE, initial_size, remember_size, remembered_size
 
 
 class DisplayUnavailableError(GStyleError):
@@ -42,6 +43,7 @@ class Window:
     headless: bool
     counter: EventCounter = field(default_factory=EventCounter)  # its events (render on demand, app/on_demand.py)
     keys: KeyPresses = field(default_factory=KeyPresses)  # its key presses with their modifiers (app/keys.py)
+    remember: bool = False  # keep its size for the next session when it closes (its size was not asked for)
 
     @property
     def framebuffer_size(self) -> tuple[int, int]:
@@ -80,7 +82,9 @@ class Window:
         return screen
 
     def close(self) -> None:
-        """Shut down ImGui backends and glfw."""
+        """Shut down ImGui backends and glfw (a window whose size was not asked for keeps its size for next time)."""
+        if self.remember:
+            remember_size(glfw.get_window_size(self.handle))
         imgui.backends.opengl3_shutdown()
         imgui.backends.glfw_shutdown()
         try:
@@ -94,8 +98,10 @@ class Window:
         glfw.terminate()
 
 
-def open_window(width: int, height: int, title: str = "G-Style Studio", headless: bool = False) -> Window:
-    """Create the window, the GL 3.3+ core context, moderngl and ImGui. Raises DisplayUnavailableError."""
+def open_window(width: int | None = None, height: int | None = None, title: str = "G-Style Studio",
+                headless: bool = False) -> Window:
+    """Create the window, the GL 3.3+ core context, moderngl and ImGui. Raises DisplayUnavailableError. Without a
+    size: the one kept from the last session, else 80 % of the screen (``window_size.py``; headless: 1280 x 800)."""
     if not headless and not display_available():
         raise DisplayUnavailableError("no display (DISPLAY/WAYLAND_DISPLAY unset)")
     # init hints outlive glfw.terminate(): set the platform every time
@@ -110,7 +116,12 @@ def open_window(width: int, height: int, title: str = "G-Style Studio", headless
     glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
     glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
     glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, glfw.TRUE)
-    handle = glfw.create_window(int(width), int(height), title, None, None)
+    asked = (int(width), int(height)) if width is not None and height is not None else None
+    if headless:
+        size = asked or DEFAULT_SIZE
+    else:
+        size = initial_size(asked, remembered_size(), _workarea())
+    handle = glfw.create_window(size[0], size[1], title, None, None)
     if not handle:
         glfw.terminate()
         raise DisplayUnavailableError("glfw could not create an OpenGL 3.3 window")
@@ -129,7 +140,19 @@ def open_window(width: int, height: int, title: str = "G-Style Studio", headless
     counter.install(glfw, handle, keys.on_key)  # first: ImGui's backend chains its callbacks to these
     imgui.backends.glfw_init_for_opengl(ctypes.cast(handle, ctypes.c_void_p).value, True)
     imgui.backends.opengl3_init("#version 330")
-    return Window(handle, ctx, headless, counter, keys)
+    return Window(handle, ctx, headless, counter, keys, remember=asked is None and not headless)
+
+
+def _workarea() -> tuple[int, int] | None:
+    """Width and height of the primary screen less its task bars (None when glfw cannot tell)."""
+    try:
+        monitor = glfw.get_primary_monitor()
+        if not monitor:
+            return None
+        _, _, w, h = glfw.get_monitor_workarea(monitor)
+        return (int(w), int(h)) if w > 0 and h > 0 else None
+    except Exception:  # noqa: BLE001 - glfw reports errors as exceptions or warnings, depending on its settings
+        return None
 
 
 def _layout_key_name(key: int, scancode: int) -> str | None:

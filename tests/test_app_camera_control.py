@@ -74,6 +74,25 @@ def test_zoom_pan_fly_reset_and_version():
     assert np.allclose(ctl.pose.eye, home_eye)
 
 
+def test_zoom_toward_the_cursor_keeps_the_point_under_it():
+    """The wheel zooms toward the point under the cursor (at the target's depth): it stays at the same pixel and
+    comes closer; a cursor at the view's centre zooms toward the target as before."""
+    ctl = CameraControl()
+    ctl.frame(np.zeros(3), 1.0)
+    cam = ctl.camera(400, 300)
+    cursor = (320.0, 90.0)
+    depth = ctl.pose.distance
+    f = cam.fx
+    r = ctl.pose.rotation
+    point = ctl.pose.eye + depth * ((cursor[0] - 200) / f * r[:, 0] + (cursor[1] - 150) / f * r[:, 1] + r[:, 2])
+    ctl.zoom(2, cursor=cursor, size=(400, 300))
+    x, y, z = project(ctl.camera(400, 300), point)
+    assert np.allclose((x, y), cursor) and np.isclose(z, 0.81 * depth)
+    target = ctl.target.copy()
+    ctl.zoom(-1, cursor=(200.0, 150.0), size=(400, 300))
+    assert np.allclose(ctl.target, target) and np.isclose(ctl.pose.distance, 0.81 * depth / 0.9)
+
+
 def test_snap_to_scene_camera_reproduces_its_view():
     w2c = np.eye(4)
     w2c[:3, :3] = axis_rotation([0.2, 1.0, 0.1], 0.8)

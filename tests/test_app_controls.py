@@ -109,6 +109,8 @@ def test_loss_plot_lines_are_named_at_their_steps_and_joined_across_other_steps(
     assert np.array_equal(xs, [10, 13, 16, 19]) and np.array_equal(ys, [2, 5, 8, 11])
     assert len(series["refit"][0]) == 8
     assert COARSE_NAME not in [label for label, *_ in loss_series(history, COARSE_NAME, frozenset({"clip"}))]
+    relative = {label: ys for label, _, ys in loss_series(history, COARSE_NAME, relative=True)}
+    assert np.allclose(relative["NNFM"], [1, 2.5, 4, 5.5]) and np.allclose(relative["content"], 1)  # over the first
 
 
 def test_studio_names_the_clip_term_by_the_weights_found(window, no_clip_weights, tmp_path):

@@ -117,6 +117,8 @@ def test_key_presses_emit_the_shortcuts_commands(window):
     assert run(KeyPress("2")) == [Command("snap_camera", {"index": 1})]
     assert run(KeyPress("4")) == []  # three cameras
     assert run(KeyPress("s", ctrl=True)) == [Command("export")]
+    assert run(KeyPress("q", ctrl=True)) == [Command("quit")]
+    assert run(KeyPress("q")) == []  # Q alone flies the camera down
     assert run(KeyPress("s")) == []  # S alone flies the camera back (held, app/studio_input.py)
     assert run(KeyPress("f12")) == [Command("screenshot", {"scene_only": False})]
     assert run(KeyPress("f12", shift=True)) == [Command("screenshot", {"scene_only": True})]
@@ -155,3 +157,36 @@ def test_decisions_are_written_in_the_fonts_characters():
     lines = decision_lines({"clip": "CLIP term off (λ_CLIP = 0)", "note": "γ ≥ 1.1 → 2 px σ – done…"})
     assert lines == ["clip: CLIP term off (lambda_CLIP = 0)", "note: gamma >= 1.1 -> 2 px sigma - done..."]
     assert all(ord(c) < 256 for line in lines for c in line)
+
+
+def test_the_mix_slider_names_the_painting_at_each_end():
+    from app.panels.run_sections import mix_ends
+
+    state = PanelState(style_path="/art/starry_night_vangogh.jpg", style2_path="/art/a_very_long_painting_name.png")
+    assert mix_ends(state) == "0: starry_night_vangogh.jpg  <->  1: a_very_long_painting_..."
+
+
+def test_t_first_compares_with_the_newest_take_unlike_the_view(window):
+    """The newest take is usually the result on screen (just exported): T starts with the newest one that differs
+    from the view, then goes on through the others; with every take unlike the view it starts with the newest."""
+    state = PanelState(take_names=["take 3", "take 2", "take 1"], take_differs=[False, True, True])
+
+    def press_t() -> list[Command]:
+        window.begin_frame()
+        cmds = draw_panel(state, [KeyPress("t")])
+        window.end_frame(swap=False)
+        return cmds
+
+    assert press_t() == [Command("show_take", {"index": 1, "compare": True})]
+    state.compare_with_take, state.take_shown = True, 1
+    assert press_t() == [Command("show_take", {"index": 2, "compare": True})]
+    state.compare_with_take, state.take_differs = False, [True, True, True]
+    assert press_t() == [Command("show_take", {"index": 0, "compare": True})]
+
+
+def test_a_take_remembers_what_the_view_showed(tmp_path):
+    from app.takes import TakeShelf
+
+    (tmp_path / "a.ply").write_bytes(b"x")
+    TakeShelf(tmp_path).add(tmp_path / "a.ply", 10, view_key="run:3:17")
+    assert TakeShelf(tmp_path).takes[0].view_key == "run:3:17"

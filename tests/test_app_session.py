@@ -64,3 +64,28 @@ def test_close_saves_the_session_and_resume_continues_it(window, tmp_path, monke
         assert not app.resume_available()
     finally:
         app.close(timeout=60)
+
+
+def test_ctrl_q_ends_the_frame_loop_as_the_close_button_does(window, tmp_path, monkeypatch):
+    """Ctrl+Q (the ``quit`` command) ends ``_run_frames`` before its frame budget; main then closes the studio,
+    which saves the session as for the close button (the test above)."""
+    import argparse
+
+    from app.main import _run_frames
+
+    loaded = LoadedScene(str(tmp_path / "scene.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), W, H)])
+    app = StudioApp(window.ctx, loaded=loaded, engine_factory=make_fake_engine, engine_config={"n": 50},
+                    output_dir=tmp_path / "out")
+    drawn = []
+    frame = app.frame
+
+    def frame_then_quit(screen):
+        frame(screen)
+        drawn.append(1)
+        if len(drawn) == 2:
+            app.keys.press("q", ctrl=True)
+
+    app.frame = frame_then_quit
+    args = argparse.Namespace(frames=50, fps=0, on_demand=False, pacing=False, screenshot=None)
+    _run_frames(window, app, args, {"stop": False})
+    assert app.quit_requested and len(drawn) == 3  # the press is read in the frame after it

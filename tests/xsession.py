@@ -84,12 +84,13 @@ def stop_process(proc: subprocess.Popen, grace: float) -> None:
 
 
 def start_xvfb(size: tuple[int, int] = (1024, 768), timeout: float = 10.0) -> XServer:
-    """Start Xvfb on the first free display (``-displayfd``). Raises RuntimeError when it cannot."""
+    """Start Xvfb on the first free display (``-displayfd``); ``-noreset``: a client that connects just after the
+    last one left finds the server up, not resetting. Raises RuntimeError when it cannot."""
     if shutil.which("Xvfb") is None:
         raise RuntimeError("Xvfb is not installed (apt-get install xvfb; scripts/setup.sh does)")
     read_fd, write_fd = os.pipe()
     proc = subprocess.Popen(["Xvfb", "-displayfd", str(write_fd), "-screen", "0", f"{size[0]}x{size[1]}x24",
-                             "-nolisten", "tcp"], pass_fds=(write_fd,), stdout=subprocess.DEVNULL,
+                             "-nolisten", "tcp", "-noreset"], pass_fds=(write_fd,), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     os.close(write_fd)
     number = b""

@@ -35,6 +35,12 @@ def _shortcut(state: PanelState, press: KeyPress) -> list[Command]:
     name = press.name
     if name == "s" and press.ctrl and not press.alt:
         return [Command("export")]
+    if name == "q" and press.ctrl and not (press.alt or press.shift):  # quit as the close button does
+        return [Command("quit")]
+    if press.ctrl and not press.alt and (name == "y" or (name == "z" and press.shift)):
+        return [Command("redo")]
+    if name == "z" and press.ctrl and not press.alt:
+        return [Command("undo")]
     if name == "f12" and press.plain:  # Shift+F12: the scene view alone, F12: the whole window
         return [Command("screenshot", {"scene_only": press.shift})]
     if not press.plain:
@@ -52,8 +58,9 @@ def _shortcut(state: PanelState, press: KeyPress) -> list[Command]:
         return [Command("reset_camera")]
     if name == "f":
         return [Command("frame_all")]
-    if name == "t" and state.take_names:  # compare with the next take (newest first)
-        following = state.take_shown + 1 if state.compare_with_take else 0
+    if name == "t" and state.take_names:  # compare with the next take (newest first; first one unlike the view)
+        unlike = [i for i, differs in enumerate(state.take_differs) if differs]
+        following = state.take_shown + 1 if state.compare_with_take else (unlike[0] if unlike else 0)
         return [Command("show_take", {"index": following % len(state.take_names), "compare": True})]
     if name.isdigit() and 1 <= int(name) <= state.camera_count:
         return [Command("snap_camera", {"index": int(name) - 1})]

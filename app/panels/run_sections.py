@@ -4,6 +4,7 @@ engine's decisions."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -34,6 +35,15 @@ def files_section(state: PanelState, out: list[Command]) -> None:
     second_style(state, out)
 
 
+def mix_ends(state: PanelState, longest: int = 24) -> str:
+    """The line over the mix slider naming the painting at each end (file names cut to ``longest`` characters)."""
+    def name(path: str | None) -> str:
+        stem = Path(path or "").name or "(none)"
+        return stem if len(stem) <= longest else stem[:longest - 3] + "..."
+
+    return f"0: {name(state.style_path)}  <->  1: {name(state.style2_path)}"
+
+
 def second_style(state: PanelState, out: list[Command]) -> None:
     """The second painting of a mix: open / remove it, its thumbnail and the mix slider."""
     if not state.style2_path:
@@ -44,10 +54,11 @@ def second_style(state: PanelState, out: list[Command]) -> None:
     imgui.same_line()
     thumbnail(state.style2_texture, state.style2_size, 60.0)
     imgui.text_wrapped(f"Second style: {state.style2_path}")
+    imgui.text(mix_ends(state))
     imgui.set_next_item_width(150)
     row = control("style_mix")
     mix = float(state.params.get(row.name, 0.5))
-    changed, mix = imgui.slider_float(row.label, mix, row.low, row.high, row.fmt)
+    changed, mix = imgui.slider_float(row.label, mix, row.low, row.high, "%.2f of the 2nd")
     tooltip(row.tooltip)
     if changed:
         out.append(Command("set_params", {row.name: float(min(max(mix, row.low), row.high))}))
@@ -112,18 +123,20 @@ def term_name(key: str, clip_name: str = "CLIP") -> str:
     return clip_name if key == "clip" else term_label(key)
 
 
-def loss_series(history: list[dict[str, float]], clip_name: str = "CLIP", off: frozenset[str] = frozenset()
-                ) -> list[tuple[str, np.ndarray, np.ndarray]]:
+def loss_series(history: list[dict[str, float]], clip_name: str = "CLIP", off: frozenset[str] = frozenset(),
+                relative: bool = False) -> list[tuple[str, np.ndarray, np.ndarray]]:
     """(legend label, steps, values) per loss term in ``history``, only the points where the term was recorded
     (positive: a log axis), at their steps (an entry's ``"step"``, else its index). Terms never computed or in
-    ``off`` (switched off now) have no series."""
+    ``off`` (switched off now) have no series. ``relative``: each term over its first recorded value, so terms
+    thousands of times apart share one axis and each one's fall shows."""
     steps = np.array([h.get("step", i) for i, h in enumerate(history)], np.float64)
     series = []
     for key in sorted({k for h in history for k in h} - {"step"} - set(off)):
         ys = np.array([h.get(key, np.nan) for h in history], np.float64)
         recorded = np.isfinite(ys) & (ys > 0)
         if recorded.any():
-            series.append((term_name(key, clip_name), steps[recorded], ys[recorded]))
+            values = ys[recorded] / ys[recorded][0] if relative else ys[recorded]
+            series.append((term_name(key, clip_name), steps[recorded], values))
     return series
 
 
@@ -134,9 +147,9 @@ def switched_off_terms(state: PanelState) -> frozenset[str]:
 
 
 def loss_plot(state: PanelState) -> None:
-    """The losses so far on a log axis against the step, one named line per term, the legend below the plot
-    (nothing without implot or history)."""
-    series = loss_series(state.loss_history, state.clip_name, switched_off_terms(state))
+    """The losses so far against the step, each over its first value on a log axis (one named line per term, its
+    fall visible whatever its size), the legend below the plot (nothing without implot or history)."""
+    series = loss_series(state.loss_history, state.clip_name, switched_off_terms(state), relative=True)
     if not series:
         return
     try:
@@ -145,7 +158,7 @@ def loss_plot(state: PanelState) -> None:
         return
     legend_rows = (len(series) + 2) // 3
     if implot.begin_plot("Losses", imgui.ImVec2(-1, 150 + 18 * legend_rows)):
-        implot.setup_axes("step", "loss", implot.AxisFlags_.auto_fit, implot.AxisFlags_.auto_fit)
+        implot.setup_axes("step", "loss / first", implot.AxisFlags_.auto_fit, implot.AxisFlags_.auto_fit)
         implot.setup_axis_scale(implot.ImAxis_.y1, implot.Scale_.log10)
         implot.setup_legend(implot.Location_.south, implot.LegendFlags_.outside | implot.LegendFlags_.horizontal)
         for label, xs, ys in series:

@@ -35,8 +35,9 @@ def switch_command(state: PanelState, p: Param, on: bool) -> Command:
 
 
 def params_section(state: PanelState, out: list[Command]) -> None:
-    """One slider row per parameter, one checkbox per switch and "Reset all"."""
+    """Undo / Redo, one slider row per parameter, one checkbox per switch and "Reset all"."""
     imgui.separator()
+    edit_row(state, out)
     for p in param_rows():
         imgui.push_id(p.key)
         param_row(state, p, out)
@@ -49,6 +50,18 @@ def params_section(state: PanelState, out: list[Command]) -> None:
     if button("Reset all", "Every parameter back to the preset's value for this scene (the checkboxes too)."):
         values = {p.key: default_value(state, p) for p in (*param_rows(), *switch_rows())}
         out.append(Command("set_params", values))
+
+
+def edit_row(state: PanelState, out: list[Command]) -> None:
+    """Undo and Redo of the parameter changes, each saying which step it takes."""
+    for name, label, note in (("undo", "Undo (Ctrl+Z)", state.undo_note),
+                              ("redo", "Redo (Ctrl+Shift+Z)", state.redo_note)):
+        imgui.begin_disabled(not note)
+        if button(f"{label}###{name}", f"{name.capitalize()}: {note}" if note else f"Nothing to {name}.", small=True):
+            out.append(Command(name))
+        imgui.end_disabled()
+        imgui.same_line()
+    imgui.new_line()
 
 
 def param_row(state: PanelState, p: Param, out: list[Command]) -> None:

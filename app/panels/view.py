@@ -18,7 +18,7 @@ VIEW_TOOLTIPS = {
 
 HELP_ROWS = (  # (keys, what they do): the help overlay (H); the README lists the same keys
     ("left drag", "orbit (turns about the scene's up)"),
-    ("right drag, wheel", "pan, dolly"),
+    ("right drag, wheel", "pan, zoom toward the cursor"),
     ("W A S D, Q E", "fly; down, up"),
     ("F", "frame the whole scene from this side"),
     ("R", "reset the view"),
@@ -30,6 +30,8 @@ HELP_ROWS = (  # (keys, what they do): the help overlay (H); the README lists th
     ("Alt + drag, wheel", "move, resize the region box"),
     ("Shift + drag", "select by rectangle"),
     ("Ctrl+S", "export .ply"),
+    ("Ctrl+Q", "quit (the session is saved)"),
+    ("Ctrl+Z, Ctrl+Shift+Z", "undo, redo a parameter change"),
     ("F12", "screenshot of the window"),
     ("Shift+F12", "screenshot of the scene view alone"),
 )

@@ -116,6 +116,13 @@ class ColourSteps:
         if self.c_opt is not None:
             self.c_opt.copy_(self.run.active.gather(self.run.c_s))
 
+    @torch.no_grad()
+    def put_back(self, colours: torch.Tensor) -> None:
+        """c_s (and the optimised copy) become ``colours``, an earlier copy of c_s of the same shape."""
+        self.run.c_s = colours.clone()
+        if self.c_opt is not None:
+            self.c_opt.copy_(self.run.active.gather(self.run.c_s))
+
     def state_dict(self) -> dict[str, Any]:
         """Adam's state and the field's (None before the first step and after ``stop``)."""
         return {"adam": None if self.optimiser is None else copy.deepcopy(self.optimiser.state_dict()),

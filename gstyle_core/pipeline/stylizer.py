@@ -105,6 +105,8 @@ class Stylizer:
             run.max_gaussians, how = default_max_gaussians(settings.working_width)
         run.decisions["max_gaussians"] = f"at most {run.max_gaussians:,} Gaussians ({how})"
         self.phase_step = 0  # steps since the run entered the current phase
+        # keep colours turned on: c_s before it took the scene's chroma, and the colour version right after
+        self._before_keep_colours: tuple[torch.Tensor, int] | None = None
         self._settle()
 
     # ----------------------------------------------------------------- what callers read
@@ -311,9 +313,8 @@ class Stylizer:
             note_loss_terms(run.decisions, s, run.objective)
         if effects & Effect.CONTENT_TARGETS and run.content_images:  # past the colour match: new content targets
             match_content_targets(run)
-            if effects & Effect.RESTORE_CHROMA and s.keep_colours:  # c_s takes c_gt's chroma
-                self.stylize.restore_chroma()
-                run.colour_version += 1
+            if effects & Effect.RESTORE_CHROMA:
+                self._switch_chroma(s.keep_colours)
         for objective in run.objectives():
             if effects & Effect.CONTENT_TARGETS and hasattr(objective, "clear_content_cache"):
                 objective.clear_content_cache()
@@ -321,6 +322,23 @@ class Stylizer:
                 objective.refresh_style()  # the painting's features for the settings as they are now
         if effects & Effect.STYLE_FEATURES:
             note_style(run.decisions, s, run.objective, len(run.styles))
+
+    def _switch_chroma(self, keep: bool) -> None:
+        """Keep colours turned on: c_s takes c_gt's chroma, the colours before it kept. Turned off before any step
+        changed the colours since: those colours come back bit for bit (after steps, the painting's colours return
+        from the next step and the final colour match)."""
+        run = self.run_state
+        current = self._current()
+        steps = getattr(current, "colour_steps", None) or self.stylize.colour_steps
+        before, self._before_keep_colours = self._before_keep_colours, None
+        if keep:
+            kept = run.c_s.detach().clone()
+            steps.restore_chroma()
+            run.colour_version += 1
+            self._before_keep_colours = (kept, run.colour_version)
+        elif before is not None and before[1] == run.colour_version and before[0].shape == run.c_s.shape:
+            steps.put_back(before[0])
+            run.colour_version += 1
 
     # ----------------------------------------------------------------- outputs
     def snapshot(self) -> dict[str, Any]:

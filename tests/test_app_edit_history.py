@@ -1,0 +1,81 @@
+"""Undo and redo of parameter changes (issue #35 item 1, first part): the history itself, the shortcuts, and the
+studio applying an undo to the panel and the engine."""
+
+import pytest
+
+from app.edit_history import COALESCE_SECONDS, EditHistory
+
+
+def test_a_drag_is_one_step_and_undo_redo_walk_it_back_and_forth():
+    h = EditHistory()
+    h.record({"lambda_nnfm": 100.0}, {"lambda_nnfm": 120.0}, now=0.0)
+    h.record({"lambda_nnfm": 120.0}, {"lambda_nnfm": 150.0}, now=0.1)  # the same drag
+    h.record({"lambda_nnfm": 150.0}, {"lambda_nnfm": 200.0}, now=0.2)
+    h.record({"keep_colours": 0.0}, {"keep_colours": 1.0}, now=0.3)  # another control: a step of its own
+    h.record({"keep_colours": 1.0}, {"keep_colours": 1.0}, now=5.0)  # no change: no step
+    assert [e.describe() for e in h.done] == ["lambda_nnfm 100 -> 200", "keep_colours 0 -> 1"]
+    assert h.undo().before == {"keep_colours": 0.0}
+    assert h.undo().before == {"lambda_nnfm": 100.0} and h.undo() is None
+    assert h.redo().after == {"lambda_nnfm": 200.0}
+    h.record({"lambda_nnfm": 200.0}, {"lambda_nnfm": 210.0}, now=0.25)  # right after a redo: still its own step
+    assert len(h.done) == 2 and not h.undone  # a new change forgets what was undone
+    h.record({"lambda_nnfm": 210.0}, {"lambda_nnfm": 220.0}, now=0.25 + 2 * COALESCE_SECONDS)
+    assert len(h.done) == 3
+
+
+def test_the_history_keeps_at_most_its_limit():
+    h = EditHistory(limit=3)
+    for i in range(5):
+        h.record({"lr": float(i)}, {"lr": float(i + 1)}, now=10.0 * i)
+    assert [e.before["lr"] for e in h.done] == [2.0, 3.0, 4.0]
+
+
+@pytest.fixture
+def studio(window, monkeypatch, tmp_path):
+    from fakes import make_fake_engine
+    from synthetic import blob_scene, ring_cameras
+
+    from app.studio import LoadedScene, StudioApp
+
+    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
+                    engine_factory=make_fake_engine, engine_config={"n": 150}, worker_mode="thread")
+    app.start_engine()
+    assert app.bridge.wait_until(lambda s: s.snapshots_received >= 1 or s.error, 60), app.bridge.state.error
+    yield app
+    app.close(timeout=30)
+
+
+W, H = 160, 120
+
+
+def test_ctrl_z_takes_a_slider_back_in_the_panel_and_the_engine(studio, window):
+    from app.keys import KeyPress
+    from app.panels import Command, PanelState, draw_panel
+
+    def frame():
+        window.begin_frame()
+        studio.frame(window.ctx.screen)
+        window.end_frame(swap=False)
+
+    start = studio.panel.params["lambda_nnfm"]
+    studio.execute(Command("set_params", {"lambda_nnfm": start * 3}))
+    studio.history.done[-1].at = float("-inf")  # a later change, not the same drag
+    studio.execute(Command("set_params", {"keep_colours": 1.0}))
+    studio.keys.press("z", ctrl=True)
+    frame()
+    assert studio.panel.params["keep_colours"] == 0.0 and studio.panel.status == "undo: keep_colours 0 -> 1"
+    studio.keys.press("z", ctrl=True)
+    frame()
+    assert studio.panel.params["lambda_nnfm"] == start
+    assert studio.bridge.wait_until(
+        lambda s: (s.snapshot or {}).get("params", {}).get("lambda_nnfm") == start, 30)  # the engine has it
+    frame()  # the panel shows the stacks as they were when the frame began
+    assert studio.panel.redo_note.startswith("lambda_nnfm") and studio.panel.undo_note == ""
+    studio.keys.press("y", ctrl=True)
+    frame()
+    assert studio.panel.params["lambda_nnfm"] == start * 3
+    for keys, expected in (({"ctrl": True}, "undo"), ({"ctrl": True, "shift": True}, "redo")):
+        window.begin_frame()
+        cmds = draw_panel(PanelState(), [KeyPress("z", **keys)])
+        window.end_frame(swap=False)
+        assert cmds == [Command(expected)]
