@@ -23,6 +23,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from gstyle_core.assets import DEMO_SCENE
 from gstyle_core.pipeline.controls import painting_controls
 
 from .child_process import lower_priority, one_line_error, single_compute_thread, worker_nice
@@ -242,7 +243,8 @@ class EngineHost:
             self.send("error", "export: no engine is running")
             return
         try:
-            written = export_engine(self.engine, Path(path), self.last_report, self.params, self.config.get("style"))
+            written = export_engine(self.engine, Path(path), self.last_report, self.params, self.config.get("style"),
+                                    self.config.get("scene") or str(DEMO_SCENE))
         except Exception as exc:  # noqa: BLE001 - one line in the panel; the run goes on, nothing was written
             traceback.print_exc()
             self.send("export_failed", f"export: {one_line_error(exc)}")

@@ -13,10 +13,11 @@ EXPORT_FORMATS = ("ply", "spz", "compressed-ply")  # what the studio exports (th
 
 
 def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, params: dict[str, float],
-                  style: str | list[str] | None = None) -> str:
+                  style: str | list[str] | None = None, source_scene: str | None = None) -> str:
     """Save the stylized scene as .ply, .spz or .compressed.ply (``gstyle_core.io.save_scene``) and a JSON summary
-    beside it (``summary_path``; ``style``: the engine's painting path(s), named there with their weights). Both
-    appear or neither (``OutputGroup``): a failed write (``OutputWriteError``, one line) leaves no take behind."""
+    beside it (``summary_path``; ``style``: the engine's painting path(s), named there with their weights;
+    ``source_scene``: the scene it was stylized from, so the result reopens with a way back to it). Both appear or
+    neither (``OutputGroup``): a failed write (``OutputWriteError``, one line) leaves no take behind."""
     from gstyle_core.atomic import atomic_write_text
     from gstyle_core.errors import GStyleError
     from gstyle_core.io import save_scene
@@ -27,7 +28,9 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
     if fmt not in EXPORT_FORMATS:
         raise GStyleError(f"export path must end in .ply, .spz or .compressed.ply, got {path.name}")
     scene = engine.stylized_scene() if hasattr(engine, "stylized_scene") else scene_from_snapshot(engine.snapshot())
-    summary = {"scene": str(path), "gaussians": scene.count, "styles": style_entries(engine, style),
+    source = str(Path(source_scene).resolve()) if source_scene else None
+    summary = {"scene": str(path), "source_scene": source, "gaussians": scene.count,
+               "styles": style_entries(engine, style),
                "report": last_report, "params": params,
                "decisions": getattr(engine, "decisions", None),
                "settings": engine.settings.to_dict() if hasattr(getattr(engine, "settings", None), "to_dict")

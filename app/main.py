@@ -162,11 +162,14 @@ def open_studio(window, args: argparse.Namespace):
 
     from .engine_factory import make_stylizer
     from .open_files import load_scene_with_cameras
+    from .result_files import read_result
     from .studio import StudioApp
 
     engine_on = (not window.headless) if args.engine is None else args.engine
     loaded = load_scene_with_cameras(args.scene, args.cameras)
-    styles = args.style or ([str(DEFAULT_STYLE)] if Path(DEFAULT_STYLE).is_file() else [None])
+    result = None if args.style else read_result(loaded.path)  # a result shows the painting it was made after
+    styles = args.style or ([str(result.styles[0])] if result is not None and result.styles else None) or \
+        ([str(DEFAULT_STYLE)] if Path(DEFAULT_STYLE).is_file() else [None])
     app = StudioApp(window.ctx, loaded=loaded, style_path=styles[0],
                     engine_factory=make_stylizer if engine_on else None,
                     engine_config={"cameras": args.cameras, "preset": args.preset, "defaults": args.defaults,
@@ -187,7 +190,10 @@ def open_studio(window, args: argparse.Namespace):
         app.on_drop(paths)
 
     glfw.set_drop_callback(window.handle, dropped)
-    if not app.start_engine(resume=args.resume) and args.resume:
+    if app.result is not None and not args.resume:  # a stylized result opens as one: nothing starts on it
+        print(f"gstyle-studio: {app.result.line}; nothing started (the panel offers to stylize it again or to "
+              "restart from the original)")
+    elif not app.start_engine(resume=args.resume) and args.resume:
         print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",
               file=sys.stderr)
     return app

@@ -118,7 +118,15 @@ class OpenFiles:
             self._say(f"could not open {name}: {exc}")
             return False
         self._remember_folder(Path(path).parent)
-        if self.bridge is not None:
+        if self.result is not None and style_slot == 0 and has_suffix(name, SCENE_SUFFIXES):
+            self.stop_engine()  # a result is shown as it is; Stylize again / Restart from the original start one
+            if self.result.styles:  # with the painting it was made after
+                try:
+                    self.set_style(str(self.result.styles[0]))
+                except GStyleError:
+                    pass  # the painting shown stays; the result opens all the same
+            self._say(f"{self.result.line}; nothing started")
+        elif self.bridge is not None:
             self.start_engine()
         return True
 

@@ -27,6 +27,7 @@ from .open_files import LoadedScene, OpenFiles
 from .panels import Command, PanelState, draw_panel
 from .region_tool import RegionTool
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
+from .result_files import ResultInfo, read_result
 from .scene_view import SceneView, ViewPass
 from .splat_data import scene_arrays
 from .studio_commands import StudioCommands
@@ -54,6 +55,8 @@ def encode_png(rgb: np.ndarray) -> bytes:
 
 class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, StudioSync, StudioFraming):
     """Owns the renderers and the worker bridge; ``frame()`` draws one frame into the current framebuffer."""
+
+    result: ResultInfo | None = None  # the scene shown is a stylized result (set_scene): it opens as one
 
     def __init__(self, ctx: moderngl.Context, *, loaded: LoadedScene | None = None, style_path: str | None = None,
                  engine_factory: Callable[..., Any] | None = None, engine_config: dict[str, Any] | None = None,
@@ -130,11 +133,19 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.panel.camera_index = 0 if self.cameras else -1
         self._frame_scene()
         self.engine_config["scene"] = loaded.path
-        self.region_box, self.region_rect_mask = None, None
+        self.region_box, self.region_rect_mask, self.region_enabled = None, None, False
         self._region_version += 1
         self.panel.defaults = self._preset_params(with_overrides=False)
         self.panel.params = self._preset_params(with_overrides=True)
         self.panel.switched_off.clear()
+        self.result = read_result(loaded.path)  # a stylized result opens as one: no engine starts on it by itself
+        p, info = self.panel, self.result
+        p.result_line = info.line if info else ""
+        p.result_source = (str(info.source or info.source_named)) if info else ""
+        p.result_source_found = bool(info and info.source)
+        if info is not None:
+            p.params.update({k: v for k, v in info.params.items() if k in p.params})
+            p.phase = "result (nothing running)"
 
     def _preset_params(self, with_overrides: bool) -> dict[str, float]:
         """The preset's slider values for this scene's kind (``resolve_settings`` + ``ui_params``): what "reset"
@@ -241,6 +252,13 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._snapshots_seen = 0
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
         return resume_from is not None
+
+    def stop_engine(self, timeout: float = 20.0) -> None:
+        """Stop the running engine (its session is saved as on close); the view keeps what it shows."""
+        if self.bridge is not None:
+            self.bridge.quit(timeout)
+            self.bridge = None
+            self.panel.phase = "stopped"
 
     def close(self, timeout: float = 20.0) -> bool:
         """Stop the engine (it saves the session in the cache folder; killed after ``timeout`` s) and free GL

@@ -38,6 +38,8 @@ class StudioCommands:
                 {"pause": bridge.pause, "resume": bridge.resume, "step": bridge.step_once}[name]()
         elif name == "restart":
             self.start_engine()
+        elif name == "restart_from_original":
+            self.restart_from_original()
         elif name == "resume_session":
             self.start_engine(resume=True)
         elif name == "set_params":
@@ -68,6 +70,21 @@ class StudioCommands:
         else:
             return False
         return True
+
+    def restart_from_original(self) -> None:
+        """A result was opened: open the scene it came from and stylize it with the result's preset, controls and
+        painting (the ones found)."""
+        info = self.result
+        if info is None or info.source is None:
+            self.panel.status = "the original scene of this result was not found"
+            return
+        if info.preset:
+            self.engine_config["preset"] = info.preset
+        if info.styles:
+            self.open_path(str(info.styles[0]))  # a painting that no longer reads: one line, the current one kept
+        if self.open_path(str(info.source)) and self.bridge is None:
+            self.start_engine()
+        self._apply_params({k: v for k, v in info.params.items() if k in self.panel.params})  # from the first step
 
     def _apply_params(self, values: dict[str, float]) -> None:
         """Controls to the panel and the engine (from the next step; a finished run's switch back returns its

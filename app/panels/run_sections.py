@@ -17,8 +17,11 @@ from .widgets import button, button_row, thumbnail, tooltip
 
 
 def files_section(state: PanelState, out: list[Command]) -> None:
-    """The scene and the painting(s): their paths, thumbnails and open buttons."""
+    """The scene and the painting(s): their paths, thumbnails and open buttons; for a stylized result, what it is
+    and the ways on from it."""
     imgui.text_wrapped(f"Scene: {state.scene_path or '(none)'}")
+    if state.result_line:
+        result_block(state, out)
     if button("Open scene...", "Open a Gaussian scene (.ply, .compressed.ply, .splat, .spz); dropping a file on the "
                                "window works too."):
         out.append(Command("open_scene"))
@@ -33,6 +36,21 @@ def files_section(state: PanelState, out: list[Command]) -> None:
     imgui.text_wrapped(f"Style: {state.style_path or '(none)'}")
     thumbnail(state.style_texture, state.style_size)
     second_style(state, out)
+
+
+def result_block(state: PanelState, out: list[Command]) -> None:
+    """A stylized result was opened: what it is, its original, and the two ways on (neither starts by itself)."""
+    imgui.text_wrapped(state.result_line)
+    source = state.result_source
+    imgui.text_wrapped(f"Original: {source}" + ("" if state.result_source_found or not source else " (not found)"))
+    imgui.begin_disabled(not state.result_source_found)
+    if button("Restart from the original", "Open the scene this result was stylized from and stylize it with the "
+                                           "settings shown."):
+        out.append(Command("restart_from_original"))
+    imgui.end_disabled()
+    imgui.same_line()
+    if button("Stylize it again", "Stylize this result itself as a new scene (pre-processing it again)."):
+        out.append(Command("restart"))
 
 
 def mix_ends(state: PanelState, longest: int = 24) -> str:

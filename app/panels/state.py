@@ -25,6 +25,9 @@ class PanelState:
     """Everything the panel displays; the app fills it each frame."""
 
     scene_path: str = ""
+    result_line: str = ""  # the scene is a stylized result (app/result_files.py): what it is; "" for other scenes
+    result_source: str = ""  # the original scene it came from ("" when its summary names none)
+    result_source_found: bool = False
     style_path: str = ""
     style_texture: int | None = None  # GL texture id of the style thumbnail
     style_size: tuple[int, int] = (1, 1)

@@ -93,6 +93,22 @@ class StylizeSettings:
         """Plain dict for JSON summaries and checkpoints."""
         return asdict(self)
 
+    @classmethod
+    def from_dict(cls, values: dict) -> StylizeSettings:
+        """Settings from ``to_dict``'s dict as a summary stores it (lists for tuples; keys this version does not know
+        are left out, ones it misses keep their defaults). ``ValueError`` when a value does not fit."""
+        known = {f for f in cls.__dataclass_fields__}
+        kept = {k: v for k, v in values.items() if k in known}
+        try:
+            if isinstance(kept.get("weights"), dict):
+                kept["weights"] = StyleWeights(**kept["weights"])
+            for name in ("refine_widths", "split_at", "style_weights", "region"):
+                if isinstance(kept.get(name), list):
+                    kept[name] = tuple(kept[name])
+            return cls(**kept)
+        except TypeError as exc:
+            raise ValueError(f"settings do not fit this version: {exc}") from None
+
 
 # Paper defaults that depend on the scene kind (gstyle-method.md).
 KIND_DEFAULTS = {

@@ -1,0 +1,111 @@
+"""A result opens as a result (issue #35 item 3): a scene the project wrote is recognised by the summary beside it,
+opens with its settings and no engine started, and offers the way back to its original; a foreign scene opens as
+before."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from synthetic import blob_scene, ring_cameras
+
+from app.export import export_engine
+from app.result_files import read_result
+from gstyle_core.io import save_scene
+from gstyle_core.pipeline.settings import StylizeSettings, resolve_settings, ui_params
+
+
+class _Finished:
+    """What export_engine reads of an engine: the stylized scene and its settings."""
+
+    def __init__(self, settings: StylizeSettings) -> None:
+        self.settings, self.decisions = settings, {}
+
+    def stylized_scene(self):
+        return blob_scene(60, seed=4)
+
+
+def _result(tmp_path: Path, **overrides) -> tuple[Path, Path, Path, StylizeSettings]:
+    original, painting = tmp_path / "scenes" / "original.ply", tmp_path / "art" / "painting.png"
+    original.parent.mkdir()
+    painting.parent.mkdir()
+    save_scene(blob_scene(60, seed=4), original)
+    Image.fromarray(np.random.default_rng(0).integers(0, 255, (16, 16, 3), dtype=np.uint8)).save(painting)
+    settings = resolve_settings("balanced", "360", 8, **overrides)
+    out = tmp_path / "out" / "stylized.ply"
+    out.parent.mkdir()
+    export_engine(_Finished(settings), out, None, ui_params(settings), str(painting), str(original))
+    return out, original, painting, settings
+
+
+def test_settings_come_back_from_their_summary_dict():
+    settings = resolve_settings("final", "360", 8, keep_colours=True, style_scale=2.0)
+    again = StylizeSettings.from_dict(json.loads(json.dumps(settings.to_dict())))
+    assert again == settings
+    assert StylizeSettings.from_dict({"preset": "balanced", "a_key_of_a_later_version": 1}).preset == "balanced"
+    with pytest.raises(ValueError, match="do not fit"):
+        StylizeSettings.from_dict({"weights": {"no_such_term": 1.0}})
+
+
+def test_a_studio_export_and_a_cli_summary_are_results_and_a_foreign_scene_is_not(tmp_path, monkeypatch):
+    out, original, painting, settings = _result(tmp_path, lambda_nnfm=321.0)
+    info = read_result(out)
+    assert info is not None and info.source == original.resolve() and info.styles == [painting.resolve()]
+    assert info.params["lambda_nnfm"] == 321.0 and info.preset == "balanced"
+    assert info.line.startswith("stylized.ply: a stylized result (preset balanced, 256 -> 512 px, after painting.png")
+    # gstyle stylize's OUT.json names the input as given on its command line (relative to where it ran)
+    cli = tmp_path / "out" / "cli.ply"
+    save_scene(blob_scene(30), cli)
+    (tmp_path / "out" / "cli.json").write_text(json.dumps({"scene": "../scenes/original.ply",
+                                                           "settings": settings.to_dict(), "gaussians_after": 30}))
+    cli_info = read_result(cli)
+    assert cli_info.source == original.resolve() and cli_info.params == ui_params(settings)  # beside the summary
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "out" / "cli.json").write_text(json.dumps({"scene": "gone.ply", "settings": {}}))
+    gone = read_result(cli)
+    assert gone.source is None and gone.source_named == "gone.ply"
+    assert read_result(original) is None  # no summary beside it: a foreign scene
+    (tmp_path / "scenes" / "original.json").write_text("{broken")
+    assert read_result(original) is None
+
+
+W, H = 160, 120
+
+
+def test_opening_a_result_starts_nothing_and_restart_from_the_original_does(window, tmp_path, monkeypatch):
+    from fakes import make_fake_engine
+
+    from app.panels import Command
+    from app.studio import LoadedScene, StudioApp
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    out, original, painting, _ = _result(tmp_path, lambda_nnfm=321.0)
+    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
+                    engine_factory=make_fake_engine, engine_config={"n": 150}, worker_mode="thread")
+    try:
+        app.start_engine()
+        app.region_enabled = True
+        assert app.open_path(str(out))
+        assert app.bridge is None and app.result is not None  # the running engine stopped; none started
+        assert not app.region_enabled  # the region tool does not stay on from the scene before
+        assert app.panel.result_line.startswith("stylized.ply: a stylized result")
+        assert app.panel.params["lambda_nnfm"] == 321.0 and app.panel.result_source_found
+        assert "nothing started" in app.panel.status and app.panel.style_path == str(painting.resolve())
+        app.execute(Command("restart_from_original"))
+        assert app.bridge is not None and app.result is None and app.loaded.path == str(original.resolve())
+        assert app.bridge.wait_until(lambda s: (s.snapshot or {}).get("params", {}).get("lambda_nnfm") == 321.0
+                                     or s.error, 30), app.bridge.state.error
+    finally:
+        app.close(timeout=30)
+
+
+def test_the_command_line_opens_a_result_without_starting_an_engine(tmp_path, monkeypatch, capsys):
+    from app.main import main
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    out, _, _, _ = _result(tmp_path)
+    assert main([str(out), "--headless", "--engine", "--frames", "2", "--size", "160x120", "--output-dir",
+                 str(tmp_path / "o")]) == 0
+    assert "a stylized result (preset balanced" in capsys.readouterr().out
+    assert not (tmp_path / "cache" / "checkpoints").exists()  # no engine ran, so none saved a session
