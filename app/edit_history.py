@@ -1,15 +1,17 @@
-"""Undo and redo of the artist's parameter changes (issue #35 item 1, first part): every ``set_params`` the panel
-issues (sliders, term on/off, switches such as keep colours, the style mix, Reset all) is one step back with Ctrl+Z
-and forward again with Ctrl+Shift+Z or Ctrl+Y. A slider dragged over many frames is one step: changes of the same
-controls less than ``COALESCE_SECONDS`` apart join the step before. No GL, no engine: the studio applies the values
-an undo or redo returns as it applies the panel's (the engine returns the colours of a finished run bit for bit when
-a switch goes back, ``Stylizer._switch_chroma``).
+"""Undo and redo in the studio (issue #35 item 1): every ``set_params`` the panel issues (sliders, term on/off,
+switches such as keep colours, the style mix, Reset all) is one step back with Ctrl+Z and forward again with
+Ctrl+Shift+Z or Ctrl+Y. A slider dragged over many frames is one step: changes of the same controls less than
+``COALESCE_SECONDS`` apart join the step before. A stylized result that a restart, a refine or another scene or
+painting replaces is a step too (``ResultEdit``): the engine wrote it to disk first (scene and summary), and undo
+opens it as a result. No GL, no engine here: the studio carries the steps out (the engine returns the colours of a
+finished run bit for bit when a switch goes back, ``Stylizer._switch_chroma``).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 COALESCE_SECONDS = 0.75
 LIMIT = 500
@@ -31,13 +33,27 @@ class ParamEdit:
         return ", ".join(sorted(self.after))
 
 
+@dataclass
+class ResultEdit:
+    """A stylized result replaced by ``action`` ("restart", "refine", "open"): ``before`` the file it was saved to;
+    ``after`` the file the result that replaced it is saved to when an undo leaves it (None until then)."""
+
+    before: Path
+    action: str
+    after: Path | None = None
+    at: float = float("-inf")
+
+    def describe(self) -> str:
+        return f"the result before {self.action} ({self.before.name})"
+
+
 class EditHistory:
     """The undo and redo stacks of parameter edits."""
 
     def __init__(self, limit: int = LIMIT) -> None:
         self.limit = limit
-        self.done: list[ParamEdit] = []
-        self.undone: list[ParamEdit] = []
+        self.done: list[ParamEdit | ResultEdit] = []
+        self.undone: list[ParamEdit | ResultEdit] = []
 
     def record(self, before: dict[str, float], after: dict[str, float], now: float | None = None) -> None:
         """A change the artist made: ``before`` the values of the controls in ``after`` until now. A change that
@@ -49,13 +65,19 @@ class EditHistory:
             return
         self.undone.clear()
         last = self.done[-1] if self.done else None
-        if last is not None and last.after.keys() == after.keys() and now - last.at < COALESCE_SECONDS:
+        if isinstance(last, ParamEdit) and last.after.keys() == after.keys() and now - last.at < COALESCE_SECONDS:
             last.after, last.at = after, now  # the same drag: one step from where it started
             return
         self.done.append(ParamEdit(before, after, now))
         del self.done[:-self.limit]
 
-    def undo(self) -> ParamEdit | None:
+    def record_result(self, edit: ResultEdit) -> None:
+        """A result replaced (saved at ``edit.before``); a new step forgets what was undone."""
+        self.undone.clear()
+        self.done.append(edit)
+        del self.done[:-self.limit]
+
+    def undo(self) -> ParamEdit | ResultEdit | None:
         """The step to take back (apply its ``before``), or None."""
         if not self.done:
             return None
@@ -65,7 +87,7 @@ class EditHistory:
             self.done[-1].at = float("-inf")  # the next change is a step of its own
         return edit
 
-    def redo(self) -> ParamEdit | None:
+    def redo(self) -> ParamEdit | ResultEdit | None:
         """The step to take again (apply its ``after``), or None."""
         if not self.undone:
             return None

@@ -127,7 +127,7 @@ class OpenFiles:
                     pass  # the painting shown stays; the result opens all the same
             self._say(f"{self.result.line}; nothing started")
         elif self.bridge is not None:
-            self.start_engine()
+            self.start_engine(action=f"opening {name}")
         return True
 
     def _say(self, message: str) -> None:

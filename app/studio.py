@@ -28,6 +28,7 @@ from .panels import Command, PanelState, draw_panel
 from .region_tool import RegionTool
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
 from .result_files import ResultInfo, read_result
+from .result_undo import ResultUndo
 from .scene_view import SceneView, ViewPass
 from .splat_data import scene_arrays
 from .studio_commands import StudioCommands
@@ -53,7 +54,8 @@ def encode_png(rgb: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, StudioSync, StudioFraming):
+class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, StudioSync, StudioFraming,
+                ResultUndo):
     """Owns the renderers and the worker bridge; ``frame()`` draws one frame into the current framebuffer."""
 
     result: ResultInfo | None = None  # the scene shown is a stylized result (set_scene): it opens as one
@@ -228,13 +230,15 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self._resume_probe = (now, path, exists)
         return exists and self.engine_factory is not None and self._resumed_from != path
 
-    def start_engine(self, resume: bool = False) -> bool:
-        """Spawn the engine worker with the current scene/style config (restarts it if running).
+    def start_engine(self, resume: bool = False, action: str = "restart") -> bool:
+        """Spawn the engine worker with the current scene/style config (restarts it if running; a stylized result
+        it replaces is saved first and becomes a step back, ``action`` naming what replaced it).
 
         ``resume``: continue from the saved session of this scene + style; returns False when there is none (the
         engine then starts afresh). Whether the checkpoint fits (same inputs and settings) the worker checks."""
         if self.engine_factory is None:
             return False
+        self.keep_result(action)
         self._region_to_config()
         path = self.session_checkpoint()
         resume_from = path if resume and path is not None and path.is_file() else None
@@ -254,11 +258,16 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         return resume_from is not None
 
     def stop_engine(self, timeout: float = 20.0) -> None:
-        """Stop the running engine (its session is saved as on close); the view keeps what it shows."""
+        """Stop the running engine (its session is saved as on close; a stylized result becomes a step back); the
+        view keeps what it shows."""
         if self.bridge is not None:
+            self.keep_result("stop")
             self.bridge.quit(timeout)
             self.bridge = None
-            self.panel.phase = "stopped"
+            p = self.panel  # what the stopped run showed goes with it
+            p.step, p.total_steps, p.eta_seconds, p.loss_history = 0, 0, None, []
+            p.phase = "result (nothing running)" if self.result is not None else "stopped"
+            p.summary_line, p.refine_note, p.next_width = "", "", None
 
     def close(self, timeout: float = 20.0) -> bool:
         """Stop the engine (it saves the session in the cache folder; killed after ``timeout`` s) and free GL
@@ -269,6 +278,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self.video_job.join(timeout)
         if self.bridge is not None:
             clean = self.bridge.quit(timeout)
+        self.forget_results()  # the undo stack ends with the session
         self.view.release()
         self.original.release()
         self.stylized.release()

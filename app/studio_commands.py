@@ -46,12 +46,7 @@ class StudioCommands:
             self.history.record({k: self.panel.params.get(k) for k in args}, args)
             self._apply_params(args)
         elif name in ("undo", "redo"):
-            edit = self.history.undo() if name == "undo" else self.history.redo()
-            if edit is None:
-                self.panel.status = f"nothing to {name}"
-            else:
-                self._apply_params(edit.before if name == "undo" else edit.after)
-                self.panel.status = f"{name}: {edit.describe()}"
+            self.undo_or_redo(name)
         elif name == "set_quality":
             self.panel.quality = str(args["preset"])
         elif name == "restart_quality":
@@ -61,6 +56,7 @@ class StudioCommands:
             self.start_engine()
         elif name == "refine":
             if bridge is not None:
+                self.keep_result("refine")
                 bridge.refine()
         elif name == "remove_style2":
             self.remove_second_style()

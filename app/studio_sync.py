@@ -4,6 +4,7 @@ changed) and everything reaches the panel. ``StudioSync`` is a mixin of ``Studio
 from __future__ import annotations
 
 from .renderer import DIFFUSE_LAYER, SH_LAYER
+from .result_undo import in_history
 
 
 class StudioSync:
@@ -114,8 +115,10 @@ class StudioSync:
         if st.exported and exports != self._exports_seen:  # once per export: later messages stay visible
             new = st.exported[self._exports_seen[1]:] if exports[0] == self._exports_seen[0] else st.exported[-1:]
             self._exports_seen = exports
-            self._shelve_exports(new)
-            p.status = f"exported {st.exported[-1]} (kept as {self.takes.takes[0].name})"
+            new = [e for e in new if not in_history(e)]  # results saved for undo are no takes
+            if new:
+                self._shelve_exports(new)
+                p.status = f"exported {new[-1]} (kept as {self.takes.takes[0].name})"
         failures = (id(st.export_failures), len(st.export_failures))
         if st.export_failures and failures != self._export_failures_seen:
             self._export_failures_seen = failures

@@ -1,6 +1,8 @@
 """Undo and redo of parameter changes (issue #35 item 1, first part): the history itself, the shortcuts, and the
 studio applying an undo to the panel and the engine."""
 
+import time
+
 import pytest
 
 from app.edit_history import COALESCE_SECONDS, EditHistory
@@ -79,3 +81,61 @@ def test_ctrl_z_takes_a_slider_back_in_the_panel_and_the_engine(studio, window):
         cmds = draw_panel(PanelState(), [KeyPress("z", **keys)])
         window.end_frame(swap=False)
         assert cmds == [Command(expected)]
+
+
+def _stylizing_engine(scene=None, style=None, cameras=None, preset=None, **config):
+    """A fake engine that says it is stylizing and has settings, so its exports are results (app/result_files.py)."""
+    from fakes import FakeEngine
+
+    from gstyle_core.pipeline.settings import resolve_settings
+
+    class Engine(FakeEngine):
+        settings = resolve_settings("preview", "360", 4)
+        decisions: dict = {}
+
+        def snapshot(self) -> dict:
+            return {**super().snapshot(), "phase": "stylize"}
+
+    return Engine(**config)
+
+
+def test_a_restart_leaves_its_result_a_step_back_and_redo_brings_the_new_one(window, tmp_path, monkeypatch):
+    """Restart throws nothing away: the result it replaced is saved (no take), Ctrl+Z opens it as a result with
+    the engine stopped, Ctrl+Shift+Z opens the result the undo left."""
+    import numpy as np
+    from synthetic import blob_scene, ring_cameras
+
+    from app.panels import Command
+    from app.result_undo import history_folder
+    from app.studio import LoadedScene, StudioApp
+    from gstyle_core.scene import sh_dc_to_rgb
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
+                    engine_factory=_stylizing_engine, engine_config={"n": 150}, worker_mode="thread")
+    try:
+        app.start_engine()
+        bridge = app.bridge
+        assert bridge.wait_until(lambda s: s.snapshots_received >= 3 or s.error, 60), bridge.state.error
+        bridge.pause()
+        assert bridge.wait_until(lambda s: s.paused, 30)
+        time.sleep(0.3)
+        bridge.poll()
+        shown = float(bridge.state.snapshot["colors"][0, 0])
+        app.execute(Command("restart"))
+        assert [e.action for e in app.history.done] == ["restart"] and app.bridge is bridge
+        assert bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60)
+        app.execute(Command("undo"))
+        before = app.history.undone[-1].before
+        assert app.bridge is None and app.result is not None and app.loaded.path == str(before)
+        assert before.parent == history_folder() and app.takes.takes == []  # saved for undo: no take
+        rgb = sh_dc_to_rgb(app.loaded.scene.sh_dc)
+        assert np.allclose(rgb, shown, atol=2e-3)  # the colours the paused run showed
+        assert app.panel.status.startswith("undo: the result before restart")
+        assert app.panel.phase == "result (nothing running)" and app.panel.loss_history == []  # the run's gone
+        app.execute(Command("redo"))
+        after = app.history.done[-1].after
+        assert after is not None and app.loaded.path == str(after) and after != before
+    finally:
+        app.close(timeout=30)
+    assert not history_folder().exists()  # the undo stack ends with the session

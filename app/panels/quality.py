@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from .run_sections import format_eta
+from .run_sections import font_safe, format_eta
 from .state import Command, PanelState
 from .widgets import button, tooltip
 
@@ -46,7 +46,7 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
         imgui.same_line()
         imgui.text_wrapped(state.refine_note)
     if state.summary_line:
-        imgui.text_wrapped(f"Result: {state.summary_line}")
+        imgui.text_wrapped(font_safe(f"Result: {state.summary_line}"))  # sigma spelled out
         tooltip("Measured on three of the scene's views rendered at a display's size: how much of the colour the "
                 "stylization added is finer than σ 4 px, against the painting's own share at the size its strokes "
                 "are matched (1: the painting's grain; well above 1: single-splat confetti).")

@@ -40,7 +40,7 @@ def files_section(state: PanelState, out: list[Command]) -> None:
 
 def result_block(state: PanelState, out: list[Command]) -> None:
     """A stylized result was opened: what it is, its original, and the two ways on (neither starts by itself)."""
-    imgui.text_wrapped(state.result_line)
+    imgui.text_wrapped(font_safe(state.result_line))
     source = state.result_source
     imgui.text_wrapped(f"Original: {source}" + ("" if state.result_source_found or not source else " (not found)"))
     imgui.begin_disabled(not state.result_source_found)

@@ -31,7 +31,7 @@ HELP_ROWS = (  # (keys, what they do): the help overlay (H); the README lists th
     ("Shift + drag", "select by rectangle"),
     ("Ctrl+S", "export .ply"),
     ("Ctrl+Q", "quit (the session is saved)"),
-    ("Ctrl+Z, Ctrl+Shift+Z", "undo, redo a parameter change"),
+    ("Ctrl+Z, Ctrl+Shift+Z", "undo, redo (parameters, replaced results)"),
     ("F12", "screenshot of the window"),
     ("Shift+F12", "screenshot of the scene view alone"),
 )

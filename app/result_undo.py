@@ -1,0 +1,103 @@
+"""Results on the undo stack (issue #35 item 1): before a restart, a refine, or another scene or painting replaces a
+stylized result, the engine writes it (scene and summary, as an export) into the session's history folder in the
+cache folder; Ctrl+Z opens it again as a result (``app/result_files.py``: its settings in the panel, nothing
+running), after saving the result it replaced so that Ctrl+Shift+Z brings that one back. At most ``KEPT_RESULTS``
+files are kept (the oldest go first). ``ResultUndo`` is a mixin of ``StudioApp``."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from pathlib import Path
+
+from gstyle_core.paths import cache_dir
+
+from .edit_history import ParamEdit, ResultEdit
+
+STYLIZED_PHASES = ("stylize", "refit", "refine", "finish", "done")  # a snapshot's colours are the stylized ones
+KEPT_RESULTS = 12
+
+
+def history_folder() -> Path:
+    """This studio session's folder for replaced results (one per process)."""
+    return cache_dir() / "history" / f"session_{os.getpid()}"
+
+
+def in_history(path: str | Path) -> bool:
+    """``path`` is a saved result of the undo stack (not an export of the artist's: no take)."""
+    return Path(path).resolve().parent == history_folder().resolve()
+
+
+class ResultUndo:
+    """``StudioApp``'s undo and redo over parameter steps and replaced results."""
+
+    _restoring = False  # an undo or redo is opening a saved result: what it replaces was saved already
+
+    def has_result(self) -> bool:
+        """An engine is running and shows stylized colours (something a restart would throw away)."""
+        st = self.bridge.state if self.bridge is not None and self.bridge.alive else None
+        return bool(st is not None and st.snapshot and st.snapshot.get("phase") in STYLIZED_PHASES)
+
+    def save_result(self) -> Path | None:
+        """Ask the engine to write its result into the history folder (None when there is none to save)."""
+        if not self.has_result():
+            return None
+        folder = history_folder()
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"result_{time.strftime('%Y%m%d_%H%M%S')}_{time.monotonic_ns() % 10**6:06d}.ply"
+        self.bridge.export(path)
+        kept = sorted(folder.glob("result_*.ply"), key=lambda p: p.stat().st_mtime)
+        for old in kept[:max(0, len(kept) - KEPT_RESULTS + 1)]:
+            for f in (old, old.with_suffix(".json")):
+                f.unlink(missing_ok=True)
+        return path
+
+    def keep_result(self, action: str) -> None:
+        """Before ``action`` replaces the running result: save it and make it a step back."""
+        if self._restoring:
+            return
+        path = self.save_result()
+        if path is not None:
+            self.history.record_result(ResultEdit(path, action))
+
+    def forget_results(self) -> None:
+        """Delete this session's saved results (the studio closes: its undo stack goes with it)."""
+        shutil.rmtree(history_folder(), ignore_errors=True)
+
+    def undo_or_redo(self, name: str) -> None:
+        """Ctrl+Z (``name`` "undo") or Ctrl+Shift+Z / Ctrl+Y ("redo"): the step back or forward, parameters or a
+        result."""
+        edit = self.history.undo() if name == "undo" else self.history.redo()
+        if edit is None:
+            self.panel.status = f"nothing to {name}"
+            return
+        if isinstance(edit, ParamEdit):
+            self._apply_params(edit.before if name == "undo" else edit.after)
+            self.panel.status = f"{name}: {edit.describe()}"
+            return
+        if name == "undo":
+            edit.after = self.save_result() or edit.after  # the result undo leaves, for redo
+            target = edit.before
+        else:
+            target = edit.after
+        if target is None or not self._wait_for(target):
+            self.panel.status = f"{name}: that result was not saved (nothing changed)"
+            return
+        self._restoring = True
+        try:
+            self.open_path(str(target))
+        finally:
+            self._restoring = False
+        self.panel.status = f"{name}: {edit.describe()} is back" if name == "undo" else f"redo: {target.name} is back"
+
+    def _wait_for(self, path: Path, seconds: float = 30.0) -> bool:
+        """The engine writes a saved result in the background: wait until its file and summary are there."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            if path.is_file() and path.with_suffix(".json").is_file():
+                return True
+            if self.bridge is not None:
+                self.bridge.poll()
+            time.sleep(0.05)
+        return path.is_file()
