@@ -206,3 +206,17 @@ def small_studio(window, monkeypatch, tmp_path, factory=keep_small_stylizer):
     BUILT.clear()
     return StudioApp(window.ctx, loaded=loaded, style_path=str(style), engine_factory=factory,
                      output_dir=tmp_path / "out", worker_mode="thread")
+
+
+def ring_studio(window, tmp_path, factory=make_fake_engine, snapshots: int = 1):
+    """A studio on a 150-Gaussian ring scene with 4 ring cameras whose engine (``factory``, ``n=150``) runs in a
+    worker thread, started and past its first ``snapshots`` snapshots; outputs go to ``tmp_path``."""
+    from synthetic import blob_scene, ring_cameras
+
+    from app.studio import LoadedScene, StudioApp
+
+    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
+                    engine_factory=factory, engine_config={"n": 150}, worker_mode="thread")
+    app.start_engine()
+    assert app.bridge.wait_until(lambda s: s.snapshots_received >= snapshots or s.error, 60), app.bridge.state.error
+    return app

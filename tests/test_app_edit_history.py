@@ -34,15 +34,10 @@ def test_the_history_keeps_at_most_its_limit():
 
 @pytest.fixture
 def studio(window, monkeypatch, tmp_path):
-    from fakes import make_fake_engine
-    from synthetic import blob_scene, ring_cameras
+    from fakes import ring_studio
 
-    from app.studio import LoadedScene, StudioApp
-
-    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
-                    engine_factory=make_fake_engine, engine_config={"n": 150}, worker_mode="thread")
-    app.start_engine()
-    assert app.bridge.wait_until(lambda s: s.snapshots_received >= 1 or s.error, 60), app.bridge.state.error
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    app = ring_studio(window, tmp_path)
     yield app
     app.close(timeout=30)
 
@@ -103,20 +98,16 @@ def test_a_restart_leaves_its_result_a_step_back_and_redo_brings_the_new_one(win
     """Restart throws nothing away: the result it replaced is saved (no take), Ctrl+Z opens it as a result with
     the engine stopped, Ctrl+Shift+Z opens the result the undo left."""
     import numpy as np
-    from synthetic import blob_scene, ring_cameras
+    from fakes import ring_studio
 
     from app.panels import Command
     from app.result_undo import history_folder
-    from app.studio import LoadedScene, StudioApp
     from gstyle_core.scene import sh_dc_to_rgb
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
-    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
-                    engine_factory=_stylizing_engine, engine_config={"n": 150}, worker_mode="thread")
+    app = ring_studio(window, tmp_path, _stylizing_engine, snapshots=3)
     try:
-        app.start_engine()
         bridge = app.bridge
-        assert bridge.wait_until(lambda s: s.snapshots_received >= 3 or s.error, 60), bridge.state.error
         bridge.pause()
         assert bridge.wait_until(lambda s: s.paused, 30)
         time.sleep(0.3)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from synthetic import blob_scene, ring_cameras
+from synthetic import blob_scene
 
 from app.export import export_engine
 from app.result_files import read_result
@@ -74,17 +74,14 @@ W, H = 160, 120
 
 
 def test_opening_a_result_starts_nothing_and_restart_from_the_original_does(window, tmp_path, monkeypatch):
-    from fakes import make_fake_engine
+    from fakes import ring_studio
 
     from app.panels import Command
-    from app.studio import LoadedScene, StudioApp
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     out, original, painting, _ = _result(tmp_path, lambda_nnfm=321.0)
-    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
-                    engine_factory=make_fake_engine, engine_config={"n": 150}, worker_mode="thread")
+    app = ring_studio(window, tmp_path)
     try:
-        app.start_engine()
         app.region_enabled = True
         assert app.open_path(str(out))
         assert app.bridge is None and app.result is not None  # the running engine stopped; none started

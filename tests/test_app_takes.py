@@ -12,13 +12,13 @@ import pytest
 pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
-from fakes import make_fake_engine  # noqa: E402
+from fakes import ring_studio  # noqa: E402
 from imgui_driver import studio_driver  # noqa: E402
-from synthetic import blob_scene, ring_cameras  # noqa: E402
+from synthetic import blob_scene  # noqa: E402
 
 from app.panels import Command  # noqa: E402
 from app.renderer import read_rgb  # noqa: E402
-from app.studio import LoadedScene, StudioApp  # noqa: E402
+from app.studio import StudioApp  # noqa: E402
 from app.takes import TAKES_FILE, TakeShelf  # noqa: E402
 from gstyle_core.io import save_scene  # noqa: E402
 
@@ -54,12 +54,9 @@ def _render(app: StudioApp, fbo) -> np.ndarray:
 
 
 def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_path):
-    app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
-                    engine_factory=make_fake_engine, engine_config={"n": 150}, worker_mode="thread")
+    app = ring_studio(window, tmp_path, snapshots=2)
     try:
-        app.start_engine()
         bridge = app.bridge
-        assert bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60), bridge.state.error
         driver = studio_driver(window, monkeypatch, app)
         exported = []
         for count, name in enumerate(("early", "late"), start=1):
