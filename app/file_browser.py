@@ -36,8 +36,9 @@ class FileBrowser:
     """One folder's listing, filtered by suffix, with the navigation a file dialog has."""
 
     def __init__(self, title: str, suffixes: Sequence[str], folder: str | os.PathLike | None = None,
-                 recent: Sequence[str | os.PathLike] = ()) -> None:
+                 recent: Sequence[str | os.PathLike] = (), saving: bool = False) -> None:
         self.title = title
+        self.saving = saving  # a save dialog: a typed name of a file not there yet is the answer
         self.suffixes = tuple(suffixes)
         self.recent: list[Path] = [Path(p) for p in recent][:MAX_RECENT]
         self.show_all = False  # list every file, not only those with an accepted suffix
@@ -136,9 +137,21 @@ class FileBrowser:
         if target.is_dir():
             self.go(target)
             return None
+        if self.saving:
+            return self._save_target(target)
         if not target.is_file():
             self.error = f"no such file: {target}"
             return None
+        return self.choose(target)
+
+    def _save_target(self, target: Path) -> Path | None:
+        """Where to save: ``target`` in a folder that exists, ending in an accepted suffix (the first one added
+        when it ends in none)."""
+        if not target.parent.is_dir():
+            self.error = f"no such folder: {target.parent}"
+            return None
+        if not has_suffix(target.name, self.suffixes):
+            target = target.with_name(target.name + self.suffixes[0])
         return self.choose(target)
 
     def choose(self, path: str | os.PathLike) -> Path:

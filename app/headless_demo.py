@@ -15,7 +15,7 @@ def stylize_without_display(args: argparse.Namespace, width: int = 640) -> tuple
     from gstyle_core.pipeline.cli import add_stylize_arguments, stylize_command
     from gstyle_core.render_cli import before_after_picture, load_scene_and_cameras, save_png
 
-    out_dir = Path(args.output_dir)
+    out_dir = Path(args.output_dir or "out")
     stem = Path(args.scene).stem if args.scene else "demo"
     out = out_dir / f"{stem}_stylized.ply"
     parser = argparse.ArgumentParser()

@@ -73,7 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--region", type=region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
                    help="start with the selection tool on this box (stylize only the Gaussians centred in it; "
                         "write --region=-1,... when x0 is negative)")
-    p.add_argument("--output-dir", default="out", help="where exports and screenshots go")
+    p.add_argument("--output-dir", default=None,
+                   help="where exports and screenshots go (default: exports beside the scene opened, else out/; "
+                        "screenshots and videos in out/)")
     p.add_argument("--resume", action="store_true",
                    help="continue the session saved when the studio last closed with this scene and style")
     return p
@@ -175,7 +177,9 @@ def open_studio(window, args: argparse.Namespace):
                     engine_config={"cameras": args.cameras, "preset": args.preset, "defaults": args.defaults,
                                    "vgg_weights": args.vgg_weights, "clip_weights": args.clip_weights,
                                    "precision": args.precision},
-                    output_dir=args.output_dir, show_ui=not args.hide_ui, keys=window.keys)
+                    output_dir=args.output_dir or "out", show_ui=not args.hide_ui, keys=window.keys)
+    if args.output_dir:  # asked for: exports go there too
+        app.save_folder = Path(args.output_dir)
     if len(styles) > 1:
         app.set_style(styles[1], slot=1, mix=args.style_mix)
     app.view_mode = args.view

@@ -37,12 +37,15 @@ class FileKind:
     filter_name: str
     suffixes: tuple[str, ...]
     style_slot: int = 0
+    saving: bool = False  # a save dialog: the answer is where to write (the file may not exist yet)
 
 
 FILE_KINDS = {
     "open_scene": FileKind("Open scene", "Gaussian scenes", SCENE_SUFFIXES),
     "open_style": FileKind("Open style image", "Images", IMAGE_SUFFIXES),
     "open_style2": FileKind("Open second style image", "Images", IMAGE_SUFFIXES, style_slot=1),
+    "save_as": FileKind("Save the stylized scene as", "Gaussian scenes", (".ply", ".spz", ".compressed.ply"),
+                        saving=True),
 }
 
 
@@ -183,7 +186,11 @@ class OpenFiles:
         start = f"{recent[0]}{os.sep}" if recent else ""
         patterns = " ".join(f"*{s}" for s in spec.suffixes)
         self._drop_native_dialog()
-        dialog = pfd.open_file(spec.title, start, [spec.filter_name, patterns])
+        if spec.saving:
+            start = str(self.export_folder() / "stylized.ply")
+            dialog = pfd.save_file(spec.title, start, [spec.filter_name, patterns])
+        else:
+            dialog = pfd.open_file(spec.title, start, [spec.filter_name, patterns])
         self._dialog = (kind, dialog, program, time.monotonic())
         self.panel.browser = None
         self.panel.dialog_note = f"Waiting for the {program} file dialog ({spec.title})."
@@ -201,16 +208,23 @@ class OpenFiles:
     def _open_browser(self, kind: str, why_not_native: str) -> None:
         spec = FILE_KINDS[kind]
         self._browser_kind = kind
-        browser = FileBrowser(spec.title, spec.suffixes, recent=self._recent_folders())
+        folder = self.export_folder() if spec.saving else None
+        browser = FileBrowser(spec.title, spec.suffixes, folder=folder if folder and folder.is_dir() else None,
+                              recent=self._recent_folders(), saving=spec.saving)
         browser.note = f"Not the desktop's file dialog: {why_not_native}." if why_not_native else ""
         self.panel.browser = browser
         reason = f"{why_not_native}; " if why_not_native else ""
-        self._say(f"{reason}{spec.title}: choose a file in the studio's file browser")
+        what = "type a file name or choose a file" if spec.saving else "choose a file"
+        self._say(f"{reason}{spec.title}: {what} in the studio's file browser")
 
     def _browser_answer(self, path: str) -> None:
         """The studio's browser chose ``path``: open it; on failure the browser stays open and shows why."""
         browser = self.panel.browser
-        if self.open_path(path, style_slot=FILE_KINDS[self._browser_kind].style_slot):
+        spec = FILE_KINDS[self._browser_kind]
+        if spec.saving:
+            self.panel.browser = None
+            self.save_as(path)
+        elif self.open_path(path, style_slot=spec.style_slot):
             self.panel.browser = None
         elif browser is not None:
             browser.error = self.panel.status
@@ -223,9 +237,13 @@ class OpenFiles:
         kind, dialog, program, started = self._dialog
         self._dialog = None
         self.panel.dialog_note = ""
-        chosen = list(dialog.result() or [])[:1]
+        answer = dialog.result()
+        chosen = ([answer] if answer else []) if isinstance(answer, str) else list(answer or [])[:1]
         for path in chosen:
-            self.open_path(path, style_slot=FILE_KINDS[kind].style_slot)
+            if FILE_KINDS[kind].saving:
+                self.save_as(path)
+            else:
+                self.open_path(path, style_slot=FILE_KINDS[kind].style_slot)
         if not chosen and time.monotonic() - started < QUICK_EXIT_S:
             self._open_browser(kind, f"the {program} file dialog did not open")
         elif not chosen:

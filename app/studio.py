@@ -59,6 +59,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
     """Owns the renderers and the worker bridge; ``frame()`` draws one frame into the current framebuffer."""
 
     result: ResultInfo | None = None  # the scene shown is a stylized result (set_scene): it opens as one
+    save_folder: Path | None = None  # where Ctrl+S writes once Save As chose a place (or --output-dir was given)
 
     def __init__(self, ctx: moderngl.Context, *, loaded: LoadedScene | None = None, style_path: str | None = None,
                  engine_factory: Callable[..., Any] | None = None, engine_config: dict[str, Any] | None = None,

@@ -3,10 +3,12 @@ videos (a background job). ``StudioCommands`` is a mixin of ``StudioApp``."""
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 from typing import Any
 
+from gstyle_core.assets import DEMO_SCENE
 from gstyle_core.errors import GStyleError
 from gstyle_core.outputs import SUMMARY, unused_name
 from gstyle_core.pipeline.controls import painting_controls
@@ -173,11 +175,31 @@ class StudioCommands:
             return
         suffix = EXPORT_SUFFIXES[fmt]
         if not path:  # a name of its own: an earlier export of this second (another format) keeps its summary
-            stamped = self.output_dir / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}{suffix}"
+            stamped = self.export_folder() / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}{suffix}"
             path = unused_name(stamped, (SUMMARY,))
         path = Path(path)
         self.bridge.export(path)
         self.panel.status = f"exporting {path} ..."
+
+    def export_folder(self) -> Path:
+        """Where Ctrl+S and the export buttons write: the folder saved to last (Save As, or ``--output-dir``), else
+        beside the scene the artist opened (not the bundled demo's folder; one that can be written), else the
+        output folder."""
+        if self.save_folder is not None:
+            return self.save_folder
+        scene = Path(self.loaded.path) if self.loaded is not None else None
+        if (scene is not None and scene.is_file() and scene.resolve().parent != DEMO_SCENE.resolve().parent
+                and os.access(scene.parent, os.W_OK)):
+            return scene.parent
+        return self.output_dir
+
+    def save_as(self, path: str | Path) -> None:
+        """Save As: export to ``path`` (its format from its suffix) and write there from now on."""
+        path = Path(path)
+        fmt = next((f for f, suffix in EXPORT_SUFFIXES.items() if path.name.lower().endswith(suffix) and f != "ply"),
+                   "ply")
+        self.save_folder = path.parent
+        self.export(path, fmt=fmt)
 
     def current_scene(self) -> GaussianScene | None:
         """The stylized scene as the engine last sent it (diffuse colours), else the loaded scene (with its SH)."""

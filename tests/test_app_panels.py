@@ -118,6 +118,7 @@ def test_key_presses_emit_the_shortcuts_commands(window):
     assert run(KeyPress("4")) == []  # three cameras
     assert run(KeyPress("s", ctrl=True)) == [Command("export")]
     assert run(KeyPress("q", ctrl=True)) == [Command("quit")]
+    assert run(KeyPress("s", ctrl=True, shift=True)) == [Command("save_as")]
     assert run(KeyPress("q")) == []  # Q alone flies the camera down
     assert run(KeyPress("s")) == []  # S alone flies the camera back (held, app/studio_input.py)
     assert run(KeyPress("f12")) == [Command("screenshot", {"scene_only": False})]

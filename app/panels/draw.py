@@ -33,8 +33,8 @@ def shortcut_commands(state: PanelState, presses: Sequence[KeyPress]) -> list[Co
 def _shortcut(state: PanelState, press: KeyPress) -> list[Command]:
     """The commands of one key press (most keys act only without Ctrl, Alt and Super)."""
     name = press.name
-    if name == "s" and press.ctrl and not press.alt:
-        return [Command("export")]
+    if name == "s" and press.ctrl and not press.alt:  # Ctrl+Shift+S: Save As; Ctrl+S: save where it saved last
+        return [Command("save_as" if press.shift else "export")]
     if name == "q" and press.ctrl and not (press.alt or press.shift):  # quit as the close button does
         return [Command("quit")]
     if press.ctrl and not press.alt and (name == "y" or (name == "z" and press.shift)):

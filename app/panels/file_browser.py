@@ -106,7 +106,10 @@ def _footer(browser: Any, out: list[Command]) -> None:
     if changed:
         browser.refresh()
     imgui.text_colored(imgui.ImVec4(*ERROR_COLOUR), browser.error)  # one line, empty when all is well
-    if button("Open", "Open the selected file, or the path typed above."):
+    if browser.saving and button("Save", "Save under the name typed above (in this folder, unless it is a path; "
+                                         ".ply when it names no format)."):
+        _submit(browser, out)
+    elif not browser.saving and button("Open", "Open the selected file, or the path typed above."):
         _submit(browser, out)
     imgui.same_line()
     if button("Cancel", "Close the browser without opening anything (Escape)."):

@@ -67,6 +67,7 @@ class PanelState:
     take_names: list[str] = field(default_factory=list)  # the last exports kept as takes, newest first
     take_labels: list[str] = field(default_factory=list)
     take_differs: list[bool] = field(default_factory=list)  # per take: it differs from the view now (T starts there)
+    save_folder: str = ""  # where Ctrl+S writes now
     undo_note: str = ""  # the step Ctrl+Z takes back ("" when none), and the one Ctrl+Shift+Z takes again
     redo_note: str = ""
     take_shown: int = -1  # the take loaded in the take view (-1: none)

@@ -29,7 +29,7 @@ HELP_ROWS = (  # (keys, what they do): the help overlay (H); the README lists th
     ("B", "region tool on / off"),
     ("Alt + drag, wheel", "move, resize the region box"),
     ("Shift + drag", "select by rectangle"),
-    ("Ctrl+S", "export .ply"),
+    ("Ctrl+S, Ctrl+Shift+S", "export .ply, Save As"),
     ("Ctrl+Q", "quit (the session is saved)"),
     ("Ctrl+Z, Ctrl+Shift+Z", "undo, redo (parameters, replaced results)"),
     ("F12", "screenshot of the window"),
