@@ -129,7 +129,7 @@ class EngineHost:
         if plans is None:
             return
         try:
-            self.send("plans", {"plans": plans(), "preset": self.engine.settings.preset,
+            self.send("plans", {"plans": plans(), "run": self.engine.run_plan(), "preset": self.engine.settings.preset,
                                 "working_width": int(self.engine.settings.working_width),
                                 "levels": list(self.engine.levels), "next_width": self.engine.next_level_width()})
         except Exception as exc:  # noqa: BLE001 - the estimates are a courtesy: say why they are missing

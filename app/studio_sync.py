@@ -81,14 +81,29 @@ class StudioSync:
         if rep:
             p.phase = "done" if st.done else str(rep.get("phase", "-"))
             p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
-            p.eta_seconds = (st.step_seconds / max(st.reports_received, 1) * max(p.total_steps - p.step, 0)
-                             if st.reports_received and not st.done and not st.paused else None)  # paused: no ETA
+            p.eta_seconds = None if st.done or st.paused else self._eta(st)  # paused: no ETA
         self._fill_quality(st)
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             p.status = f"resumed the last session at step {st.resumed.get('step')}"
         self._sync_exports(st)
         self._show_takes_error()
+
+    def _eta(self, st) -> float | None:
+        """Seconds left: the run's plan (its steps of each kind) at the measured cost of each kind, the run
+        before a restart's where this one has none yet (``plan.remaining_seconds``); without a plan, the mean step
+        so far times the steps left."""
+        from gstyle_core.pipeline.plan import remaining_seconds
+
+        plans = st.plans or {}
+        plan = plans.get("run")
+        if plan:
+            left = remaining_seconds(plan, st.step_times, int(plans.get("working_width", 256)), st.prior_times)
+            if left is not None:
+                return left
+        if not st.reports_received:
+            return None
+        return st.step_seconds / st.reports_received * max(self.panel.total_steps - self.panel.step, 0)
 
     def _fill_quality(self, st) -> None:
         """The quality section: the preset run, each preset's estimate at this run's step times, the widths."""

@@ -55,6 +55,7 @@ class WorkerState:
     started_at: float = 0.0
     plans: dict[str, Any] = field(default_factory=dict)  # every preset's steps, the preset run, its widths (plans)
     step_times: StepTimes = field(default_factory=StepTimes)  # seconds per step of each kind (the estimates)
+    prior_times: StepTimes | None = None  # the run before a restart's step times (the new run's ETA from its start)
     summary: dict[str, Any] | None = None  # the finished run's summary (its speckle at a display's size)
     refine_note: str = ""  # why Refine was refused, or the level it started
 
@@ -168,6 +169,8 @@ class WorkerBridge:
         self.state.reports_received, self.state.step_seconds = 0, 0.0
         self.state.resumed = None
         self.state.summary, self.state.refine_note = None, ""
+        if self.state.step_times.mean("stylize") is not None:  # the run before prices the new one's ETA
+            self.state.prior_times = self.state.step_times
         self.state.step_times = StepTimes()
         if resume_from:
             self._send("restart_from", (self.config, str(resume_from)))

@@ -71,3 +71,23 @@ def test_a_plan_prices_each_kind_of_step_and_grows_with_the_preset():
     assert 0 < preview < balanced < final
     p = plans["preview"]
     assert preview == pytest.approx(p["stylize"] * 1.0 + p["ground_truth"] * 0.2 + p["refit"] * 0.15)
+
+
+def test_the_eta_counts_the_steps_of_each_kind_still_to_come_and_a_restart_starts_from_the_run_before():
+    """Early in a run only cheap ground-truth and refit steps are measured: the mean step would promise a fraction of
+    the time (issue #35: 0:34-0:41 shown for runs of ~110 s). The ETA prices each kind's remaining steps, and a
+    restarted run uses the run before's costs until its own are measured."""
+    from gstyle_core.pipeline.plan import remaining_seconds
+
+    plan = {"ground_truth": 10.0, "refit": 100.0, "stylize": 40.0}
+    before = StepTimes()
+    for phase, seconds in (("ground_truth", 0.05), ("refit", 0.1), ("stylize", 2.0)):
+        before.add({"phase": phase, "seconds": seconds})
+    now = StepTimes()
+    for _ in range(10):
+        now.add({"phase": "ground_truth", "seconds": 0.04})
+    assert remaining_seconds(plan, now, 256) is None  # no stylization step known: no figure rather than a wrong one
+    left = remaining_seconds(plan, now, 256, prior=before)
+    assert left == pytest.approx(100 * 0.1 + 40 * 2.0)  # the ground truth is done; the rest at the run before's costs
+    now.add({"phase": "stylize", "seconds": 3.0})
+    assert remaining_seconds(plan, now, 256, prior=before) == pytest.approx(100 * 0.1 + 39 * 3.0)  # its own, once seen

@@ -90,6 +90,23 @@ def estimate_seconds(plan: dict[str, float], times: StepTimes, working_width: in
     return total
 
 
+def remaining_seconds(plan: dict[str, float], times: StepTimes, working_width: int,
+                      prior: StepTimes | None = None) -> float | None:
+    """Seconds left of a run planned as ``plan`` whose steps so far are ``times`` (counted per kind): each kind's
+    steps still to come at its measured cost, else at ``prior``'s (the run before, on a restart), else priced from
+    the stylization step (``fallback_cost``). None while no stylization step is known from either (early in a
+    first run: the ground-truth and refit steps are 10-20x cheaper and would promise far too little)."""
+    stylize = times.mean("stylize") or (prior.mean("stylize") if prior is not None else None)
+    if stylize is None:
+        return None
+    total = 0.0
+    for kind, steps in plan.items():
+        left = max(0.0, steps - times.counts.get(kind, 0))
+        cost = times.mean(kind) or (prior.mean(kind) if prior is not None else None)
+        total += left * (cost if cost is not None else fallback_cost(kind, stylize, working_width, times))
+    return total
+
+
 def fallback_cost(kind: str, stylize: float, working_width: int, times: StepTimes) -> float:
     """A step of ``kind`` not measured in this run, priced from the stylization step (``FALLBACK``)."""
     if kind in FALLBACK:

@@ -252,6 +252,12 @@ class Stylizer:
         return {name: planned_steps(resolve_settings(name, s.scene_kind, self.camera_count, defaults=s.defaults,
                                                      clip_available=clip), self.camera_count) for name in PRESETS}
 
+    def run_plan(self) -> dict[str, float]:
+        """This run's own steps of each kind (its settings, the levels it was given included): the studio's ETA."""
+        from .plan import planned_steps
+
+        return planned_steps(self.settings, self.camera_count)
+
     # ----------------------------------------------------------------- levels
     @property
     def levels(self) -> tuple[int, ...]:
