@@ -113,11 +113,16 @@ class RegionTool:
             self.engine_region = "box " + ",".join(f"{v:.3g}" for v in self.region_box)
 
     def _apply_selection(self) -> None:
-        """No tint on the splats (the style arriving in the region stays visible): the selection is shown by its
-        outline (``_selection_outline``) in every view mode; a highlight left by an earlier version is dropped."""
-        for renderer in (self.original, self.stylized):
-            if renderer.highlight:
-                renderer.set_selection(None)
+        """While the region tool is on, the Gaussians outside the selection are drawn dimmed in every view (the
+        selected ones as they are, so the style arriving there stays visible; the outline, ``_selection_outline``,
+        marks its edge); off, all as they are. Uploaded only when the selection changed."""
+        mask = self.region_mask() if self.region_enabled else None
+        for name, renderer in (("original", self.original), ("stylized", self.stylized)):
+            key = None if mask is None else (self._region_version, id(mask), renderer.count)
+            if self._selection_shown.get(name, "never") == key:
+                continue
+            self._selection_shown[name] = key
+            renderer.set_selection(mask if mask is not None and mask.shape == (renderer.count,) else None)
 
     def _selection_outline(self, width: int, height: int) -> list[tuple[float, float, float, float]]:
         """The footprint of the selected Gaussians' centres in the view (``app/selection_outline.py``), window

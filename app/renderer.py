@@ -83,7 +83,7 @@ class SplatRenderer:
         self.projection_count = 0  # how many projection passes ran (one per new camera/target/geometry)
         self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
         self.sh_evaluations = 0  # view-dependent SH evaluations (one per camera position, original scene only)
-        self.highlight = False  # a selection is drawn highlighted (selected tinted, the rest dimmed)
+        self.highlight = False  # a selection is drawn highlighted (the Gaussians outside it dimmed)
 
     # ----------------------------------------------------------------- data
     @property
@@ -165,8 +165,8 @@ class SplatRenderer:
             self.content_version += 1
 
     def set_selection(self, mask: np.ndarray | None) -> None:
-        """Draw the Gaussians where ``mask`` (bool [N]) is True highlighted (tinted) and the others dimmed; None
-        draws them all as they are. A new geometry of another count drops the selection."""
+        """Draw the Gaussians where ``mask`` (bool [N]) is False dimmed, the others as they are; None draws them
+        all as they are. A new geometry of another count drops the selection."""
         if mask is None:
             if self.highlight:
                 self.highlight = False

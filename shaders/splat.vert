@@ -6,10 +6,9 @@
 
 uniform sampler2D u_color;   // rgb, - (one texel per Gaussian, 4096 per row)
 uniform sampler2D u_select;  // selected region: r = 1 for a selected Gaussian (read only when u_highlight is 1)
-uniform int u_highlight;     // 1: tint the selected Gaussians, dim the others (the studio's selection tool)
+uniform int u_highlight;     // 1: dim the Gaussians outside the selection (the studio's region tool is on)
 uniform int u_tex_width;
 
-const vec3 HIGHLIGHT = vec3(1.0, 0.62, 0.1);
 
 in vec2 in_center;    // means2d in framebuffer pixels, y down
 in vec4 in_conic;     // inverse 2D covariance (a, b, c), opacity
@@ -29,7 +28,7 @@ void main() {
     g_rgb = texelFetch(u_color, texel, 0).rgb;
     if (u_highlight == 1) {
         bool selected = texelFetch(u_select, texel, 0).r > 0.5;
-        g_rgb = selected ? mix(g_rgb, HIGHLIGHT, 0.45) : g_rgb * 0.4;
+        g_rgb = selected ? g_rgb : g_rgb * 0.4;  // the selection as it is (its style stays visible), the rest dim
     }
     gl_Position = vec4(0.0, 0.0, 0.0, 1.0);  // unused: the geometry stage places the corners
 }

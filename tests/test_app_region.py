@@ -67,17 +67,20 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         assert [c.args for c in commands if c.name == "region_enable"] == [{"on": True}]
         assert driver.recorder.find("select a region").tooltip  # the control explains itself
         driver.frame()
-        # on: the box starts as the scene's bounds, every Gaussian selected, outlined (not tinted) with its box
-        assert app.region_mask().all() and not app.stylized.highlight and not app.original.highlight
+        # on: the box starts as the scene's bounds, every Gaussian selected (none dimmed), outlined with its box
+        assert app.region_mask().all() and app.stylized.highlight and app.original.highlight
         assert app.panel.selection_outline
         assert any("150 of 150 Gaussians selected by the box" in t for t in driver.recorder.texts)
         assert len(app.panel.region_outline) == 12
         assert orange_share(read_rgb(window.ctx.screen)) > orange_share(plain) + 10
+        read_rgb_sum_all_selected = read_rgb(window.ctx.screen)[:, int(PANEL_WIDTH) + 20:].astype(np.float32).sum()
         # the box's numbers (the panel's drag fields send this command) place and resize it
         app.execute(Command("region_box", {"box": HALF}))
         driver.frame()
         inside = box_mask(scene.means, HALF)
         assert np.array_equal(app.region_mask(), inside) and 20 < inside.sum() < 130
+        lit = read_rgb(window.ctx.screen)[:, int(PANEL_WIDTH) + 20:].astype(np.float32).sum()
+        assert lit < 0.9 * read_rgb_sum_all_selected  # the Gaussians outside the box are dimmed
         assert any(f"{int(inside.sum())} of 150 Gaussians" in t for t in driver.recorder.texts)
         # Alt + drag moves the box in the view (its centre follows the mouse), Alt + wheel resizes it
         def centre_pixel():
@@ -129,6 +132,7 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         assert BUILT[-1].settings.region == HALF and np.array_equal(BUILT[-1].input_selection, inside)
         app.keys.press("b")  # as the window's key callback queues it (app/keys.py)
         driver.frame()
+        driver.frame()  # the key is read as the panel is drawn, after the scene: the next frame draws undimmed
         assert not app.region_enabled and not app.stylized.highlight
     finally:
         assert app.close(timeout=60)
