@@ -46,6 +46,7 @@ class StudioSync:
         p.resume_available = self.resume_available()
         p.take_names = [t.name for t in self.takes.takes]
         p.take_labels = [t.label for t in self.takes.takes]
+        p.take_settings = [t.settings for t in self.takes.takes]
         p.save_folder = str(self.export_folder())
         p.undo_note = self.history.done[-1].describe() if self.history.done else ""
         p.redo_note = self.history.undone[-1].describe() if self.history.undone else ""

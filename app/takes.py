@@ -30,11 +30,30 @@ class Take:
     gaussians: int
     created: float
     view_key: str = ""  # what the view showed when it was exported (``StudioApp.view_key``): T skips a take equal to it
+    settings: str = ""  # one line: the run's preset, widths and the controls set (``settings_line``)
 
     @property
     def label(self) -> str:
         """``name (N Gaussians, HH:MM)`` for lists."""
         return f"{self.name} ({self.gaussians:,} Gaussians, {time.strftime('%H:%M', time.localtime(self.created))})"
+
+
+SHOWN_CONTROLS = (("lambda_nnfm", "NNFM"), ("lambda_content", "content"), ("strength", "strength"),
+                  ("style_scale", "stroke"))
+
+
+def settings_line(summary: dict) -> str:
+    """An export summary's settings in one line: ``preview, 256 -> 512 px; NNFM 200, content 0.05, strength 1,
+    stroke 1; keep colours``."""
+    settings = summary.get("settings") if isinstance(summary.get("settings"), dict) else {}
+    params = summary.get("params") if isinstance(summary.get("params"), dict) else {}
+    widths = [settings.get("working_width"), *(settings.get("refine_widths") or [])]
+    head = ", ".join(x for x in (str(settings.get("preset") or ""),
+                                 " -> ".join(str(w) for w in widths if w) + " px" if any(widths) else "") if x)
+    controls = ", ".join(f"{label} {float(params[key]):g}" for key, label in SHOWN_CONTROLS
+                         if isinstance(params.get(key), (int, float)))
+    switches = "; keep colours" if params.get("keep_colours") else ""
+    return "; ".join(x for x in (head, controls) if x) + switches
 
 
 class TakeShelf:
@@ -52,7 +71,7 @@ class TakeShelf:
         try:
             entries = json.loads((self.folder / TAKES_FILE).read_text())
             takes = [Take(str(e["name"]), str(e["path"]), int(e["gaussians"]), float(e["created"]),
-                          str(e.get("view_key", ""))) for e in entries]
+                          str(e.get("view_key", "")), str(e.get("settings", ""))) for e in entries]
         except (OSError, ValueError, TypeError, KeyError):
             return []
         return [t for t in takes if Path(t.path).is_file()][: self.limit]
@@ -72,11 +91,12 @@ class TakeShelf:
         error, self.write_error = self.write_error, None
         return error
 
-    def add(self, path: str | Path, gaussians: int, name: str | None = None, view_key: str = "") -> Take:
+    def add(self, path: str | Path, gaussians: int, name: str | None = None, view_key: str = "",
+            settings: str = "") -> Take:
         """Shelve an export (newest first; the oldest beyond ``limit`` is forgotten, its file kept); ``view_key``:
-        what the view showed when it was written."""
+        what the view showed when it was written; ``settings``: its one-line settings."""
         self._counter += 1
-        take = Take(name or f"take {self._counter}", str(Path(path)), int(gaussians), time.time(), view_key)
+        take = Take(name or f"take {self._counter}", str(Path(path)), int(gaussians), time.time(), view_key, settings)
         self.takes = [take] + [t for t in self.takes if t.path != take.path][: self.limit - 1]
         self._write()
         return take

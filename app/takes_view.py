@@ -10,6 +10,7 @@ from gstyle_core.errors import GStyleError
 
 from .export import summary_path
 from .splat_data import scene_arrays
+from .takes import settings_line
 
 
 class TakesView:
@@ -74,7 +75,8 @@ class TakesView:
         for written in exported:
             path = Path(written)
             try:
-                gaussians = int(json.loads(summary_path(path).read_text())["gaussians"])
-            except (OSError, ValueError, KeyError, TypeError):
-                gaussians = self.stylized.count
-            self.takes.add(path, gaussians, view_key=self.view_key())
+                summary = json.loads(summary_path(path).read_text())
+                gaussians, line = int(summary["gaussians"]), settings_line(summary)
+            except (OSError, ValueError, KeyError, TypeError, AttributeError):
+                gaussians, line = self.stylized.count, ""
+            self.takes.add(path, gaussians, view_key=self.view_key(), settings=line)

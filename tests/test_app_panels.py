@@ -191,3 +191,17 @@ def test_a_take_remembers_what_the_view_showed(tmp_path):
     (tmp_path / "a.ply").write_bytes(b"x")
     TakeShelf(tmp_path).add(tmp_path / "a.ply", 10, view_key="run:3:17")
     assert TakeShelf(tmp_path).takes[0].view_key == "run:3:17"
+
+
+def test_a_take_carries_its_settings_in_one_line(tmp_path):
+    from app.takes import TakeShelf, settings_line
+
+    summary = {"settings": {"preset": "balanced", "working_width": 256, "refine_widths": [512]},
+               "params": {"lambda_nnfm": 200.0, "lambda_content": 0.05, "strength": 1.0, "style_scale": 2.0,
+                          "keep_colours": 1.0}}
+    line = settings_line(summary)
+    assert line == "balanced, 256 -> 512 px; NNFM 200, content 0.05, strength 1, stroke 2; keep colours"
+    assert settings_line({}) == "" and settings_line({"settings": None, "params": "x"}) == ""
+    (tmp_path / "a.ply").write_bytes(b"x")
+    TakeShelf(tmp_path).add(tmp_path / "a.ply", 10, settings=line)
+    assert TakeShelf(tmp_path).takes[0].settings == line

@@ -95,4 +95,6 @@ def takes_section(state: PanelState, out: list[Command]) -> None:
         imgui.same_line()
         if button("forget", "Take it off this list (its file stays in the output folder).", small=True):
             out.append(Command("forget_take", {"index": i}))
+        if i < len(state.take_settings) and state.take_settings[i]:
+            imgui.text_disabled(f"  {state.take_settings[i]}")
         imgui.pop_id()

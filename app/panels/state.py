@@ -66,6 +66,7 @@ class PanelState:
     video_label: str = ""
     take_names: list[str] = field(default_factory=list)  # the last exports kept as takes, newest first
     take_labels: list[str] = field(default_factory=list)
+    take_settings: list[str] = field(default_factory=list)  # per take: its settings in one line
     take_differs: list[bool] = field(default_factory=list)  # per take: it differs from the view now (T starts there)
     save_folder: str = ""  # where Ctrl+S writes now
     undo_note: str = ""  # the step Ctrl+Z takes back ("" when none), and the one Ctrl+Shift+Z takes again
