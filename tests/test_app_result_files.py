@@ -65,6 +65,9 @@ def test_a_studio_export_and_a_cli_summary_are_results_and_a_foreign_scene_is_no
     (tmp_path / "out" / "cli.json").write_text(json.dumps({"scene": "gone.ply", "settings": {}}))
     gone = read_result(cli)
     assert gone.source is None and gone.source_named == "gone.ply"
+    (tmp_path / "out" / "cli.json").write_text(json.dumps({"scene": "bundled demo", "source_scene": str(original),
+                                                           "settings": {}}))
+    assert read_result(cli).source == original.resolve()  # the absolute source wins over the name as given
     assert read_result(original) is None  # no summary beside it: a foreign scene
     (tmp_path / "scenes" / "original.json").write_text("{broken")
     assert read_result(original) is None

@@ -204,6 +204,7 @@ def test_cli_region_runs_and_is_recorded(tmp_path, monkeypatch):
                               "--region=-5,-5,-5,0,5,5", "--scene-kind", "forward"])
     assert cli.stylize_command(args) == 0
     summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["source_scene"] == str(scene_path.resolve())  # the result reopens with its way back
     inside = box_mask(scene.means, (-5, -5, -5, 0, 5, 5))
     assert summary["settings"]["region"] == [-5, -5, -5, 0, 5, 5]
     assert summary["region"]["box"] == [-5, -5, -5, 0, 5, 5]

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..assets import DEMO_SCENE
 from ..errors import GStyleError, OutputWriteError
 from ..outputs import SUMMARY, companions
 from ..style.precision import PRECISIONS
@@ -177,6 +178,7 @@ def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, styl
     json_path, before_path, after_path = companions(out, STYLIZE_COMPANIONS)
     summary = {
         "scene": str(args.scene or "bundled demo"),
+        "source_scene": str(Path(args.scene).resolve() if args.scene else DEMO_SCENE),  # to reopen it from the result
         "style": style_paths(args.style)[0] if args.style else "bundled default",
         "styles": [{"path": path, "weight": round(w, 6)}
                    for path, w in zip(style_paths(args.style), s.style_weights, strict=True)],
