@@ -79,7 +79,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.control = CameraControl()
         self.panel = PanelState()
         self.output_dir = Path(output_dir)
-        self.takes = TakeShelf(self.output_dir)
+        self.takes, self._take_textures = TakeShelf(self.output_dir), {}  # takes and their thumbnails (GL)
         self.compare_with_take = False  # compare view: stylized left, the loaded take (True) or the original right
         self.show_ui = show_ui
         self.view_mode = "stylized"
@@ -284,6 +284,9 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.original.release()
         self.stylized.release()
         self.take_view.release()
+        for texture in self._take_textures.values():
+            if texture is not None:
+                texture.release()
         return clean
 
     # ----------------------------------------------------------------- per frame

@@ -47,6 +47,7 @@ class StudioSync:
         p.take_names = [t.name for t in self.takes.takes]
         p.take_labels = [t.label for t in self.takes.takes]
         p.take_settings = [t.settings for t in self.takes.takes]
+        p.take_thumbnails = [self.take_texture(t) for t in self.takes.takes]
         p.save_folder = str(self.export_folder())
         p.undo_note = self.history.done[-1].describe() if self.history.done else ""
         p.redo_note = self.history.undone[-1].describe() if self.history.undone else ""

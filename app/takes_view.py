@@ -6,11 +6,20 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from gstyle_core.errors import GStyleError
 
 from .export import summary_path
 from .splat_data import scene_arrays
 from .takes import settings_line
+
+THUMB_SIZE = (96, 72)
+
+
+def thumbnail_path(output_dir: Path, take_path: str) -> Path:
+    """Where a take's thumbnail is kept: ``.thumbs/NAME.png`` in the output folder (beside ``takes.json``)."""
+    return Path(output_dir) / ".thumbs" / (Path(take_path).name + ".png")
 
 
 class TakesView:
@@ -62,6 +71,47 @@ class TakesView:
             if self.view_mode == "take":
                 self.view_mode = "stylized"
 
+    def _write_take_thumbnail(self, take) -> None:
+        """A small picture of the stylized view as it is now (the take was just exported from it), as a PNG in the
+        output folder's ``.thumbs`` (a failure leaves the take without one)."""
+        from PIL import Image
+
+        from .renderer import read_rgb
+
+        if self.stylized.count == 0:
+            return
+        w, h = THUMB_SIZE
+        fbo = self.ctx.simple_framebuffer((w, h))
+        try:
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 1.0)
+            self.stylized.render(self.control.camera(w, h), fbo)
+            rgb = read_rgb(fbo)
+            path = thumbnail_path(self.output_dir, take.path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            Image.fromarray(rgb).save(path)
+        except (OSError, ValueError):
+            return
+        finally:
+            fbo.release()
+            self.ctx.screen.use()
+        self._take_textures.pop(take.path, None)
+
+    def take_texture(self, take) -> tuple[int, tuple[int, int]] | None:
+        """The GL texture (id, size) of a take's thumbnail, loaded once from its PNG (None without one)."""
+        from PIL import Image
+
+        if take.path not in self._take_textures:
+            texture = None
+            try:
+                rgb = np.asarray(Image.open(thumbnail_path(self.output_dir, take.path)).convert("RGB"))
+                texture = self.ctx.texture((rgb.shape[1], rgb.shape[0]), 3, rgb.tobytes(), alignment=1)
+            except (OSError, ValueError):
+                pass
+            self._take_textures[take.path] = texture
+        texture = self._take_textures[take.path]
+        return None if texture is None else (texture.glo, texture.size)
+
     def view_key(self) -> str:
         """What the stylized view shows now: the engine run and its geometry and colour versions ("" before any)."""
         st = self.bridge.state if self.bridge is not None else None
@@ -79,4 +129,5 @@ class TakesView:
                 gaussians, line = int(summary["gaussians"]), settings_line(summary)
             except (OSError, ValueError, KeyError, TypeError, AttributeError):
                 gaussians, line = self.stylized.count, ""
-            self.takes.add(path, gaussians, view_key=self.view_key(), settings=line)
+            take = self.takes.add(path, gaussians, view_key=self.view_key(), settings=line)
+            self._write_take_thumbnail(take)

@@ -73,6 +73,12 @@ def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_p
         assert bridge.wait_until(lambda s: s.paused, 30)
         driver.frame()
         assert app.panel.take_names == ["take 2", "take 1"]
+        from PIL import Image
+
+        from app.takes_view import thumbnail_path
+        picture = np.asarray(Image.open(thumbnail_path(tmp_path, str(exported[0]))))
+        assert picture.shape == (72, 96, 3) and (picture.sum(-1) > 30).sum() > 50  # the scene is in it
+        assert all(t is not None for t in app.panel.take_thumbnails)  # each take shows its picture
         assert [t.path for t in app.takes.takes] == [str(exported[1]), str(exported[0])]
         assert json.loads((tmp_path / TAKES_FILE).read_text())[1]["path"] == str(exported[0])
         assert driver.recorder.find("take1/compare").tooltip

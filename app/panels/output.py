@@ -5,7 +5,7 @@ from __future__ import annotations
 from imgui_bundle import imgui
 
 from .state import MAX_TURNTABLE_FRAMES, TURNTABLE_FORMATS, Command, PanelState
-from .widgets import button, button_row, tooltip
+from .widgets import button, button_row, thumbnail, tooltip
 
 
 def output_section(state: PanelState, out: list[Command]) -> None:
@@ -81,6 +81,11 @@ def takes_section(state: PanelState, out: list[Command]) -> None:
             "run stays on the left; C toggles the compare view).")
     for i, name in enumerate(state.take_names):
         imgui.push_id(f"take{i}")
+        shown = state.take_thumbnails[i] if i < len(state.take_thumbnails) else None
+        if shown is not None:
+            thumbnail(shown[0], shown[1], 48.0)
+            tooltip(state.take_labels[i] if i < len(state.take_labels) else name)
+            imgui.same_line()
         imgui.set_next_item_width(120)
         changed, text = imgui.input_text("##name", name)
         tooltip(state.take_labels[i] if i < len(state.take_labels) else name)

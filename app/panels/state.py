@@ -67,6 +67,7 @@ class PanelState:
     take_names: list[str] = field(default_factory=list)  # the last exports kept as takes, newest first
     take_labels: list[str] = field(default_factory=list)
     take_settings: list[str] = field(default_factory=list)  # per take: its settings in one line
+    take_thumbnails: list[tuple[int, tuple[int, int]] | None] = field(default_factory=list)  # (GL texture, size)
     take_differs: list[bool] = field(default_factory=list)  # per take: it differs from the view now (T starts there)
     save_folder: str = ""  # where Ctrl+S writes now
     undo_note: str = ""  # the step Ctrl+Z takes back ("" when none), and the one Ctrl+Shift+Z takes again
