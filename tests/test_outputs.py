@@ -288,6 +288,7 @@ def test_studio_export_failure_is_one_line_and_leaves_no_take(tmp_path, monkeypa
             self.panel, self.takes = type("Panel", (), {"status": ""})(), TakeShelf(folder)
             self._exports_seen = self._export_failures_seen = (0, 0)
             self.bridge = None  # no engine: a take remembers no view (TakesView.view_key)
+            self.stylized = type("Empty", (), {"count": 0})()  # nothing shown: a take gets no thumbnail
 
     studio, state = Studio(), WorkerState()
     state.export_failures.append(f"export: {line}")
