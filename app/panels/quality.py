@@ -33,7 +33,7 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
         if button(f"Restart at {state.quality}", f"Start the stylization again from the input scene at the "
                                                  f"{state.quality} quality (the run now is {state.preset})."):
             out.append(Command("restart_quality", {"preset": state.quality}))
-    levels = " → ".join(f"{w} px" for w in state.levels)
+    levels = " -> ".join(f"{w} px" for w in state.levels)  # the panel's font has Latin-1 glyphs only
     imgui.text_wrapped(f"Width: {state.width} px" + (f" (levels {levels})" if len(state.levels) > 1 else ""))
     tooltip("The width the engine renders at now. Finer levels go on from the colours at twice the pixels, so the "
             "strokes hold up at a display's size (docs/tradeoffs.md).")
@@ -48,5 +48,5 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
     if state.summary_line:
         imgui.text_wrapped(font_safe(f"Result: {state.summary_line}"))  # sigma spelled out
         tooltip("Measured on three of the scene's views rendered at a display's size: how much of the colour the "
-                "stylization added is finer than σ 4 px, against the painting's own share at the size its strokes "
+                "stylization added is finer than sigma 4 px, against the painting's own share at the size its strokes "
                 "are matched (1: the painting's grain; well above 1: single-splat confetti).")
