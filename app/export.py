@@ -9,7 +9,8 @@ from typing import Any
 
 from .snapshot import scene_from_snapshot
 
-EXPORT_FORMATS = ("ply", "spz", "compressed-ply")  # what the studio exports (the web formats for web viewers)
+EXPORT_SUFFIXES = {"ply": ".ply", "spz": ".spz", "compressed-ply": ".compressed.ply"}  # what the studio exports
+EXPORT_FORMATS = tuple(EXPORT_SUFFIXES)  # (the web formats for web viewers)
 
 
 def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, params: dict[str, float],

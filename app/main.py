@@ -164,14 +164,11 @@ def open_studio(window, args: argparse.Namespace):
 
     from .engine_factory import make_stylizer
     from .open_files import load_scene_with_cameras
-    from .result_files import read_result
     from .studio import StudioApp
 
     engine_on = (not window.headless) if args.engine is None else args.engine
     loaded = load_scene_with_cameras(args.scene, args.cameras)
-    result = None if args.style else read_result(loaded.path)  # a result shows the painting it was made after
-    styles = args.style or ([str(result.styles[0])] if result is not None and result.styles else None) or \
-        ([str(DEFAULT_STYLE)] if Path(DEFAULT_STYLE).is_file() else [None])
+    styles = args.style or ([str(DEFAULT_STYLE)] if Path(DEFAULT_STYLE).is_file() else [None])
     app = StudioApp(window.ctx, loaded=loaded, style_path=styles[0],
                     engine_factory=make_stylizer if engine_on else None,
                     engine_config={"cameras": args.cameras, "preset": args.preset, "defaults": args.defaults,
@@ -180,6 +177,8 @@ def open_studio(window, args: argparse.Namespace):
                     output_dir=args.output_dir or "out", show_ui=not args.hide_ui, keys=window.keys)
     if args.output_dir:  # asked for: exports go there too
         app.save_folder = Path(args.output_dir)
+    if not args.style:  # a stylized result shows the painting it was made after
+        app.show_result_painting()
     if len(styles) > 1:
         app.set_style(styles[1], slot=1, mix=args.style_mix)
     app.view_mode = args.view

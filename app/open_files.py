@@ -21,6 +21,7 @@ from gstyle_core.images import IMAGE_SUFFIXES
 from gstyle_core.io import SCENE_SUFFIXES
 from gstyle_core.scene import GaussianScene
 
+from .export import EXPORT_SUFFIXES
 from .file_browser import FileBrowser, has_suffix, load_recent, recent_folders_file, save_recent, with_recent
 
 DIALOG_ENV = "GSTYLE_FILE_DIALOG"  # "studio": the studio's browser always; "auto" (default): native where there is one
@@ -44,7 +45,7 @@ FILE_KINDS = {
     "open_scene": FileKind("Open scene", "Gaussian scenes", SCENE_SUFFIXES),
     "open_style": FileKind("Open style image", "Images", IMAGE_SUFFIXES),
     "open_style2": FileKind("Open second style image", "Images", IMAGE_SUFFIXES, style_slot=1),
-    "save_as": FileKind("Save the stylized scene as", "Gaussian scenes", (".ply", ".spz", ".compressed.ply"),
+    "save_as": FileKind("Save the stylized scene as", "Gaussian scenes", tuple(EXPORT_SUFFIXES.values()),
                         saving=True),
 }
 
@@ -123,15 +124,20 @@ class OpenFiles:
         self._remember_folder(Path(path).parent)
         if self.result is not None and style_slot == 0 and has_suffix(name, SCENE_SUFFIXES):
             self.stop_engine()  # a result is shown as it is; Stylize again / Restart from the original start one
-            if self.result.styles:  # with the painting it was made after
-                try:
-                    self.set_style(str(self.result.styles[0]))
-                except GStyleError:
-                    pass  # the painting shown stays; the result opens all the same
+            self.show_result_painting()
             self._say(f"{self.result.line}; nothing started")
         elif self.bridge is not None:
             self.start_engine(action=f"opening {name}")
         return True
+
+    def show_result_painting(self) -> None:
+        """A stylized result is shown: show the painting it was made after, when its file is found and reads (else
+        the painting shown stays; the result opens all the same)."""
+        if self.result is not None and self.result.styles:
+            try:
+                self.set_style(str(self.result.styles[0]))
+            except GStyleError:
+                pass
 
     def _say(self, message: str) -> None:
         """The status line, and the same line in the terminal."""

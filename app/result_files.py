@@ -12,6 +12,7 @@ from pathlib import Path
 from gstyle_core.pipeline.settings import StylizeSettings, ui_params
 
 from .export import summary_path
+from .takes import widths_text
 
 
 @dataclass
@@ -70,11 +71,10 @@ def _found(named: Path, beside: Path) -> Path | None:
 def _describe(data: dict, path: Path) -> str:
     """``preset balanced, 256 -> 512 px, after starry_night.jpg, 215,468 Gaussians``."""
     settings = data["settings"]
-    widths = [settings.get("working_width"), *settings.get("refine_widths", [])]
     styles = data.get("styles") or [data.get("style")]
     names = [Path(str(s.get("path", "")) if isinstance(s, dict) else str(s or "")).name for s in styles]
     count = data.get("gaussians_after", data.get("gaussians"))
-    parts = [f"preset {settings.get('preset', '?')}", " -> ".join(str(w) for w in widths if w) + " px"]
+    parts = [x for x in (f"preset {settings.get('preset', '?')}", widths_text(settings)) if x]
     if any(names):
         parts.append("after " + " + ".join(n for n in names if n))
     if isinstance(count, int):

@@ -12,10 +12,11 @@ import time
 from pathlib import Path
 
 from gstyle_core.paths import cache_dir
+from gstyle_core.pipeline.plan import STYLIZED_PHASES
 
 from .edit_history import ParamEdit, ResultEdit
+from .export import summary_path
 
-STYLIZED_PHASES = ("stylize", "refit", "refine", "finish", "done")  # a snapshot's colours are the stylized ones
 KEPT_RESULTS = 12
 
 
@@ -49,7 +50,7 @@ class ResultUndo:
         self.bridge.export(path)
         kept = sorted(folder.glob("result_*.ply"), key=lambda p: p.stat().st_mtime)
         for old in kept[:max(0, len(kept) - KEPT_RESULTS + 1)]:
-            for f in (old, old.with_suffix(".json")):
+            for f in (old, summary_path(old)):
                 f.unlink(missing_ok=True)
         return path
 
@@ -95,7 +96,7 @@ class ResultUndo:
         """The engine writes a saved result in the background: wait until its file and summary are there."""
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
-            if path.is_file() and path.with_suffix(".json").is_file():
+            if path.is_file() and summary_path(path).is_file():
                 return True
             if self.bridge is not None:
                 self.bridge.poll()

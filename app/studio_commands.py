@@ -14,11 +14,11 @@ from gstyle_core.outputs import SUMMARY, unused_name
 from gstyle_core.pipeline.controls import painting_controls
 from gstyle_core.scene import GaussianScene
 
+from .export import EXPORT_SUFFIXES
 from .panels import Command
 from .snapshot import has_scene, scene_from_snapshot
 from .video_job import VideoJob, turntable_path
 
-EXPORT_SUFFIXES = {"ply": ".ply", "spz": ".spz", "compressed-ply": ".compressed.ply"}
 TURNTABLE_WIDTH = 640
 
 
@@ -194,12 +194,11 @@ class StudioCommands:
         return self.output_dir
 
     def save_as(self, path: str | Path) -> None:
-        """Save As: export to ``path`` (its format from its suffix) and write there from now on."""
+        """Save As: export to ``path`` (the engine writes the format its suffix names) and write there from now
+        on."""
         path = Path(path)
-        fmt = next((f for f, suffix in EXPORT_SUFFIXES.items() if path.name.lower().endswith(suffix) and f != "ply"),
-                   "ply")
         self.save_folder = path.parent
-        self.export(path, fmt=fmt)
+        self.export(path)
 
     def current_scene(self) -> GaussianScene | None:
         """The stylized scene as the engine last sent it (diffuse colours), else the loaded scene (with its SH)."""

@@ -42,14 +42,18 @@ SHOWN_CONTROLS = (("lambda_nnfm", "NNFM"), ("lambda_content", "content"), ("stre
                   ("style_scale", "stroke"))
 
 
+def widths_text(settings: dict) -> str:
+    """A summary's widths, coarse to fine: ``256 -> 512 px`` ("" when it names none)."""
+    widths = [w for w in (settings.get("working_width"), *(settings.get("refine_widths") or [])) if w]
+    return " -> ".join(map(str, widths)) + " px" if widths else ""
+
+
 def settings_line(summary: dict) -> str:
     """An export summary's settings in one line: ``preview, 256 -> 512 px; NNFM 200, content 0.05, strength 1,
     stroke 1; keep colours``."""
     settings = summary.get("settings") if isinstance(summary.get("settings"), dict) else {}
     params = summary.get("params") if isinstance(summary.get("params"), dict) else {}
-    widths = [settings.get("working_width"), *(settings.get("refine_widths") or [])]
-    head = ", ".join(x for x in (str(settings.get("preset") or ""),
-                                 " -> ".join(str(w) for w in widths if w) + " px" if any(widths) else "") if x)
+    head = ", ".join(x for x in (str(settings.get("preset") or ""), widths_text(settings)) if x)
     controls = ", ".join(f"{label} {float(params[key]):g}" for key, label in SHOWN_CONTROLS
                          if isinstance(params.get(key), (int, float)))
     switches = "; keep colours" if params.get("keep_colours") else ""

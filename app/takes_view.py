@@ -95,7 +95,9 @@ class TakesView:
         finally:
             fbo.release()
             self.ctx.screen.use()
-        self._take_textures.pop(take.path, None)
+        stale = self._take_textures.pop(take.path, None)  # a take exported again to the same file: a new picture
+        if stale is not None:
+            stale.release()
 
     def take_texture(self, take) -> tuple[int, tuple[int, int]] | None:
         """The GL texture (id, size) of a take's thumbnail, loaded once from its PNG (None without one)."""

@@ -4,9 +4,9 @@ cache folder, ``window.json``), else 80 % of the screen's work area, as desktop 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
+from gstyle_core.atomic import atomic_write_text
 from gstyle_core.paths import cache_dir
 
 DEFAULT_SIZE = (1280, 800)  # headless windows, and a screen glfw cannot measure
@@ -52,8 +52,6 @@ def remember_size(size: tuple[int, int]) -> None:
     path = _size_file()
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps({"size": [int(size[0]), int(size[1])]}))
-        os.replace(tmp, path)
+        atomic_write_text(path, json.dumps({"size": [int(size[0]), int(size[1])]}))
     except OSError:
         pass

@@ -61,6 +61,9 @@ class StepTimes:
         return self.seconds[kind] / self.counts[kind] if self.counts.get(kind) else None
 
 
+STYLIZED_PHASES = ("stylize", "refit", "refine", "finish", "done")  # the phases whose colours are stylized ones
+
+
 def step_kind(report: dict) -> str | None:
     """The kind of a step report, as ``planned_steps`` counts: ground truth, refit (pre-processing included),
     stylize, a level's targets or steps; None for the colour matches (one step each, priced as nothing)."""
@@ -78,16 +81,7 @@ def step_kind(report: dict) -> str | None:
 def estimate_seconds(plan: dict[str, float], times: StepTimes, working_width: int) -> float | None:
     """Seconds ``plan`` takes at ``times``' step costs; None until a stylization step has been measured (every other
     kind falls back on it)."""
-    stylize = times.mean("stylize")
-    if stylize is None:
-        return None
-    total = 0.0
-    for kind, steps in plan.items():
-        cost = times.mean(kind)
-        if cost is None:
-            cost = fallback_cost(kind, stylize, working_width, times)
-        total += steps * cost
-    return total
+    return _priced(plan, {}, times, working_width, None)
 
 
 def remaining_seconds(plan: dict[str, float], times: StepTimes, working_width: int,
@@ -96,12 +90,19 @@ def remaining_seconds(plan: dict[str, float], times: StepTimes, working_width: i
     steps still to come at its measured cost, else at ``prior``'s (the run before, on a restart), else priced from
     the stylization step (``fallback_cost``). None while no stylization step is known from either (early in a
     first run: the ground-truth and refit steps are 10-20x cheaper and would promise far too little)."""
+    return _priced(plan, times.counts, times, working_width, prior)
+
+
+def _priced(plan: dict[str, float], done: dict[str, int], times: StepTimes, working_width: int,
+            prior: StepTimes | None) -> float | None:
+    """Seconds of ``plan``'s steps beyond ``done`` (per kind), each at ``times``' cost of its kind, else
+    ``prior``'s, else ``fallback_cost``; None without a stylization step's cost from either."""
     stylize = times.mean("stylize") or (prior.mean("stylize") if prior is not None else None)
     if stylize is None:
         return None
     total = 0.0
     for kind, steps in plan.items():
-        left = max(0.0, steps - times.counts.get(kind, 0))
+        left = max(0.0, steps - done.get(kind, 0))
         cost = times.mean(kind) or (prior.mean(kind) if prior is not None else None)
         total += left * (cost if cost is not None else fallback_cost(kind, stylize, working_width, times))
     return total

@@ -39,6 +39,7 @@ from .levels import check_refine_widths, level_widths, next_width
 from .notes import note_levels, note_loss_terms, note_networks, note_planned_clip, note_style, sh_note
 from .phases import ColourMatch, GroundTruth, Phase, Preprocess, Refine, StepReport, Stylize
 from .phases.colour_match import match_content_targets
+from .plan import STYLIZED_PHASES
 from .region import region_note, selection_mask
 from .run_state import RunState
 from .settings import StylizeSettings, ui_params
@@ -350,7 +351,7 @@ class Stylizer:
     def snapshot(self) -> dict[str, Any]:
         """Arrays a viewer needs (numpy copies): geometry, stylized and ground-truth colours, versions."""
         p, run = self.params, self.run_state
-        colors = run.c_s if self.phase in ("stylize", "refit", "refine", "finish", "done") else run.gt_rgb()
+        colors = run.c_s if self.phase in STYLIZED_PHASES else run.gt_rgb()
         return {
             "means": p["means"].detach().numpy().copy(),
             "log_scales": p["log_scales"].detach().numpy().copy(),
