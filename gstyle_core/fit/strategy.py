@@ -75,10 +75,10 @@ class DefaultStrategy(Strategy):
         if info.step >= self.refine_stop:
             return out
         if info.means2d is not None and info.means2d.grad is not None and info.visible is not None:
-            g = info.means2d.grad.detach().clone()
+            g = info.means2d.grad.detach().to(state["grad2d"].device, copy=True)  # renders may run on a GPU
             g[:, 0] *= info.width / 2.0
             g[:, 1] *= info.height / 2.0
-            vis = info.visible
+            vis = info.visible.to(g.device)
             state["grad2d"][vis] += g[vis].norm(dim=-1)
             state["count"][vis] += 1
         if info.step > self.refine_start and info.step % self.refine_every == 0:

@@ -38,6 +38,7 @@ class FitConfig:
     sh_increase_every: int = 1000
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     backend: str = "fast"
+    device: str = "cpu"  # where renders and the loss run (the parameters and optimisers stay where they are)
     seed: int = 0
     trainable: tuple[str, ...] = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
 
@@ -60,6 +61,18 @@ def scene_scale(cameras: Sequence[Camera]) -> float:
     return float(max(1.1 * np.linalg.norm(centres - centres.mean(0), axis=1).max(), 1e-3))
 
 
+def _on_cpu(state):
+    """A copy of an optimiser's state with its tensors on the CPU (checkpoints of a GPU run load anywhere;
+    ``load_state_dict`` moves them to the parameters' device)."""
+    if isinstance(state, torch.Tensor):
+        return state.detach().to("cpu", copy=True)
+    if isinstance(state, dict):
+        return {k: _on_cpu(v) for k, v in state.items()}
+    if isinstance(state, (list, tuple)):
+        return type(state)(_on_cpu(v) for v in state)
+    return copy.deepcopy(state)
+
+
 class Trainer:
     """Fit Gaussians (``params``) to posed images, one iteration per ``step()``."""
 
@@ -77,7 +90,8 @@ class Trainer:
             raise ValueError("fitting needs at least one camera and exactly one image per camera")
         self.params = params
         self.cameras = list(cameras)
-        self.images = [torch.as_tensor(np.asarray(im, np.float32)) for im in images]
+        self.device = torch.device(self.config_device(config))
+        self.images = [torch.as_tensor(np.asarray(im, np.float32)).to(self.device) for im in images]
         for cam, im in zip(self.cameras, self.images, strict=True):
             if tuple(im.shape[:2]) != (cam.height, cam.width):
                 raise ValueError(f"image {tuple(im.shape)} does not match camera {cam.width}x{cam.height}")
@@ -85,11 +99,16 @@ class Trainer:
         self.strategy = strategy or Strategy()
         self.extent = extent if extent is not None else scene_scale(self.cameras)
         self.state = strategy_state if strategy_state is not None else self.strategy.initialize_state(params)
-        self.background = torch.tensor(self.config.background, dtype=torch.float32)
+        self.background = torch.tensor(self.config.background, dtype=torch.float32, device=self.device)
         self.step_index = 0
         self._rng = np.random.default_rng(self.config.seed)
         self._order: list[int] = []
         self.optimizers = self._make_optimizers()
+
+    @staticmethod
+    def config_device(config: FitConfig | None) -> str:
+        """The device renders run on (``config.device``; the CPU without a config)."""
+        return config.device if config is not None else "cpu"
 
     def _make_optimizers(self) -> dict[str, torch.optim.Optimizer]:
         c = self.config
@@ -136,7 +155,7 @@ class Trainer:
         idx = self._next_view()
         cam, gt = self.cameras[idx], self.images[idx]
         out = render_params(self.params, cam, sh_degree=self.active_sh_degree, background=self.background,
-                            backend=self.config.backend)
+                            backend=self.config.backend, device=self.device)
         info = StepInfo(self.step_index, cam.width, cam.height, out.means2d, out.radii, out.visible)
         self.strategy.step_pre_backward(self.params, self.optimizers, self.state, info)
         l1 = torch.abs(out.image - gt).mean()
@@ -157,7 +176,7 @@ class Trainer:
         state and what is left of the current epoch) and every optimiser's moments (copies)."""
         return {"step_index": self.step_index, "rng": self._rng.bit_generator.state,
                 "order": [int(i) for i in self._order],
-                "optimizers": {k: copy.deepcopy(o.state_dict()) for k, o in self.optimizers.items()}}
+                "optimizers": {k: _on_cpu(o.state_dict()) for k, o in self.optimizers.items()}}
 
     def load_state_dict(self, state: dict) -> None:
         """Restore ``state_dict()`` into a trainer built over parameters of the same shapes."""
@@ -175,6 +194,6 @@ class Trainer:
         values = []
         for cam, im in zip(cameras, images, strict=True):
             out = render_params(self.params, cam, sh_degree=self.config.sh_degree, background=self.background,
-                                backend=self.config.backend)
-            values.append(psnr(out.image, torch.as_tensor(np.asarray(im, np.float32))))
+                                backend=self.config.backend, device=self.device)
+            values.append(psnr(out.image, torch.as_tensor(np.asarray(im, np.float32)).to(self.device)))
         return float(np.mean(values)) if values else float("nan")

@@ -11,6 +11,7 @@ import numpy as np
 import torch
 
 from ..assets import DEMO_SCENE
+from ..device import DEVICES
 from ..errors import GStyleError, OutputWriteError
 from ..outputs import SUMMARY, companions
 from ..style.precision import PRECISIONS
@@ -54,6 +55,9 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--precision", choices=PRECISIONS, default=None,
                    help="VGG-16 and the NNFM search in fp32 or bf16; auto (default): bf16 only where this CPU runs it "
                         "faster (timed once at the working size, remembered per CPU model in the cache folder)")
+    p.add_argument("--device", choices=DEVICES, default=None,
+                   help="where torch computes: auto (default: CUDA when torch sees an NVIDIA GPU, else the CPU), cpu, "
+                        "cuda (gsplat's rasterizer and the networks on the GPU) or mps (the networks on an Apple GPU)")
     p.add_argument("--display-width", type=display_width_arg, default=DEFAULT_DISPLAY_WIDTH, metavar="PX",
                    help="width of the renders the speckle figure (OUT.json quality.display) is measured on; 0: skip it "
                         f"(default {DEFAULT_DISPLAY_WIDTH}, a display's size)")
@@ -112,7 +116,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     with deferred_interrupts() as stop:
         _run_with_progress(engine, checkpointer, stop)
     needed = ("region", "sh", "preprocess", "preprocess_unsplit", "culled", "loss_terms", "broad_strokes",
-              "colour_field", "levels", "colour_match", "clip", "vgg", "precision", "styles")
+              "colour_field", "levels", "colour_match", "clip", "vgg", "precision", "device", "styles")
     for key in needed:  # what it needed (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
@@ -326,9 +330,10 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
 
     cams = evaluation_cameras(engine, n_views, width)
     # the run's own network when its objective was built; the figures are measured in fp32 whatever the run's
-    # precision, so that runs at either precision compare
+    # precision and on the CPU whatever the run's device, so that runs at either precision or on any device compare
     vgg = getattr(engine.objective, "vgg", None)
-    if vgg is None or getattr(vgg, "compute_dtype", torch.float32) != torch.float32:
+    if (vgg is None or getattr(vgg, "compute_dtype", torch.float32) != torch.float32
+            or next(vgg.parameters()).device.type != "cpu"):
         from ..style.vgg import load_vgg
 
         vgg = load_vgg(engine.settings.vgg_weights)

@@ -66,16 +66,19 @@ class StyleObjective:
         """``width``: the render width the painting is matched for (default: the settings' working width; a finer
         level's objective gives its own, ``phases/refine.py``). ``terms``: the only terms this objective computes
         (None: all; a crop of a finer level leaves the large-pattern terms to the whole views)."""
+        from ..device import resolve_device
         from ..style.losses import StyleLoss
         from ..style.precision import resolve_precision, torch_dtype
         from ..style.vgg import load_vgg
 
+        # the networks' device: the given network's, else the settings' (device.py); renders are moved there
+        self.device = next(vgg.parameters()).device if vgg is not None else resolve_device(settings.device).device
         self.width = width
         self.terms = None if terms is None else frozenset(terms)
         self.precision, self.precision_status = resolve_precision(settings, vgg)  # fp32 | bf16, and why
         dtype = torch_dtype(self.precision)
         if vgg is None:
-            vgg = load_vgg(settings.vgg_weights, dtype=dtype, channels_last=dtype == torch.bfloat16)
+            vgg = load_vgg(settings.vgg_weights, dtype=dtype, channels_last=dtype == torch.bfloat16).to(self.device)
         self.vgg = vgg
         self.vgg_status = f"VGG-16 weights from {getattr(vgg, 'weights_source', 'the caller')}"
         self._styles = [style] if isinstance(style, np.ndarray) else list(style)
@@ -115,7 +118,8 @@ class StyleObjective:
 
         s = self._settings
         side, clamped = style_side(self.width or s.working_width, s.style_scale)
-        self._styles_small = [to_bchw(resize_long_side(self._style_input(style), side)) for style in self._styles]
+        self._styles_small = [to_bchw(resize_long_side(self._style_input(style), side)).to(self.device)
+                              for style in self._styles]
         self._style_small = self._styles_small[0]
         budget = int(s.nnfm_candidates) or None
         targets = [StyleTarget.from_image(self.vgg, small, max_vectors=budget,
@@ -201,19 +205,20 @@ class StyleObjective:
 
         if self._clip_encoder is None:
             encoder, self.clip_status = load_clip(self._settings.clip_weights)
-            self._clip_encoder = encoder if encoder is not None else False
+            self._clip_encoder = encoder.to(self.device) if encoder is not None else False
         weights = self._style_weights()
         if self._clip_encoder is False:
-            return CoarseStyleLoss(self.vgg, self._styles_small, style_weights=weights)
-        return ClipStyleLoss(self._clip_encoder, [to_bchw(resize_long_side(self._style_input(style), 448))
-                                                  for style in self._styles],
-                             generator=torch.Generator().manual_seed(self._settings.seed), style_weights=weights)
+            return CoarseStyleLoss(self.vgg, self._styles_small, style_weights=weights).to(self.device)
+        return ClipStyleLoss(self._clip_encoder, [to_bchw(resize_long_side(self._style_input(style), 448)).to(
+                                                  self.device) for style in self._styles],
+                             generator=torch.Generator().manual_seed(self._settings.seed),
+                             style_weights=weights).to(self.device)
 
     def _build_multiscale_term(self) -> torch.nn.Module:
         """The broad-strokes term on the NNFM target's own resized paintings (built when its weight is non-zero)."""
         from ..style.multiscale import MultiScaleStyleLoss
 
-        return MultiScaleStyleLoss(self.vgg, self._styles_small, style_weights=self._style_weights())
+        return MultiScaleStyleLoss(self.vgg, self._styles_small, style_weights=self._style_weights()).to(self.device)
 
     @property
     def calls(self) -> dict[str, int]:
@@ -245,7 +250,10 @@ class StyleObjective:
         """Loss of a render [H,W,3] of training view ``view``; ``content`` is its colour-matched ground truth and
         ``coverage`` [H,W] the scene's alpha there (None for photos: the whole frame is the scene). With
         ``crop_to_scene`` VGG sees only the box the scene covers (``pipeline/scene_box.py``); with ``keep_colours``
-        the networks see the luminance of both. ``view`` None: a one-off image (a crop): nothing of it is cached."""
+        the networks see the luminance of both. ``view`` None: a one-off image (a crop): nothing of it is cached.
+        Inputs on another device than the networks' are moved there (the render inside the autograd graph)."""
+        image, content = image.to(self.device), content.to(self.device)
+        coverage = None if coverage is None else torch.as_tensor(coverage).to(self.device)
         if self._luminance_only():
             from ..style.keep_colours import grey
 

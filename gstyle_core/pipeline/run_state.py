@@ -14,9 +14,12 @@ import numpy as np
 import torch
 
 from ..cameras.camera import Camera
+from ..device import describe as describe_device
+from ..device import resolve_device
 from ..fit import ops
 from ..fit.model import camera_tensors, params_from_scene
 from ..raster import ColourCache, ColourCacheStore
+from ..raster.gsplat_backend import GsplatColourCache
 from ..scene import GaussianScene, sh_dc_to_rgb, used_sh_degree
 from ..style.colour_match import Palette
 from .active import ActiveSet
@@ -40,6 +43,8 @@ class RunState:
                  styles: Sequence[np.ndarray], settings: StylizeSettings, *,
                  objective_factory: Callable | None = None, selection: np.ndarray | None = None) -> None:
         self.settings = settings
+        self.device_choice = resolve_device(settings.device)  # the style networks' device (device.py)
+        self.raster_device = torch.device("cuda", 0) if self.device_choice.kind == "cuda" else torch.device("cpu")
         self.input_scene = scene
         self.full_cameras = full_cameras
         self.photos = photos
@@ -58,7 +63,7 @@ class RunState:
         self.geometry_version = 0
         self.colour_version = 0
         self.global_step = 0
-        self.decisions: dict[str, Any] = {}
+        self.decisions: dict[str, Any] = {"device": describe_device(self.device_choice)}
         # Work done, for tests and the trade-off bench: visibility passes, colour caches built and the Gaussians in
         # them, colours given gradients (per optimiser), Gaussians in refits (per refit), cells of the colour field
         # (per field).
@@ -151,30 +156,35 @@ class RunState:
         return self.region_coverage if self.region_coverage else self.coverage
 
     # ------------------------------------------------------------------------------------------------ renders
-    def cache(self, view: int) -> ColourCache:
+    def cache(self, view: int) -> ColourCache | GsplatColourCache:
         """The colour cache of a training view over the seen Gaussians (columns in ``active.seen_ids()`` order)."""
         return self.caches.get_or_build(view, self.geometry_version, lambda: self._build_cache(view))
 
     def _build_cache(self, view: int) -> ColourCache:
         return self.build_cache(self.cameras[view])
 
-    def build_cache(self, cam: Camera) -> ColourCache:
-        """A colour cache of any camera (a finer level's view or crop) over the seen Gaussians, not stored."""
+    def build_cache(self, cam: Camera) -> ColourCache | GsplatColourCache:
+        """A colour cache of any camera (a finer level's view or crop) over the seen Gaussians, not stored (on CUDA
+        gsplat's: its renders are on the GPU)."""
         p = {k: self.active.gather_seen(self.params[k].detach())
              for k in ("means", "quats", "log_scales", "opacity_logits")}
         viewmat, K = camera_tensors(cam)
         self.counters["cache_builds"] += 1
         self.counters["cache_gaussians"] += int(p["means"].shape[0])
-        return ColourCache(p["means"], p["quats"], torch.exp(p["log_scales"]), torch.sigmoid(p["opacity_logits"]),
-                           viewmat, K, cam.width, cam.height, geometry_version=self.geometry_version)
+        kind = GsplatColourCache if self.raster_device.type == "cuda" else ColourCache
+        extra = {"device": self.raster_device} if kind is GsplatColourCache else {}
+        return kind(p["means"], p["quats"], torch.exp(p["log_scales"]), torch.sigmoid(p["opacity_logits"]),
+                    viewmat, K, cam.width, cam.height, geometry_version=self.geometry_version, **extra)
 
     def render_seen(self, view: int, colours: torch.Tensor) -> torch.Tensor:
-        """Render ``colours`` of the seen Gaussians (one row per cache column) from a training view."""
+        """Render ``colours`` of the seen Gaussians (one row per cache column) from a training view (on the
+        rasterizer's device: the objective takes it there)."""
         return self.cache(view).render(colours)
 
     def render(self, view: int, colours: torch.Tensor | None = None) -> torch.Tensor:
-        """Render c_s (or ``colours`` [N, 3] of every Gaussian) from a training view through its colour cache."""
-        return self.render_seen(view, self.active.gather_seen(self.c_s if colours is None else colours))
+        """Render c_s (or ``colours`` [N, 3] of every Gaussian) from a training view through its colour cache; the
+        image is on the CPU (differentiable all the same)."""
+        return self.render_seen(view, self.active.gather_seen(self.c_s if colours is None else colours)).cpu()
 
     @torch.no_grad()
     def selected_weight(self, view: int) -> torch.Tensor:

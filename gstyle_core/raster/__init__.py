@@ -1,4 +1,6 @@
-"""Differentiable CPU rasterizer for 3D Gaussians (standard 3DGS maths, Kerbl et al. 2023).
+"""Differentiable rasterizer for 3D Gaussians (standard 3DGS maths, Kerbl et al. 2023): numba kernels on the CPU;
+on CUDA tensors the same projection in torch and gsplat's blend kernels (``gsplat_backend.py``, alpha clamped at
+0.999 instead of 0.99; ``tests/test_raster_gsplat.py`` is the twin test).
 
 Conventions (the OpenGL viewer matches them):
 - Camera: ``viewmat`` is world-to-camera with OpenCV axes (x right, y down, z forward); ``K`` in pixels.

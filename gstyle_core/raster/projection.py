@@ -218,7 +218,7 @@ def _tile_rectangles(means2d: Tensor, radius_f: Tensor, kept: Tensor, width: int
     m64 = means2d.detach().to(torch.float64)
     lo = torch.floor((m64 - radius_f[:, None]) / tile_size)
     hi = torch.ceil((m64 + radius_f[:, None]) / tile_size)
-    limits = torch.tensor([tiles_x, tiles_y], dtype=torch.float64)
+    limits = torch.tensor([tiles_x, tiles_y], dtype=torch.float64, device=m64.device)
     tile_min = torch.minimum(lo.clamp(min=0), limits).nan_to_num(0).to(torch.int64)
     tile_max = torch.minimum(hi.clamp(min=0), limits).nan_to_num(0).to(torch.int64)
     touches = ((tile_max - tile_min).prod(-1) > 0) & (radius_f > 0)

@@ -13,7 +13,13 @@ from .projection_kernels import project_gaussians_fast
 from .reference import blend_reference
 from .sh import eval_sh_colors
 
-BACKENDS = ("fast", "reference")
+BACKENDS = ("fast", "reference", "gsplat")  # "fast" on CUDA tensors is "gsplat"
+
+
+def _blend_gsplat(*args):
+    from .gsplat_backend import blend_gsplat  # imports gsplat (and builds its module) only when CUDA is used
+
+    return blend_gsplat(*args)
 
 
 @dataclass
@@ -77,16 +83,23 @@ def rasterize(
 
     ``backend="fast"`` blends with numba kernels (float32 inside); ``"reference"`` is plain torch autograd and
     keeps the input dtype (float64 works). Both implement the same 3DGS rules; see the package docstring.
+    On CUDA tensors ``"fast"`` (or ``"gsplat"``) projects in torch on the GPU and blends with gsplat's kernels
+    (``gsplat_backend.py``: float32, alpha clamped at 0.999 instead of 0.99); the outputs stay on the GPU.
     """
     _check_inputs(
         means, quats, scales, opacities, colors, viewmat, K, width, height, sh_degree, backend, tile_size
     )
     width, height, tile_size = int(width), int(height), int(tile_size)
     dtype = means.dtype
-    viewmat = viewmat.detach().to(dtype)
+    if means.is_cuda and backend == "fast":
+        backend = "gsplat"
+    if backend == "gsplat" and (not means.is_cuda or dtype != torch.float32):
+        raise ValueError("rasterize: the gsplat backend needs float32 tensors on a CUDA device")
+    viewmat = viewmat.detach().to(dtype=dtype, device=means.device)
     # float32: the numba kernels of the projection (forward and backward), shared by both backends so that they
     # agree on culling bit for bit; float64 runs its torch twin (tests/test_raster_projection.py: the two agree)
-    project = project_gaussians_fast if dtype == torch.float32 else project_gaussians
+    # (on CUDA the torch twin runs on the GPU)
+    project = project_gaussians_fast if dtype == torch.float32 and not means.is_cuda else project_gaussians
     proj = project(means, quats, scales, viewmat, K, width, height, near, far, tile_size)
     if sh_degree is None:
         rgb = colors
@@ -94,11 +107,11 @@ def rasterize(
         camera_position = -viewmat[:3, :3].T @ viewmat[:3, 3]
         rgb = eval_sh_colors(colors, means, camera_position, sh_degree)
     features = torch.cat([rgb.to(dtype), proj.depths[:, None]], 1)
-    blend = blend_fast if backend == "fast" else blend_reference
+    blend = {"fast": blend_fast, "reference": blend_reference, "gsplat": _blend_gsplat}[backend]
     feats, t_final, stats = blend(proj, opacities.to(dtype), features, width, height, tile_size)
     if background is None:
-        background = torch.zeros(3, dtype=dtype)
-    image = feats[..., :3] + t_final[..., None] * background.to(feats.dtype)
+        background = torch.zeros(3, dtype=dtype, device=means.device)
+    image = feats[..., :3] + t_final[..., None] * background.to(feats.device, feats.dtype)
     alpha = 1.0 - t_final
     has_alpha = alpha > 0
     depth = torch.where(

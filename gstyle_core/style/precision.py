@@ -207,4 +207,27 @@ def resolve_precision(settings: Any, vgg: Any = None, **choose: Any) -> tuple[st
 
         precision = "bf16" if getattr(vgg, "compute_dtype", torch.float32) == torch.bfloat16 else "fp32"
         return precision, f"{precision}: the caller's VGG network runs in {precision}"
+    gpu = gpu_precision(settings, **choose)
+    if gpu is not None:
+        return gpu
     return choose_precision(getattr(settings, "precision", "fp32"), working_size(settings.working_width), **choose)
+
+
+def gpu_precision(settings: Any, env: Mapping[str, str] | None = None, **_: Any) -> tuple[str, str] | None:
+    """``auto`` on a CUDA run: bf16 where the card computes it natively (compute capability 8.0 and up, as
+    ``torch.cuda.is_bf16_supported``), else fp32; ``$GSTYLE_PRECISION`` and an explicit choice still win. None
+    when the run is not on CUDA (the CPU's rules apply)."""
+    requested = getattr(settings, "precision", "fp32")
+    if requested != "auto" or getattr(settings, "device", "cpu") not in ("auto", "cuda"):
+        return None
+    import torch
+
+    if not torch.cuda.is_available():
+        return None
+    forced = (os.environ if env is None else env).get(PRECISION_ENV, "").strip().lower()
+    if forced in ("fp32", "bf16"):
+        return forced, f"{forced} (auto): set by ${PRECISION_ENV}"
+    card = torch.cuda.get_device_name(0)
+    if torch.cuda.is_bf16_supported(including_emulation=False):
+        return "bf16", f"bf16 (auto): {card} computes bf16 natively; {COVERS}"
+    return "fp32", f"fp32 (auto): {card} has no native bf16"

@@ -18,8 +18,9 @@ def ground_truth_view(run, cam, view: int, input_params) -> tuple[torch.Tensor, 
         gt = torch.as_tensor(resize_image(photo, (cam.width, cam.height)))
         return gt, torch.ones(gt.shape[:2])
     with torch.no_grad():
-        out = render_params(input_params, cam, sh_degree=run.gt_sh_degree, backend=run.settings.raster_backend)
-    return out.image.clamp(0, 1), out.alpha.clamp(0, 1)
+        out = render_params(input_params, cam, sh_degree=run.gt_sh_degree, backend=run.settings.raster_backend,
+                            device=run.raster_device)
+    return out.image.clamp(0, 1).cpu(), out.alpha.clamp(0, 1).cpu()
 
 
 class GroundTruth(Phase):

@@ -24,7 +24,7 @@ GEOMETRY_AND_GT = ("means", "log_scales", "quats", "opacity_logits", "sh_dc")  #
 def row_mask_hook(free: torch.Tensor):
     """A gradient hook that zeroes the rows not in ``free`` (bool [N]): Adam never moves them."""
     def hook(grad: torch.Tensor) -> torch.Tensor:
-        return grad * free.reshape((-1,) + (1,) * (grad.ndim - 1)).to(grad.dtype)
+        return grad * free.reshape((-1,) + (1,) * (grad.ndim - 1)).to(grad.device, grad.dtype)
     return hook
 
 
@@ -40,7 +40,8 @@ class Refit(Phase):
         self.iterations = int(run.settings.refit_iterations)
         self.steps_done = 0
         self.trainer: Trainer | None = None
-        self._ids: torch.Tensor | None = None  # rows of run.params the trainer's copy holds (None: it trains them)
+        self._ids: torch.Tensor | None = None  # rows of run.params the trainer's copy holds (None: every row)
+        self._copied = False  # the trainer trains a copy (of ``_ids``' rows, or on the GPU), written back each step
         self._frozen: tuple[torch.Tensor, dict[str, torch.Tensor]] | None = None  # region: rows that stay put
 
     @classmethod
@@ -67,16 +68,21 @@ class Refit(Phase):
         self._build(run.active.refit_ids(), seed=run.settings.seed + run.global_step)
 
     def _build(self, ids: torch.Tensor | None, seed: int) -> None:
-        """The trainer over ``ids``' rows (a copy) or over the run's parameters themselves (None)."""
+        """The trainer over ``ids``' rows (a copy) or over the run's parameters themselves (None). On CUDA the
+        trainer's copy (of every row when ``ids`` is None) lives on the GPU with its Adam moments; each step writes it
+        back into the run's parameters."""
         run = self.run
+        device = run.raster_device
         cfg = FitConfig(iterations=self.iterations, sh_degree=0, sh_increase_every=10**9, trainable=GEOMETRY_AND_GT,
-                        seed=seed, backend=run.settings.raster_backend)
-        params = run.params if ids is None else torch.nn.ParameterDict(
-            {k: torch.nn.Parameter(v.detach()[ids].clone()) for k, v in run.params.items()})
+                        seed=seed, backend=run.settings.raster_backend, device=str(device))
+        self._copied = ids is not None or device.type != "cpu"
+        params = run.params if not self._copied else torch.nn.ParameterDict(
+            {k: torch.nn.Parameter((v.detach() if ids is None else v.detach()[ids]).to(device, copy=True))
+             for k, v in run.params.items()})
         self._ids, self._frozen = ids, None
         selected = run.active.selected
         if selected is not None:  # region: the unselected Gaussians render as they are but never move
-            free = selected[ids]
+            free = selected[ids].to(device)
             self._frozen = (torch.nonzero(~free).flatten(), {k: v.detach()[~free].clone() for k, v in params.items()})
             for p in params.values():
                 if p.requires_grad and p.ndim >= 1:
@@ -93,9 +99,13 @@ class Refit(Phase):
                 rows, values = self._frozen
                 for k, v in self.trainer.params.items():
                     v[rows] = values[k]
-            if self._ids is not None:
+            if self._copied:
                 for k, v in self.trainer.params.items():
-                    self.run.params[k][self._ids] = v.detach()
+                    target = self.run.params[k]
+                    if self._ids is None:
+                        target.copy_(v.detach())
+                    else:
+                        target[self._ids] = v.detach().to(target.device)
         self.steps_done += 1
         if self.finished:
             self.trainer = self._frozen = None

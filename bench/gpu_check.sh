@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# The GPU check, on a machine with an NVIDIA GPU, from the repository root (under 8 minutes on an H100/H200 with a
+# module built before; about one more minute when it builds gsplat's):
+#
+#   bash bench/gpu_check.sh [quick|full]
+#
+# 1. the machine: the card, its driver, nvcc, torch;
+# 2. packages: wheels in .whl/ are installed into /tmp/site first where the machine has no internet (gsplat 1.5.3,
+#    zstandard; the project itself runs from the checkout, so its torch pin never replaces the machine's CUDA torch);
+# 3. gsplat's CUDA module: loaded from $GSTYLE_CACHE (default .gpu/cache) when a build for this torch, CUDA, gsplat
+#    and card is there, else built once and kept there (GSTYLE_GSPLAT_SLIM=1: only the channel counts G-Style uses
+#    are compiled, about a minute on 16 cores instead of several);
+# 4. the GPU tests: the twin test (gsplat against the numba rasterizer), the colour cache, a whole run on CUDA;
+# 5. bench/device_stylize.py: the demo's preview on CUDA with the studio's rate at 512 px ("quick" stops here); with
+#    "full" (the default) the demo's and biker.spz's final tier on CUDA, then the demo's preview on CUDA and on the
+#    CPU side by side.
+# Every figure is printed and kept in $OUT/gpu_check.log (OUT defaults to out/gpu_check).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+MODE=${1:-full}
+OUT=${OUT:-out/gpu_check}
+mkdir -p "$OUT"
+LOG="$OUT/gpu_check.log"
+exec > >(tee -a "$LOG") 2>&1
+export PYTHONUNBUFFERED=1 GSTYLE_CACHE=${GSTYLE_CACHE:-$PWD/.gpu/cache} MAX_JOBS=${MAX_JOBS:-$(nproc)}
+PY=${PYTHON:-python3}
+stage() { echo; echo "== $* ($(date +%T))"; }
+
+stage "machine"
+nvidia-smi --query-gpu=name,driver_version,compute_cap,memory.total --format=csv,noheader || exit 1
+nvcc --version | tail -1
+"$PY" -c "import torch; print('torch', torch.__version__, 'CUDA', torch.version.cuda, 'sees', torch.cuda.device_count(), 'GPU')"
+
+stage "packages"
+if compgen -G ".whl/*.whl" >/dev/null; then
+  "$PY" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl \
+    || exit 1
+  export PYTHONPATH=/tmp/site:$PWD
+else
+  export PYTHONPATH=$PWD
+fi
+if [[ ${GSTYLE_GSPLAT_SLIM:-0} == 1 ]]; then  # compile the 1-5 channel kernels only (G-Style blends 3 or 4)
+  site=$("$PY" -c "import gsplat, os; print(os.path.dirname(gsplat.__file__))")
+  sed -i -E '/^\s*__(INS|LAUNCH_KERNEL)__\((8|9|16|17|32|33|64|65|128|129|256|257|512|513)\)\s*$/d' \
+    "$site"/cuda/csrc/*.cu "$site"/cuda/csrc/*.cpp
+fi
+
+stage "gsplat module"
+"$PY" -c "
+import time, torch
+from gstyle_core.raster.gsplat_module import ensure_gsplat, built_module_path
+t = time.perf_counter(); ensure_gsplat(); print(f'gsplat ready in {time.perf_counter() - t:.1f} s: {built_module_path()}')
+" || exit 1
+
+stage "GPU tests"
+"$PY" -m pytest -q -p no:cacheprovider tests/test_raster_gsplat.py 2>&1 | tail -25
+
+stage "demo preview: CUDA, and the studio's rate at 512 px"
+timeout 120 "$PY" bench/device_stylize.py --preset preview --devices cuda --rate-width 512
+if [[ $MODE == full ]]; then
+  stage "demo final: CUDA"
+  timeout 150 "$PY" bench/device_stylize.py --preset final --devices cuda
+  if [[ -f .gpu/biker.spz ]]; then
+    stage "biker.spz final: CUDA"
+    timeout 200 "$PY" bench/device_stylize.py .gpu/biker.spz --preset final --devices cuda
+  fi
+  stage "demo preview: CUDA beside the CPU (fp32), one process"
+  timeout 200 "$PY" bench/device_stylize.py --preset preview --devices cuda,cpu
+fi
+stage "done"

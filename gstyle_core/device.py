@@ -1,0 +1,86 @@
+"""Which torch device a run computes on (``--device auto|cpu|cuda|mps``), and why (``decisions.device``).
+
+- ``auto``: CUDA when torch sees a CUDA device, else the CPU. Apple's MPS is used only when asked for: it has not
+  been measured against the CPU here (no Mac), so ``auto`` does not pick it.
+- ``cuda`` / ``mps`` asked for where torch does not see one: a clear error, never a silent fall-back.
+
+What runs where (``docs/gpu.md``): on CUDA the rasterizer is gsplat's (``raster/gsplat_backend.py``) and the style
+networks, their NNFM searches and the losses run on the GPU. On MPS the networks run on the GPU and the rasterizer
+stays the CPU's numba one (gsplat has no Metal backend). The scene's tensors, the optimisers' state and the
+bookkeeping stay on the CPU in every case; a step moves the colours (N × 3 floats) to the device and their
+gradients back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from .errors import GStyleError
+
+if TYPE_CHECKING:
+    import torch
+
+DEVICES = ("auto", "cpu", "cuda", "mps")
+
+
+class DeviceUnavailable(GStyleError, RuntimeError):
+    """The device asked for is not there (no CUDA/MPS build of torch, or no such GPU); shown as one line."""
+
+
+@dataclass(frozen=True)
+class DeviceChoice:
+    """The resolved device, its name in words (the card) and the reason it was chosen."""
+
+    device: torch.device
+    name: str
+    reason: str
+
+    @property
+    def kind(self) -> str:
+        """``cpu``, ``cuda`` or ``mps``."""
+        return self.device.type
+
+
+def _mps_available() -> bool:
+    import torch
+
+    backend = getattr(torch.backends, "mps", None)
+    return bool(backend is not None and backend.is_available())
+
+
+def _cuda_name() -> str:
+    import torch
+
+    props = torch.cuda.get_device_properties(0)
+    return f"{props.name} ({props.total_memory / 2**30:.0f} GiB, CUDA {torch.version.cuda})"
+
+
+def resolve_device(requested: str = "auto") -> DeviceChoice:
+    """The device for ``requested`` (one of ``DEVICES``), or :class:`DeviceUnavailable` saying why not."""
+    import torch
+
+    if requested not in DEVICES:
+        raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {requested!r}")
+    cuda = torch.cuda.is_available()
+    if requested == "cuda" or (requested == "auto" and cuda):
+        if not cuda:
+            build = "a CPU-only build" if torch.version.cuda is None else f"built for CUDA {torch.version.cuda}"
+            raise DeviceUnavailable(
+                f"--device cuda: torch {torch.__version__} ({build}) sees no CUDA device; on a machine with an "
+                "NVIDIA GPU scripts/setup.sh installs torch's CUDA build (docs/gpu.md), or run with --device cpu"
+            )
+        why = "asked for (--device cuda)" if requested == "cuda" else "auto: torch sees a CUDA device"
+        return DeviceChoice(torch.device("cuda", 0), _cuda_name(), why)
+    if requested == "mps":
+        if not _mps_available():
+            raise DeviceUnavailable("--device mps: torch sees no Apple GPU (MPS) here; run with --device cpu")
+        return DeviceChoice(torch.device("mps"), "Apple GPU (MPS)",
+                            "asked for (--device mps): the style networks on the GPU, the rasterizer on the CPU")
+    why = "asked for (--device cpu)" if requested == "cpu" else "auto: torch sees no CUDA device"
+    return DeviceChoice(torch.device("cpu"), "CPU", why)
+
+
+def describe(choice: DeviceChoice) -> str:
+    """One line for OUT.json's ``decisions.device`` and the logs."""
+    return f"{choice.kind} ({choice.name}): {choice.reason}"
