@@ -42,6 +42,30 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
     return str(path)
 
 
+def export_shown_result(scene: Any, summary_file: str | Path, path: Path) -> str:
+    """Save a result the studio shows with no engine running (reopened, or brought back by Ctrl+Z) under ``path``:
+    the scene as it was opened, in the format ``path``'s suffix names, and its summary copied beside it (settings,
+    paintings and original kept; ``scene`` and ``gaussians`` say what was written). Both appear or neither."""
+    from gstyle_core.atomic import atomic_write_text
+    from gstyle_core.errors import GStyleError
+    from gstyle_core.io import save_scene
+    from gstyle_core.io.saver import format_of
+    from gstyle_core.outputs import OutputGroup
+
+    fmt = format_of(path)
+    if fmt not in EXPORT_FORMATS:
+        raise GStyleError(f"export path must end in .ply, .spz or .compressed.ply, got {path.name}")
+    try:
+        summary = json.loads(Path(summary_file).read_text())
+    except (OSError, ValueError) as exc:
+        raise GStyleError(f"cannot read the result's summary {summary_file}: {exc}") from exc
+    summary.update(scene=str(path), gaussians=int(scene.count))
+    with OutputGroup() as group:
+        group.write(summary_path(path), lambda tmp: atomic_write_text(tmp, json.dumps(summary, indent=2, default=str)))
+        group.write(path, lambda tmp: save_scene(scene, tmp, fmt=fmt))
+    return str(path)
+
+
 def summary_path(export: str | Path) -> Path:
     """The JSON summary written beside an export: ``name.json`` for ``name.ply``, ``.spz`` or ``.compressed.ply``
     (``gstyle_core.outputs.companion``: never cut at an inner dot)."""

@@ -14,7 +14,7 @@ from gstyle_core.outputs import SUMMARY, unused_name
 from gstyle_core.pipeline.controls import painting_controls
 from gstyle_core.scene import GaussianScene
 
-from .export import EXPORT_SUFFIXES
+from .export import EXPORT_SUFFIXES, export_shown_result
 from .panels import Command
 from .snapshot import has_scene, scene_from_snapshot
 from .video_job import VideoJob, turntable_path
@@ -169,17 +169,32 @@ class StudioCommands:
         return path
 
     def export(self, path: str | Path | None = None, fmt: str = "ply") -> None:
-        """Export the stylized scene (``fmt`` "ply", "spz" or "compressed-ply", + .json) through the worker."""
-        if self.bridge is None or not self.bridge.alive:
-            self.panel.status = "export: no engine is running"
+        """Export the stylized scene (``fmt`` "ply", "spz" or "compressed-ply", + .json) through the worker; with no
+        engine running, the result on show (reopened or brought back by undo) is saved as it is."""
+        shown_result = self.result is not None and self.loaded is not None
+        if (self.bridge is None or not self.bridge.alive) and not shown_result:
+            self.panel.status = "export: no engine is running and no result is shown"
             return
         suffix = EXPORT_SUFFIXES[fmt]
         if not path:  # a name of its own: an earlier export of this second (another format) keeps its summary
             stamped = self.export_folder() / f"stylized_{time.strftime('%Y%m%d_%H%M%S')}{suffix}"
             path = unused_name(stamped, (SUMMARY,))
         path = Path(path)
+        if self.bridge is None or not self.bridge.alive:
+            self._save_shown_result(path)
+            return
         self.bridge.export(path)
         self.panel.status = f"exporting {path} ..."
+
+    def _save_shown_result(self, path: Path) -> None:
+        """Write the result on show (no engine) under ``path`` and shelve it as a take, as an engine's export is."""
+        try:
+            export_shown_result(self.loaded.scene, self.result.summary, path)
+        except GStyleError as exc:
+            self.panel.status = f"export: {exc}"
+            return
+        self._shelve_exports([str(path)])
+        self.panel.status = f"saved {path} (kept as {self.takes.takes[0].name})"
 
     def export_folder(self) -> Path:
         """Where Ctrl+S and the export buttons write: the folder saved to last (Save As, or ``--output-dir``), else

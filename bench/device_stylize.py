@@ -60,25 +60,17 @@ def build(args: argparse.Namespace, device: str, precision: str, **overrides):
     return build_stylizer(request)
 
 
-def warm_up(device: str, width: int) -> None:
-    """CUDA: gsplat's module loaded (built once if need be) and its Python imported, one render and its backward,
-    VGG-16 forward and backward (one-time costs a studio session pays once, not per run)."""
-    if device != "cuda":
-        return
-    from gstyle_core.raster import rasterize
-    from gstyle_core.raster.gsplat_module import ensure_gsplat
-    from gstyle_core.raster.synthetic import random_scene
-    from gstyle_core.style.vgg import load_vgg
+def warm_up(args: argparse.Namespace, device: str) -> None:
+    """A whole small run first (the demo at 64 px, one epoch, 5 refit iterations) on the device, and on CUDA VGG-16
+    in bf16 at the working size: every module imported, every kernel compiled, gsplat's module loaded (built once if
+    need be): the one-time costs a studio session pays once, not per run."""
+    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
 
-    ensure_gsplat()
-    scene = random_scene(1000, 128, 96)  # a render and its backward: every module of the GPU path imported
-    leaves = [t.cuda().requires_grad_(True) for t in scene.params()]
-    rasterize(*leaves, scene.viewmat.cuda(), scene.K.cuda(), 128, 96).image.sum().backward()
-    vgg = load_vgg(dtype=torch.bfloat16, channels_last=True).to("cuda")
-    x = torch.rand(1, 3, width * 3 // 4, width, device="cuda", requires_grad=True)
-    for _ in range(3):
-        out = vgg(x)
-        (out if isinstance(out, torch.Tensor) else next(iter(out.values()))).float().mean().backward()
+    values = {name: None for name in SETTING_OPTIONS}
+    values.update(device=device, working_width=64, epochs=1.0, refit_iterations=5, preprocess_rounds=1)
+    engine = build_stylizer(BuildRequest(preset="preview", scene_kind="auto", overrides=values)).engine
+    while not engine.done:
+        engine.step()
     sync(device)
 
 
@@ -86,7 +78,7 @@ def run_once(args: argparse.Namespace, device: str, precision: str) -> dict:
     """Build and run one engine to the end; per-phase seconds, figures."""
     from gstyle_core.pipeline.cli import evaluate_run
 
-    warm_up(device, 256)
+    warm_up(args, device)
     if device == "cuda":
         torch.cuda.reset_peak_memory_stats()
     t0 = time.perf_counter()

@@ -65,14 +65,16 @@ class Studio:
     """``gstyle-studio`` in a window on the test's X display, with xdotool input and F12 screenshots."""
 
     def __init__(self, display: str, tmp: Path, scene: Path | None, size: str, *extra: str,
-                 engine: bool = False) -> None:
+                 engine: bool = False, start: list[str] | None = None, env: dict[str, str] | None = None) -> None:
         """``scene`` None: the bundled demo. ``engine``: a fake engine runs (``WITH_FAKE_ENGINE``; ``self.stepped``
-        appears once it has stepped), else none."""
+        appears once it has stepped), else none. ``start``: the interpreter's arguments before the studio's own
+        (replaces both); ``env``: more environment variables."""
         self.stepped = tmp / "stepped"
         self.env = {**os.environ, "DISPLAY": display, "GSTYLE_CACHE": str(tmp / "cache"),
-                    "GSTYLE_TEST_STEPPED": str(self.stepped)}
+                    "GSTYLE_TEST_STEPPED": str(self.stepped), **(env or {})}
         self.out = tmp / "out"
-        start = ["-c", WITH_FAKE_ENGINE, str(TESTS), "--engine"] if engine else ["-m", "app.main", "--no-engine"]
+        if start is None:
+            start = ["-c", WITH_FAKE_ENGINE, str(TESTS), "--engine"] if engine else ["-m", "app.main", "--no-engine"]
         argv = [sys.executable, *start, *([str(scene)] if scene is not None else []), "--size", size, "--output-dir",
                 str(self.out), *extra]
         self.proc = subprocess.Popen(argv, cwd=ROOT, env=self.env, stdout=subprocess.DEVNULL,

@@ -109,3 +109,30 @@ def test_the_command_line_opens_a_result_without_starting_an_engine(tmp_path, mo
                  str(tmp_path / "o")]) == 0
     assert "a stylized result (preset balanced" in capsys.readouterr().out
     assert not (tmp_path / "cache" / "checkpoints").exists()  # no engine ran, so none saved a session
+
+
+def test_a_result_on_show_without_an_engine_saves_as_it_is(window, tmp_path, monkeypatch):
+    """Save As (and Ctrl+S) of a reopened result: no engine runs, the scene as opened and its summary are written in
+    the format the name asks for, and it becomes a take."""
+    from fakes import ring_studio
+
+    from gstyle_core.io import load_scene
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    out, original, _, settings = _result(tmp_path, lambda_nnfm=321.0)
+    app = ring_studio(window, tmp_path)
+    try:
+        assert app.open_path(str(out)) and app.bridge is None
+        target = tmp_path / "saved" / "again.spz"
+        target.parent.mkdir()
+        app.save_as(target)
+        assert target.is_file() and "saved" in app.panel.status and app.takes.takes[0].path == str(target)
+        summary = json.loads(target.with_suffix(".json").read_text())
+        assert summary["scene"] == str(target) and summary["settings"]["weights"]["nnfm"] == 321.0
+        assert summary["source_scene"] == str(original.resolve()) and summary["gaussians"] == 60
+        again, _ = load_scene(target)
+        assert again.count == 60 and np.allclose(again.means, app.loaded.scene.means, atol=1e-2)
+        app.export(fmt="ply")  # Ctrl+S: into the folder saved to last
+        assert len(list(target.parent.glob("stylized_*.ply"))) == 1
+    finally:
+        app.close(timeout=30)
