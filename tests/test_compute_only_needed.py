@@ -460,7 +460,8 @@ def test_decisions_section_draws_every_line_when_open_and_none_when_closed(monke
     except DisplayUnavailableError as exc:
         pytest.skip(f"no headless GL window (glfw NULL + EGL): {exc}")
     recorder = install(monkeypatch)
-    state = PanelState(decisions={"preprocess": "skipped", "reductions": ["a", "b"]}, viewer_notes=["x"])
+    state = PanelState(decisions={"preprocess": "0 round(s), sizes even", "reductions": ["a", "b"]},
+                       viewer_notes=["x"])
     drawn = {}
     try:
         for is_open in (False, True):
@@ -476,7 +477,9 @@ def test_decisions_section_draws_every_line_when_open_and_none_when_closed(monke
         win.close()
     assert [w.path for w in recorder.widgets] == ["Decisions", "Decisions"]
     assert drawn[False] == []
-    assert drawn[True] == decision_lines(state.decisions) + ["x"] == ["preprocess: skipped", "reductions: a; b", "x"]
+    assert drawn[True] == ["Splat sizes already even: no splitting before the painting",  # worded for an artist
+                           *decision_lines(state.decisions), "x"]
+    assert drawn[True][1:] == ["preprocess: 0 round(s), sizes even", "reductions: a; b", "x"]
 
 
 def test_checkpoint_resume_with_culled_gaussians_matches_uninterrupted_run():

@@ -12,6 +12,7 @@ from imgui_bundle import imgui
 
 from gstyle_core.pipeline.controls import control, term_label
 
+from .decision_words import artist_lines
 from .state import Command, PanelState
 from .widgets import button, button_row, thumbnail, tooltip
 
@@ -212,12 +213,20 @@ def decision_lines(decisions: dict[str, Any]) -> list[str]:
 
 
 def decisions_section(state: PanelState) -> None:
-    """Collapsible list of what the engine and the viewer decided to compute or skip for this scene."""
+    """Collapsible list (folded at first) of what the engine and the viewer decided to compute or skip for this
+    scene: a few plain lines first (``decision_words.artist_lines``), then the engine's own under *Engine details*."""
     if not (state.decisions or state.viewer_notes):
         return
     opened = imgui.collapsing_header("Decisions")
     tooltip("What the engine and the viewer compute or skip for this scene, and why.")
-    if opened:
-        for line in decision_lines(state.decisions) + state.viewer_notes:
-            imgui.bullet()
-            imgui.text_wrapped(line)
+    if not opened:
+        return
+    for line in artist_lines(state.decisions):
+        imgui.bullet()
+        imgui.text_wrapped(font_safe(line))
+    details = decision_lines(state.decisions) + state.viewer_notes
+    if details:
+        imgui.text_disabled("Engine details")
+    for line in details:
+        imgui.bullet()
+        imgui.text_wrapped(line)
