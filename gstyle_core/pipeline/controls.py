@@ -165,10 +165,11 @@ CONTROLS: tuple[Control, ...] = (
             cli=CliOption("style strength: scales the style terms (CLIP, NNFM, broad strokes) against content; "
                           "default 1")),
     Control("style_scale", "stroke size", 1.0, 0.25, 4.0, True,
-            "Stroke size: the scale at which the painting's brush strokes are matched (its image resized to this "
-            "times the working width before its VGG features are taken): 2 matches the painting at twice that size, "
-            "0.5 at half; the broad-strokes term makes the change visible (docs/texture-scale.md). "
-            "Changing it re-extracts the painting's features from the next step on (--style-scale).",
+            "Stroke size: how large the painting's brush strokes come out on the scene. 2: strokes and patterns "
+            "twice as large, fewer of them across the view; 0.5: half as large, finer. It changes their size, not "
+            "how strong the style is (that is style strength); the broad-strokes term carries the large ones "
+            "(docs/texture-scale.md). From the next step on (--style-scale; the painting is matched at this times "
+            "the working width).",
             Effect.STYLE_FEATURES, read=lambda s: s.style_scale, write=_write_style_scale,
             cli=CliOption("stroke size: the painting is matched at S × the working width (2: at twice that size, "
                           "0.5: half; visible with the broad-strokes term, docs/texture-scale.md); default 1",
