@@ -1,10 +1,11 @@
 """Undo and redo in the studio (issue #35 item 1): every ``set_params`` the panel issues (sliders, term on/off,
 switches such as keep colours, the style mix, Reset all) is one step back with Ctrl+Z and forward again with
 Ctrl+Shift+Z or Ctrl+Y. A slider dragged over many frames is one step: changes of the same controls less than
-``COALESCE_SECONDS`` apart join the step before. A stylized result that a restart, a refine or another scene or
-painting replaces is a step too (``ResultEdit``): the engine wrote it to disk first (scene and summary), and undo
-opens it as a result. No GL, no engine here: the studio carries the steps out (the engine returns the colours of a
-finished run bit for bit when a switch goes back, ``Stylizer._switch_chroma``).
+``COALESCE_SECONDS`` apart join the step before. The region tool's selection is undone the same way
+(``RegionEdit``: turned on or off, the box placed, dragged or resized, a rectangle selected). A stylized result that
+a restart, a refine or another scene or painting replaces is a step too (``ResultEdit``): the engine wrote it to disk
+first (scene and summary), and undo opens it as a result. No GL, no engine here: the studio carries the steps out
+(the engine returns the colours of a finished run bit for bit when a switch goes back, ``Stylizer._switch_chroma``).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 COALESCE_SECONDS = 0.75
 LIMIT = 500
@@ -47,13 +50,35 @@ class ResultEdit:
         return f"the result before {self.action} ({self.before.name})"
 
 
+def _same_region(a: tuple, b: tuple) -> bool:
+    """Two region states (on, box, rectangle mask) select the same."""
+    if a[0] != b[0] or a[1] != b[1]:
+        return False
+    if a[2] is None or b[2] is None:
+        return a[2] is b[2]
+    return a[2] is b[2] or bool(np.array_equal(a[2], b[2]))
+
+
+@dataclass
+class RegionEdit:
+    """The region tool's selection before and after a change (``(on, box, rectangle mask)``: the tool turned on or
+    off, its box placed, moved or resized, a rectangle selected); a drag is one step."""
+
+    before: tuple
+    after: tuple
+    at: float
+
+    def describe(self) -> str:
+        return "the region selection"
+
+
 class EditHistory:
     """The undo and redo stacks of parameter edits."""
 
     def __init__(self, limit: int = LIMIT) -> None:
         self.limit = limit
-        self.done: list[ParamEdit | ResultEdit] = []
-        self.undone: list[ParamEdit | ResultEdit] = []
+        self.done: list[ParamEdit | ResultEdit | RegionEdit] = []
+        self.undone: list[ParamEdit | ResultEdit | RegionEdit] = []
 
     def record(self, before: dict[str, float], after: dict[str, float], now: float | None = None) -> None:
         """A change the artist made: ``before`` the values of the controls in ``after`` until now. A change that
@@ -71,13 +96,27 @@ class EditHistory:
         self.done.append(ParamEdit(before, after, now))
         del self.done[:-self.limit]
 
+    def record_region(self, before: tuple, after: tuple, now: float | None = None) -> None:
+        """A change of the region selection (``(on, box, rectangle mask)`` before and after); changes less than
+        ``COALESCE_SECONDS`` apart (a box dragged or resized) join the step before; no change is no step."""
+        now = time.monotonic() if now is None else now
+        if _same_region(before, after):
+            return
+        self.undone.clear()
+        last = self.done[-1] if self.done else None
+        if isinstance(last, RegionEdit) and now - last.at < COALESCE_SECONDS:
+            last.after, last.at = after, now
+            return
+        self.done.append(RegionEdit(before, after, now))
+        del self.done[:-self.limit]
+
     def record_result(self, edit: ResultEdit) -> None:
         """A result replaced (saved at ``edit.before``); a new step forgets what was undone."""
         self.undone.clear()
         self.done.append(edit)
         del self.done[:-self.limit]
 
-    def undo(self) -> ParamEdit | ResultEdit | None:
+    def undo(self) -> ParamEdit | ResultEdit | RegionEdit | None:
         """The step to take back (apply its ``before``), or None."""
         if not self.done:
             return None
@@ -87,7 +126,7 @@ class EditHistory:
             self.done[-1].at = float("-inf")  # the next change is a step of its own
         return edit
 
-    def redo(self) -> ParamEdit | ResultEdit | None:
+    def redo(self) -> ParamEdit | ResultEdit | RegionEdit | None:
         """The step to take again (apply its ``after``), or None."""
         if not self.undone:
             return None

@@ -25,6 +25,7 @@ class RegionTool:
         self._box_mask_cache: tuple[tuple, np.ndarray] | None = None  # (scene and box, its selection)
         self._selection_shown: dict[str, Any] = {}
         self._rect_start: tuple[float, float] | None = None
+        self._region_before_drag: tuple | None = None  # the selection when a Shift+drag started (its undo step)
         self.engine_region: str = ""
 
     def scene_box(self) -> tuple[float, ...]:
@@ -34,14 +35,33 @@ class RegionTool:
         m = np.asarray(self.loaded.scene.means, np.float64)
         return tuple(float(v) for v in (*m.min(0), *m.max(0)))
 
+    def region_state(self) -> tuple:
+        """What the selection is: (tool on, box, rectangle mask) — what undo and redo restore."""
+        return self.region_enabled, self.region_box, self.region_rect_mask
+
+    def restore_region(self, state: tuple) -> None:
+        """Put back a ``region_state()`` (undo, redo)."""
+        self.region_enabled, self.region_box, self.region_rect_mask = state
+        self._region_version += 1
+
+    def enable_region(self, on: bool) -> None:
+        """The region tool on or off (an undo step)."""
+        before = self.region_state()
+        self.region_enabled = bool(on)
+        self._region_version += 1
+        self.history.record_region(before, self.region_state())
+
     def set_region_box(self, box) -> None:
-        """Select the Gaussians centred in ``box`` (turns the tool on; the rectangle's selection is dropped)."""
+        """Select the Gaussians centred in ``box`` (turns the tool on; the rectangle's selection is dropped; an undo
+        step, one for a whole drag)."""
         from gstyle_core.pipeline.region import check_region
 
+        before = self.region_state()
         self.region_box = check_region(box)
         self.region_rect_mask = None
         self.region_enabled = True
         self._region_version += 1
+        self.history.record_region(before, self.region_state())
 
     def _box_tool_on(self) -> bool:
         return self.region_enabled and self.region_rect_mask is None and self.region_box is not None
@@ -66,9 +86,10 @@ class RegionTool:
         centre, half = (box[:3] + box[3:]) / 2, (box[3:] - box[:3]) / 2 * float(factor)
         self.set_region_box(tuple(np.concatenate([centre - half, centre + half])))
 
-    def select_rectangle(self, rect, width: int, height: int) -> int:
+    def select_rectangle(self, rect, width: int, height: int, before: tuple | None = None) -> int:
         """Select the Gaussians whose centres project into the screen rectangle (x0, y0, x1, y1 in framebuffer
-        pixels, y down) of the current view of ``width`` x ``height``; returns how many."""
+        pixels, y down) of the current view of ``width`` x ``height``; returns how many. ``before``: the selection
+        as the drag found it (the undo step goes back there)."""
         from gstyle_core.pipeline.region import rect_mask
 
         if self.loaded is None:
@@ -77,9 +98,11 @@ class RegionTool:
         if not mask.any():
             self.panel.status = "rectangle selection: no Gaussian centre in it (the selection is unchanged)"
             return 0
+        before = before if before is not None else self.region_state()
         self.region_rect_mask = mask
         self.region_enabled = True
         self._region_version += 1
+        self.history.record_region(before, self.region_state())
         self.panel.status = f"rectangle selection: {int(mask.sum()):,} Gaussians"
         return int(mask.sum())
 

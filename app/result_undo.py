@@ -14,7 +14,7 @@ from pathlib import Path
 from gstyle_core.paths import cache_dir
 from gstyle_core.pipeline.plan import STYLIZED_PHASES
 
-from .edit_history import ParamEdit, ResultEdit
+from .edit_history import ParamEdit, RegionEdit, ResultEdit
 from .export import summary_path
 
 KEPT_RESULTS = 12
@@ -75,6 +75,10 @@ class ResultUndo:
             return
         if isinstance(edit, ParamEdit):
             self._apply_params(edit.before if name == "undo" else edit.after)
+            self.panel.status = f"{name}: {edit.describe()}"
+            return
+        if isinstance(edit, RegionEdit):
+            self.restore_region(edit.before if name == "undo" else edit.after)
             self.panel.status = f"{name}: {edit.describe()}"
             return
         if name == "undo":

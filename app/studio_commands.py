@@ -112,8 +112,7 @@ class StudioCommands:
                 self.panel.camera_index = args["index"]
                 self.panel.status = f"camera {args['index'] + 1}: {cam.name}"
         elif name == "region_enable":
-            self.region_enabled = bool(args.get("on", True))
-            self._region_version += 1
+            self.enable_region(bool(args.get("on", True)))
         elif name == "region_box":
             self.set_region_box(args["box"])
         elif name == "region_fit":

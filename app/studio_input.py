@@ -36,11 +36,12 @@ class StudioInput:
             start, self._rect_start = self._rect_start, None
             self.panel.region_drag = None
             if start is not None and abs(fb_mouse[0] - start[0]) >= 2 and abs(fb_mouse[1] - start[1]) >= 2:
-                self.select_rectangle((*start, *fb_mouse), width, height)
+                self.select_rectangle((*start, *fb_mouse), width, height, before=self._region_before_drag)
         if not io_.want_capture_mouse and mouse[0] >= 0:
             divider_x = self.divider * width / sx
             if imgui.is_mouse_clicked(0) and io_.key_shift and self.loaded is not None:
                 self._dragging, self._rect_start = "select", fb_mouse
+                self._region_before_drag = self.region_state()  # the undo step starts here
                 self.region_enabled = True
             elif imgui.is_mouse_clicked(0) and io_.key_alt and self._box_tool_on():
                 self._dragging = "box"  # Alt + drag: place the region box in the view

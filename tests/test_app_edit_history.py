@@ -130,3 +130,41 @@ def test_a_restart_leaves_its_result_a_step_back_and_redo_brings_the_new_one(win
     finally:
         app.close(timeout=30)
     assert not history_folder().exists()  # the undo stack ends with the session
+
+
+def test_region_changes_are_undone_a_drag_at_a_time(studio):
+    """The region tool's selection is an undo step: turned on with a box, the box dragged (many moves: one step), a
+    rectangle selected; Ctrl+Z walks back through them to the tool off, Ctrl+Shift+Z forward again."""
+    from app.panels import Command
+
+    box = studio.scene_box()
+    half = tuple(v * 0.5 for v in box)
+    studio.execute(Command("region_box", {"box": half}))
+    first = studio.region_state()
+    studio.history.done[-1].at = float("-inf")  # a later change is a step of its own
+    for k in range(5):  # a drag: moves within the coalescing time
+        studio.set_region_box(tuple(v + 0.01 * (k + 1) for v in half))
+    dragged = studio.region_state()
+    studio.history.done[-1].at = float("-inf")
+    assert studio.select_rectangle((0, 0, W, H), W, H) > 0
+    assert studio.region_rect_mask is not None
+    studio.undo_or_redo("undo")
+    assert studio.region_state()[:2] == dragged[:2] and studio.region_rect_mask is None
+    studio.undo_or_redo("undo")
+    assert studio.region_state()[:2] == first[:2]
+    studio.undo_or_redo("undo")
+    assert not studio.region_enabled and "region selection" in studio.panel.status
+    studio.undo_or_redo("redo")
+    studio.undo_or_redo("redo")
+    studio.undo_or_redo("redo")
+    assert studio.region_enabled and studio.region_rect_mask is not None
+
+
+def test_an_unchanged_region_is_no_step():
+    h = EditHistory()
+    state = (True, (0.0, 0.0, 0.0, 1.0, 1.0, 1.0), None)
+    h.record_region(state, state)
+    assert not h.done
+    h.record_region((False, None, None), state, now=0.0)
+    h.record_region(state, (True, (0.0, 0.0, 0.0, 2.0, 2.0, 2.0), None), now=0.5)  # within the coalescing time
+    assert len(h.done) == 1 and h.done[0].before == (False, None, None)
