@@ -21,6 +21,7 @@ class RegionTool:
         self.region_enabled = False
         self.region_box: tuple[float, ...] | None = None
         self.region_rect_mask: np.ndarray | None = None  # the last rectangle's selection (mode "rectangle")
+        self.region_feather = 0.0  # the box's soft edge in scene units (the engine's region_feather)
         self._region_version = 0
         self._box_mask_cache: tuple[tuple, np.ndarray] | None = None  # (scene and box, its selection)
         self._selection_shown: dict[str, Any] = {}
@@ -123,8 +124,8 @@ class RegionTool:
 
     def _region_to_config(self) -> None:
         """Hand the selection to the engine's config (a box as ``region``, a rectangle as a ``selection`` mask)."""
-        self.engine_config.pop("region", None)
-        self.engine_config.pop("selection", None)
+        for key in ("region", "selection", "region_feather"):
+            self.engine_config.pop(key, None)
         mask = self.region_mask()
         if mask is None:
             self.engine_region = ""
@@ -134,6 +135,9 @@ class RegionTool:
         else:
             self.engine_config["region"] = tuple(self.region_box)
             self.engine_region = "box " + ",".join(f"{v:.3g}" for v in self.region_box)
+            if self.region_feather > 0:
+                self.engine_config["region_feather"] = float(self.region_feather)
+                self.engine_region += f", feathered over {self.region_feather:.3g}"
 
     def _apply_selection(self) -> None:
         """While the region tool is on, the Gaussians outside the selection are drawn dimmed in every view (the

@@ -115,6 +115,8 @@ class StudioCommands:
             self.enable_region(bool(args.get("on", True)))
         elif name == "region_box":
             self.set_region_box(args["box"])
+        elif name == "region_feather":
+            self.region_feather = max(0.0, float(args["value"]))
         elif name == "region_fit":
             self.set_region_box(self.scene_box())
         elif name == "toggle_help":

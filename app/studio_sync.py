@@ -62,6 +62,7 @@ class StudioSync:
         p.region_mode = "rectangle" if self.region_rect_mask is not None else "box"
         if self.region_box is not None:
             p.region_box = tuple(self.region_box)
+        p.region_feather = float(self.region_feather)
         p.region_selected = int(mask.sum()) if mask is not None else 0
         p.region_total = self.loaded.scene.count if self.loaded is not None else 0
         p.region_in_engine = self.engine_region if self.bridge is not None else ""

@@ -136,3 +136,22 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         assert not app.region_enabled and not app.stylized.highlight
     finally:
         assert app.close(timeout=60)
+
+
+def test_the_feather_slider_goes_to_the_engine_with_the_box(window, monkeypatch, tmp_path):
+    """The region section's feather (box mode) is handed to the engine with the box when the run (re)starts, and the
+    panel says the engine runs with it; a rectangle selection has no feather."""
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    app = StudioApp(window.ctx, loaded=LoadedScene("blob", blob_scene(150, seed=5), ring_cameras(3)),
+                    output_dir=tmp_path)
+    try:
+        app.execute(Command("region_box", {"box": HALF}))
+        app.execute(Command("region_feather", {"value": 0.25}))
+        app._region_to_config()
+        assert app.engine_config["region"] == HALF and app.engine_config["region_feather"] == 0.25
+        assert "feathered over 0.25" in app.engine_region
+        app.select_rectangle((0, 0, 200, 200), 400, 300)
+        app._region_to_config()
+        assert "region_feather" not in app.engine_config and "selection" in app.engine_config
+    finally:
+        app.close(timeout=30)

@@ -216,3 +216,41 @@ def test_cli_region_runs_and_is_recorded(tmp_path, monkeypatch):
                                                      axis=1).tolist()}
     written_rows = {tuple(r) for r in np.concatenate([written.means, written.sh_rest.reshape(-1, 9)], axis=1).tolist()}
     assert outside_rows <= written_rows  # every outside Gaussian, SH bands included, is in the file as it was
+
+
+# ====================================================================== a soft edge
+def test_feather_weights_fall_from_one_inside_to_zero_at_the_feather():
+    from gstyle_core.pipeline.region import feather_weights, grown_box
+
+    box = (0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
+    points = np.array([[0.5, 0.5, 0.5], [1.0, 0.5, 0.5], [1.1, 0.5, 0.5], [1.2, 0.5, 0.5], [1.3, 1.3, 0.5],
+                       [-0.5, 0.5, 0.5]])
+    w = feather_weights(points, box, 0.2)
+    assert w.tolist() == pytest.approx([1.0, 1.0, 0.5, 0.0, 0.0, 0.0], abs=1e-6)
+    assert feather_weights(points, box, 0.0).tolist() == [1.0, 1.0, 0.0, 0.0, 0.0, 0.0]  # the hard edge
+    assert grown_box(box, 0.25) == (-0.25, -0.25, -0.25, 1.25, 1.25, 1.25)
+
+
+def test_a_feathered_region_fades_the_style_out_across_its_band():
+    """The band outside the box is selected and stylized too, and shown and exported mixed with its own colours by
+    its distance: full style inside, the scene's colours beyond the feather."""
+    from gstyle_core.pipeline.region import feather_weights
+    from gstyle_core.scene import sh_dc_to_rgb
+
+    scene = blob_scene(200, seed=5, sh_degree=0)
+    hard = make_engine(scene=scene, region_feather=0.0)
+    soft = make_engine(scene=scene, region_feather=0.3)
+    in_band = (feather_weights(scene.means, HALF, 0.3) > 0) & ~box_mask(scene.means, HALF)
+    assert in_band.sum() > 5
+    assert soft.input_selection.sum() == hard.input_selection.sum() + in_band.sum()
+    assert "feathered over 0.3 scene units" in soft.decisions["region"]
+    soft.run()
+    out = soft.stylized_scene()
+    rgb, gt = sh_dc_to_rgb(out.sh_dc), soft.run_state.gt_rgb().numpy()
+    c_s = soft.c_s.detach().clamp(0, 1).numpy()
+    w = feather_weights(soft.params["means"].detach().numpy(), HALF, 0.3)[:, None]
+    selected = soft.selection
+    np.testing.assert_allclose(rgb[selected], (gt + w * (c_s - gt))[selected], atol=2e-3)
+    inside = selected & (w[:, 0] == 1.0)
+    assert np.abs(rgb[inside] - c_s[inside]).max() < 2e-3  # full style inside the box
+    np.testing.assert_allclose(soft.snapshot()["colors"], np.clip(gt + w * (c_s - gt), 0, 1), atol=1e-5)

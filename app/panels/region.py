@@ -14,6 +14,7 @@ REGION_TOOLTIP = (
     "to select the Gaussians "
     "whose centres fall in it. The selection is outlined in every view. Only the selected Gaussians are pre-processed, "
     "split and stylized, the losses see only them, and every other Gaussian is exported untouched (SH included). "
+    "The feather fades the style out over a band outside the box. "
     "It applies when the run (re)starts (--region x0,y0,z0,x1,y1,z1). Shortcut: B.")
 
 
@@ -43,6 +44,14 @@ def region_section(state: PanelState, out: list[Command]) -> None:
                 if ch_hi and hi[k] < lo[k]:
                     lo[k] = hi[k]
             out.append(Command("region_box", {"box": tuple(float(v) for v in (*lo, *hi))}))
+        if state.region_mode == "box":
+            size = max(box[3] - box[0], box[4] - box[1], box[5] - box[2], 1e-3)
+            ch_f, feather = imgui.slider_float("feather", state.region_feather, 0.0, 0.5 * size, "%.3f")
+            tooltip("The box's soft edge, in scene units: the style fades out over this distance outside the box "
+                    "instead of stopping at its faces (0: a hard edge). It applies when the run (re)starts "
+                    "(--region-feather).")
+            if ch_f:
+                out.append(Command("region_feather", {"value": float(feather)}))
         if button("fit to scene", "Reset the box to the scene's bounds (every Gaussian selected).", small=True):
             out.append(Command("region_fit"))
         imgui.same_line()

@@ -78,6 +78,7 @@ class PanelState:
     region_enabled: bool = False  # the selection tool is on: its selection is highlighted and used at (re)start
     region_mode: str = "box"  # "box" (the 3D box below) or "rectangle" (the last Shift + drag in the view)
     region_box: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # x0,y0,z0,x1,y1,z1 in scene coordinates
+    region_feather: float = 0.0  # the box's soft edge in scene units (the style fades out over it; 0: hard)
     region_selected: int = 0  # Gaussians of the input scene in the selection
     region_total: int = 0
     region_in_engine: str = ""  # what the running engine was started with ("" : the whole scene)

@@ -18,7 +18,7 @@ from .controls import cli_control_names
 # set those): the options of ``gstyle stylize`` and of the studio's engine config. None keeps the preset's value.
 SETTING_OPTIONS = (*cli_control_names(), "working_width", "clip_weights", "vgg_weights", "max_gaussians",
                    "style_weights", "region", "precision", "refine_widths", "refine_mode", "match_detail_px",
-                   "device")
+                   "device", "region_feather")
 
 
 @dataclass

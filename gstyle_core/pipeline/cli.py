@@ -37,6 +37,9 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--defaults", choices=["calibrated", "paper"], default=None,
                    help="360° scenes: values calibrated on this machine (default; README) or the paper's")
     add_control_arguments(p)  # --lambda-clip ... --split-rate: the live controls that have an option (controls.py)
+    p.add_argument("--region-feather", type=float, default=None, metavar="D",
+                   help="the region box's soft edge: the style fades out over D scene units outside the box "
+                        "(default 0: a hard edge)")
     p.add_argument("--region", type=region_arg, default=None, metavar="x0,y0,z0,x1,y1,z1",
                    help="stylize only the Gaussians centred in this axis-aligned box (scene coordinates); the others "
                         "are exported untouched, SH included (write --region=-1,... when x0 is negative)")

@@ -6,7 +6,10 @@ screen rectangle of a camera (the studio's rectangle tool: the Gaussians in fron
 centres fall inside). The engine (``stylizer.py``) pre-processes, splits, refits and stylizes only the selected
 Gaussians (children inherit the selection); the others keep every attribute and leave the export exactly as they
 came in (``Stylizer.stylized_scene``), and the losses see only the selected part (the objective's coverage is the
-selected Gaussians' rendered weight). Nothing here imports torch: the studio uses it on its UI thread.
+selected Gaussians' rendered weight). A box may have a soft edge (``region_feather``, scene units): the Gaussians up
+to that far outside it are selected too, and each one's stylized colour is shown and exported mixed with its own by
+``feather_weights`` (1 inside the box, falling to 0 at the feather's distance), so the style fades out instead of
+stopping at a seam (``feather.feathered_colours``). Nothing here imports torch: the studio uses it on its UI thread.
 """
 
 from __future__ import annotations
@@ -58,6 +61,33 @@ def box_mask(means: np.ndarray, box: Sequence[float]) -> np.ndarray:
     return np.all((m >= b[:3]) & (m <= b[3:]), axis=1)
 
 
+def grown_box(box: Sequence[float], by: float) -> Box:
+    """``box`` grown by ``by`` scene units on every side (the band a feathered region also stylizes)."""
+    b = check_region(box)
+    return check_region([*(v - by for v in b[:3]), *(v + by for v in b[3:])])
+
+
+def feather_weights(means: np.ndarray, box: Sequence[float], feather: float) -> np.ndarray:
+    """Float [N] in [0, 1]: how much of its stylized colour each centre shows in a feathered region: 1 inside
+    ``box``, falling linearly with the distance outside it to 0 at ``feather`` scene units (``feather`` 0: the box's
+    hard edge)."""
+    b = np.asarray(check_region(box), np.float64)
+    m = np.asarray(means, np.float64).reshape(-1, 3)
+    outside = np.maximum(b[:3] - m, 0.0) + np.maximum(m - b[3:], 0.0)  # per axis; one of the two is 0
+    distance = np.linalg.norm(outside, axis=1)
+    if feather <= 0:
+        return (distance == 0).astype(np.float32)
+    return np.clip(1.0 - distance / float(feather), 0.0, 1.0).astype(np.float32)
+
+
+def selected_box(settings) -> Box | None:
+    """The box a run selects by: the region's, grown by its feather (None without a region)."""
+    if settings.region is None:
+        return None
+    feather = float(getattr(settings, "region_feather", 0.0))
+    return grown_box(settings.region, feather) if feather > 0 else check_region(settings.region)
+
+
 def rect_mask(means: np.ndarray, camera, rect: Sequence[float]) -> np.ndarray:
     """Bool [N]: the centres in front of ``camera`` (a ``cameras.Camera``) whose projection falls in the pixel
     rectangle ``rect`` = (x0, y0, x1, y1) (any two opposite corners, image pixels, y down)."""
@@ -101,8 +131,10 @@ def selection_mask(means: np.ndarray, box: Sequence[float] | None = None,
     return mask
 
 
-def region_note(box: Sequence[float] | None, selected: int, total: int) -> str:
+def region_note(box: Sequence[float] | None, selected: int, total: int, feather: float = 0.0) -> str:
     """One line for the run's decisions and OUT.json."""
     where = ("box " + ",".join(f"{v:g}" for v in box)) if box is not None else "a selection"
-    return (f"{where}: {selected:,} of {total:,} Gaussians selected and stylized; the other {total - selected:,} "
-            "are exported untouched (every attribute, SH included)")
+    soft = (f" (its edge feathered over {feather:g} scene units: the style fades out to the scene's own colours "
+            "there)") if box is not None and feather > 0 else ""
+    return (f"{where}{soft}: {selected:,} of {total:,} Gaussians selected and stylized; the other "
+            f"{total - selected:,} are exported untouched (every attribute, SH included)")

@@ -57,6 +57,8 @@ class StylizeSettings:
     # them to sum 1; empty: equal shares)
     region: tuple[float, ...] | None = None  # x0,y0,z0,x1,y1,z1: stylize only the Gaussians centred in this box
     # (pipeline/region.py); None: the whole scene
+    region_feather: float = 0.0  # the region box's soft edge, scene units: the style fades out over this distance
+    # outside the box (pipeline/feather.py); 0: a hard edge
     epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
     min_steps: int = 0
     lr_start: float = 1e-1
@@ -255,7 +257,7 @@ def check_settings(s: StylizeSettings) -> StylizeSettings:
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
     s.refine_widths = check_refine_widths(s.refine_widths, s.working_width)
-    for name in ("match_detail_px", "preprocess_min_child_px", "refine_epochs"):
+    for name in ("match_detail_px", "preprocess_min_child_px", "refine_epochs", "region_feather"):
         value = float(getattr(s, name))
         if not (math.isfinite(value) and value >= 0):
             raise ValueError(f"{name} must be a finite number, 0 or more, got {getattr(s, name)!r}")

@@ -35,12 +35,13 @@ from ..style.clip import clip_term_name
 from ..style.mix import normalise_style_weights
 from .active import ActiveSet
 from .controls import Effect, apply_controls
+from .feather import feathered_colours
 from .levels import check_refine_widths, level_widths, next_width
 from .notes import note_levels, note_loss_terms, note_networks, note_planned_clip, note_style, sh_note
 from .phases import ColourMatch, GroundTruth, Phase, Preprocess, Refine, StepReport, Stylize
 from .phases.colour_match import match_content_targets
 from .plan import STYLIZED_PHASES
-from .region import region_note, selection_mask
+from .region import region_note, selected_box, selection_mask
 from .run_state import RunState
 from .settings import StylizeSettings, ui_params
 
@@ -80,13 +81,14 @@ class Stylizer:
         settings.style_weights = normalise_style_weights(settings.style_weights, len(styles))
         # a selected region (settings.region and/or a ``selection`` mask, region.py): only these Gaussians are
         # pre-processed, split, refitted and stylized
-        mask = selection_mask(scene.means, settings.region, selection)
+        mask = selection_mask(scene.means, selected_box(settings), selection)
         self.input_selection = mask  # over the input's Gaussians (None: all); in the checkpoint fingerprint
         self.run_state = run = RunState(
             scene, [cameras[i] for i in view_ids], [photos[i] for i in view_ids] if photos is not None else None,
             styles, settings, objective_factory=objective_factory, selection=mask)
         if mask is not None:
-            run.decisions["region"] = region_note(settings.region, int(mask.sum()), scene.count)
+            run.decisions["region"] = region_note(settings.region, int(mask.sum()), scene.count,
+                                                  settings.region_feather)
         run.decisions["sh"] = sh_note(scene.sh_degree, photos is not None, run.gt_sh_degree, len(run.cameras))
         self.clip_name = clip_term_name(settings.clip_weights)  # "CLIP", or the coarse substitute's name
         note_planned_clip(run.decisions, settings)
@@ -351,7 +353,7 @@ class Stylizer:
     def snapshot(self) -> dict[str, Any]:
         """Arrays a viewer needs (numpy copies): geometry, stylized and ground-truth colours, versions."""
         p, run = self.params, self.run_state
-        colors = run.c_s if self.phase in STYLIZED_PHASES else run.gt_rgb()
+        colors = feathered_colours(run, run.c_s) if self.phase in STYLIZED_PHASES else run.gt_rgb()
         return {
             "means": p["means"].detach().numpy().copy(),
             "log_scales": p["log_scales"].detach().numpy().copy(),
@@ -369,7 +371,7 @@ class Stylizer:
         """The current scene with c_s as its (SH degree 0) colour. A region run: the Gaussians outside the selection
         are the input's rows exactly (every attribute, their SH bands included; stylized ones get zero bands)."""
         scene = scene_from_params(self.params)
-        scene.sh_dc = rgb_to_sh_dc(self.c_s.detach().clamp(0, 1).numpy())
+        scene.sh_dc = rgb_to_sh_dc(feathered_colours(self.run_state, self.c_s.detach()).clamp(0, 1).numpy())
         return merge_unselected(scene, self.input_scene, self.run_state.active)
 
     # ----------------------------------------------------------------- checkpoints
