@@ -19,15 +19,7 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
     beside it (``summary_path``; ``style``: the engine's painting path(s), named there with their weights;
     ``source_scene``: the scene it was stylized from, so the result reopens with a way back to it). Both appear or
     neither (``OutputGroup``): a failed write (``OutputWriteError``, one line) leaves no take behind."""
-    from gstyle_core.atomic import atomic_write_text
-    from gstyle_core.errors import GStyleError
-    from gstyle_core.io import save_scene
-    from gstyle_core.io.saver import format_of
-    from gstyle_core.outputs import OutputGroup
-
-    fmt = format_of(path)
-    if fmt not in EXPORT_FORMATS:
-        raise GStyleError(f"export path must end in .ply, .spz or .compressed.ply, got {path.name}")
+    fmt = _export_format(path)
     scene = engine.stylized_scene() if hasattr(engine, "stylized_scene") else scene_from_snapshot(engine.snapshot())
     source = str(Path(source_scene).resolve()) if source_scene else None
     summary = {"scene": str(path), "source_scene": source, "gaussians": scene.count,
@@ -36,30 +28,41 @@ def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, p
                "decisions": getattr(engine, "decisions", None),
                "settings": engine.settings.to_dict() if hasattr(getattr(engine, "settings", None), "to_dict")
                else None}
-    with OutputGroup() as group:
-        group.write(summary_path(path), lambda tmp: atomic_write_text(tmp, json.dumps(summary, indent=2, default=str)))
-        group.write(path, lambda tmp: save_scene(scene, tmp, fmt=fmt))
-    return str(path)
+    return _write_export(path, fmt, scene, summary)
 
 
 def export_shown_result(scene: Any, summary_file: str | Path, path: Path) -> str:
     """Save a result the studio shows with no engine running (reopened, or brought back by Ctrl+Z) under ``path``:
     the scene as it was opened, in the format ``path``'s suffix names, and its summary copied beside it (settings,
     paintings and original kept; ``scene`` and ``gaussians`` say what was written). Both appear or neither."""
-    from gstyle_core.atomic import atomic_write_text
     from gstyle_core.errors import GStyleError
-    from gstyle_core.io import save_scene
-    from gstyle_core.io.saver import format_of
-    from gstyle_core.outputs import OutputGroup
 
-    fmt = format_of(path)
-    if fmt not in EXPORT_FORMATS:
-        raise GStyleError(f"export path must end in .ply, .spz or .compressed.ply, got {path.name}")
+    fmt = _export_format(path)
     try:
         summary = json.loads(Path(summary_file).read_text())
     except (OSError, ValueError) as exc:
         raise GStyleError(f"cannot read the result's summary {summary_file}: {exc}") from exc
     summary.update(scene=str(path), gaussians=int(scene.count))
+    return _write_export(path, fmt, scene, summary)
+
+
+def _export_format(path: Path) -> str:
+    """The format ``path``'s suffix names, or a one-line ``GStyleError`` when the studio does not export it."""
+    from gstyle_core.errors import GStyleError
+    from gstyle_core.io.saver import format_of
+
+    fmt = format_of(path)
+    if fmt not in EXPORT_FORMATS:
+        raise GStyleError(f"export path must end in .ply, .spz or .compressed.ply, got {path.name}")
+    return fmt
+
+
+def _write_export(path: Path, fmt: str, scene: Any, summary: dict[str, Any]) -> str:
+    """The scene at ``path`` and its summary beside it, both or neither (``OutputGroup``)."""
+    from gstyle_core.atomic import atomic_write_text
+    from gstyle_core.io import save_scene
+    from gstyle_core.outputs import OutputGroup
+
     with OutputGroup() as group:
         group.write(summary_path(path), lambda tmp: atomic_write_text(tmp, json.dumps(summary, indent=2, default=str)))
         group.write(path, lambda tmp: save_scene(scene, tmp, fmt=fmt))

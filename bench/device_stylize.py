@@ -1,8 +1,8 @@
 """Whole stylization runs on each device side by side, with the result figures, on one machine.
 
 For every ``--devices`` entry (default ``cpu,cuda`` where CUDA is seen, else ``cpu``) it builds the engine as
-``gstyle stylize`` does (``--device``), warms the device up (CUDA: gsplat's module, VGG-16 and one render), runs the
-whole pipeline step by step and prints:
+``gstyle stylize`` does (``--device``) after a warm-up (a whole small run on the device: imports, compiled kernels,
+gsplat's module), runs the whole pipeline step by step and prints:
 
 - the machine (CPU model and cores; the GPU, its driver and CUDA; torch), the precision each run chose and why;
 - per device: engine build seconds, run seconds, per-phase seconds, stylize steps a second, peak GPU memory;
@@ -60,15 +60,13 @@ def build(args: argparse.Namespace, device: str, precision: str, **overrides):
     return build_stylizer(request)
 
 
-def warm_up(args: argparse.Namespace, device: str) -> None:
-    """A whole small run first (the demo at 64 px, one epoch, 5 refit iterations) on the device, and on CUDA VGG-16
-    in bf16 at the working size: every module imported, every kernel compiled, gsplat's module loaded (built once if
-    need be): the one-time costs a studio session pays once, not per run."""
-    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
-
-    values = {name: None for name in SETTING_OPTIONS}
-    values.update(device=device, working_width=64, epochs=1.0, refit_iterations=5, preprocess_rounds=1)
-    engine = build_stylizer(BuildRequest(preset="preview", scene_kind="auto", overrides=values)).engine
+def warm_up(device: str, precision: str) -> None:
+    """A whole small run first (the demo at 64 px, one epoch, 5 refit iterations) on the device at the timed run's
+    precision: every module imported, every kernel compiled, gsplat's module loaded (built once if need be): the
+    one-time costs a studio session pays once, not per run."""
+    demo = argparse.Namespace(scene=None, style=None, preset="preview")
+    engine = build(demo, device, precision, working_width=64, epochs=1.0, refit_iterations=5,
+                   preprocess_rounds=1).engine
     while not engine.done:
         engine.step()
     sync(device)
@@ -78,7 +76,7 @@ def run_once(args: argparse.Namespace, device: str, precision: str) -> dict:
     """Build and run one engine to the end; per-phase seconds, figures."""
     from gstyle_core.pipeline.cli import evaluate_run
 
-    warm_up(args, device)
+    warm_up(device, precision)
     if device == "cuda":
         torch.cuda.reset_peak_memory_stats()
     t0 = time.perf_counter()

@@ -41,6 +41,14 @@ class DeviceChoice:
         """``cpu``, ``cuda`` or ``mps``."""
         return self.device.type
 
+    @property
+    def raster_device(self) -> torch.device:
+        """Where renders run: the GPU on CUDA (gsplat's kernels), else the CPU (numba; gsplat has no Metal
+        backend, so an MPS run renders on the CPU)."""
+        import torch
+
+        return self.device if self.kind == "cuda" else torch.device("cpu")
+
 
 def _mps_available() -> bool:
     import torch

@@ -172,6 +172,30 @@ def random_torchvision_vgg_state() -> dict:
             for i, _ in CONV_LAYERS for kind in ("weight", "bias")}
 
 
+def engine_with_random_vgg(monkeypatch, **overrides):
+    """A tiny real engine whose objective loads its VGG (random weights, seeded) as the product does: ``load_vgg``
+    patched; preview settings over 3 ring cameras, 32 px, 3 epochs, no pre-processing or splits unless ``overrides``
+    say otherwise."""
+    import torch
+    from synthetic import blob_scene, ring_cameras
+
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.style import vgg as vgg_module
+    from gstyle_core.style.vgg import VGGFeatures
+
+    def fake_load_vgg(weights=None, cache_dir=None, dtype=torch.float32, channels_last=False):
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(0)
+            return VGGFeatures().set_compute_mode(dtype, channels_last)
+
+    monkeypatch.setattr(vgg_module, "load_vgg", fake_load_vgg)
+    style = np.random.default_rng(0).uniform(size=(24, 24, 3)).astype(np.float32)
+    opts = dict(max_views=3, epochs=3, min_steps=0, preprocess_rounds=0, split_rate=0.0, working_width=32)
+    opts.update(overrides)
+    return Stylizer(blob_scene(150, seed=3), ring_cameras(3), style, resolve_settings("preview", "forward", 3, **opts))
+
+
 def engine_at_stylize(vgg, scene, style, **overrides):
     """A tiny real engine (the real ``StyleObjective`` on ``vgg``) over 3 ring cameras, stepped to its stylize phase:
     preview settings without pre-processing or splits, 32 px wide, 3 epochs, unless ``overrides`` say otherwise."""

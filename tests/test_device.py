@@ -4,35 +4,23 @@ between devices (renders, refits, checkpoints) behaving on one device exactly as
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 import torch
 
 from gstyle_core.cli import run
 from gstyle_core.fit.model import params_from_scene, render_params
 from gstyle_core.fit.trainer import FitConfig, Trainer
-from gstyle_core.pipeline.settings import StylizeSettings, check_settings, resolve_settings
+from gstyle_core.pipeline.settings import StylizeSettings, check_settings
 from gstyle_core.pipeline.stylizer import Stylizer
-from gstyle_core.style.precision import gpu_precision
+from gstyle_core.style.precision import choose_precision, cuda_card
+from tests.fakes import engine_with_random_vgg
 from tests.synthetic import blob_scene, ring_cameras
 
 CUDA = torch.cuda.is_available()
 
 
 def _engine(monkeypatch, device: str) -> Stylizer:
-    from gstyle_core.style import vgg as vgg_module
-    from gstyle_core.style.vgg import VGGFeatures
-
-    def fake_load_vgg(weights=None, cache_dir=None, dtype=torch.float32, channels_last=False):
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(0)
-            return VGGFeatures().set_compute_mode(dtype, channels_last)
-
-    monkeypatch.setattr(vgg_module, "load_vgg", fake_load_vgg)
-    style = np.random.default_rng(0).uniform(size=(24, 24, 3)).astype(np.float32)
-    settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=2, min_steps=0, preprocess_rounds=0,
-                                split_rate=0.0, working_width=32, precision="fp32", device=device)
-    return Stylizer(blob_scene(150, seed=3), ring_cameras(3), style, settings)
+    return engine_with_random_vgg(monkeypatch, epochs=2, precision="fp32", device=device)
 
 
 @pytest.mark.skipif(CUDA, reason="auto picks CUDA on this machine")
@@ -86,7 +74,11 @@ def test_a_trainers_saved_moments_are_cpu_copies():
 
 
 def test_gpu_precision_applies_only_to_cuda_runs():
-    assert gpu_precision(StylizeSettings(precision="bf16", device="cuda")) is None  # an explicit choice stands
-    assert gpu_precision(StylizeSettings(precision="auto", device="cpu")) is None
+    size = (48, 64)
+    assert choose_precision("fp32", size, gpu=("Card", True))[0] == "fp32"  # an explicit choice stands
+    assert choose_precision("auto", size, env={"GSTYLE_PRECISION": "fp32"}, gpu=("Card", True))[0] == "fp32"
+    assert choose_precision("auto", size, env={}, gpu=("Card", True))[0] == "bf16"
+    assert choose_precision("auto", size, env={}, gpu=("Old card", False))[0] == "fp32"
+    assert cuda_card(StylizeSettings(precision="auto", device="cpu")) is None
     if not CUDA:
-        assert gpu_precision(StylizeSettings(precision="auto", device="auto")) is None
+        assert cuda_card(StylizeSettings(precision="auto", device="auto")) is None

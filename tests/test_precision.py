@@ -193,23 +193,9 @@ def test_a_style_target_searches_in_its_networks_precision():
 
 def _run(monkeypatch, steps: int = 3, **overrides):
     """A tiny real engine whose objective loads its VGG (random weights) as the product does."""
-    from synthetic import blob_scene, ring_cameras
+    from fakes import engine_with_random_vgg
 
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
-    from gstyle_core.style import vgg as vgg_module
-
-    def fake_load_vgg(weights=None, cache_dir=None, dtype=torch.float32, channels_last=False):
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(0)
-            model = VGGFeatures()
-        return model.set_compute_mode(dtype, channels_last)
-
-    monkeypatch.setattr(vgg_module, "load_vgg", fake_load_vgg)
-    style = np.random.default_rng(0).uniform(size=(24, 24, 3)).astype(np.float32)
-    settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=3, min_steps=0, preprocess_rounds=0,
-                                split_rate=0.0, working_width=32, **overrides)
-    engine = Stylizer(blob_scene(150, seed=3), ring_cameras(3), style, settings)
+    engine = engine_with_random_vgg(monkeypatch, **overrides)
     while engine.phase != "stylize":
         engine.step()
     losses = [engine.step().losses for _ in range(steps)]

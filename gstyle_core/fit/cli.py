@@ -122,7 +122,7 @@ def fit_device(args: argparse.Namespace) -> str:
     choice = resolve_device(getattr(args, "device", "auto"))
     args.device_note = describe(choice)
     print(f"device: {args.device_note}")
-    return "cuda" if choice.kind == "cuda" else "cpu"
+    return str(choice.raster_device)
 
 
 def _train(params: torch.nn.ParameterDict, views: _Views, args: argparse.Namespace) -> tuple[Trainer, float]:

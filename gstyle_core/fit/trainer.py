@@ -90,12 +90,12 @@ class Trainer:
             raise ValueError("fitting needs at least one camera and exactly one image per camera")
         self.params = params
         self.cameras = list(cameras)
-        self.device = torch.device(self.config_device(config))
+        self.config = config or FitConfig()
+        self.device = torch.device(self.config.device)
         self.images = [torch.as_tensor(np.asarray(im, np.float32)).to(self.device) for im in images]
         for cam, im in zip(self.cameras, self.images, strict=True):
             if tuple(im.shape[:2]) != (cam.height, cam.width):
                 raise ValueError(f"image {tuple(im.shape)} does not match camera {cam.width}x{cam.height}")
-        self.config = config or FitConfig()
         self.strategy = strategy or Strategy()
         self.extent = extent if extent is not None else scene_scale(self.cameras)
         self.state = strategy_state if strategy_state is not None else self.strategy.initialize_state(params)
@@ -104,11 +104,6 @@ class Trainer:
         self._rng = np.random.default_rng(self.config.seed)
         self._order: list[int] = []
         self.optimizers = self._make_optimizers()
-
-    @staticmethod
-    def config_device(config: FitConfig | None) -> str:
-        """The device renders run on (``config.device``; the CPU without a config)."""
-        return config.device if config is not None else "cpu"
 
     def _make_optimizers(self) -> dict[str, torch.optim.Optimizer]:
         c = self.config

@@ -44,7 +44,7 @@ class RunState:
                  objective_factory: Callable | None = None, selection: np.ndarray | None = None) -> None:
         self.settings = settings
         self.device_choice = resolve_device(settings.device)  # the style networks' device (device.py)
-        self.raster_device = torch.device("cuda", 0) if self.device_choice.kind == "cuda" else torch.device("cpu")
+        self.raster_device = self.device_choice.raster_device
         self.input_scene = scene
         self.full_cameras = full_cameras
         self.photos = photos

@@ -9,6 +9,7 @@ and several times slower. ``auto`` decides, in this order:
 
 1. ``$GSTYLE_PRECISION`` (``fp32`` or ``bf16``) when set; the test suite sets fp32, so no result of it depends on
    the CPU it runs on;
+1b. on a CUDA run (``cuda_card``): bf16 where the card computes it natively, else fp32, without timing;
 2. the choice remembered for this CPU model and torch version in ``<cache folder>/precision.json``;
 3. fp32 without timing on an x86 CPU whose flags say it has no native bf16;
 4. otherwise both are timed at the working size (VGG forward+backward and one NNFM search: a warm-up, then the best
@@ -168,10 +169,12 @@ def _timing_words(entry: Mapping[str, Any]) -> str:
 
 def choose_precision(requested: str, size: tuple[int, int], cache_dir: str | Path | None = None,
                      timer: Timer | None = None, cpu: CpuInfo | None = None,
-                     env: Mapping[str, str] | None = None) -> tuple[str, str]:
+                     env: Mapping[str, str] | None = None, gpu: tuple[str, bool] | None = None) -> tuple[str, str]:
     """(``"fp32"`` or ``"bf16"``, the reason in words) for ``requested`` (one of ``PRECISIONS``) at the working
-    ``size`` (height, width); see the module docstring for how ``auto`` decides. ``timer``, ``cpu`` and ``env``
-    replace the real timing, this machine's CPU and ``os.environ`` (tests)."""
+    ``size`` (height, width); see the module docstring for how ``auto`` decides. ``gpu``: a CUDA run's card
+    (``cuda_card``): after ``$GSTYLE_PRECISION``, ``auto`` takes bf16 where the card computes it natively, else fp32,
+    without timing. ``timer``, ``cpu`` and ``env`` replace the real timing, this machine's CPU and ``os.environ``
+    (tests)."""
     if requested not in PRECISIONS:
         raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {requested!r}")
     if requested != "auto":
@@ -181,6 +184,11 @@ def choose_precision(requested: str, size: tuple[int, int], cache_dir: str | Pat
     if forced in ("fp32", "bf16"):
         return forced, f"{forced} (auto): set by ${PRECISION_ENV}"
     ignored = f" (${PRECISION_ENV}={forced!r} ignored: not fp32 or bf16)" if forced else ""
+    if gpu is not None:
+        card, native = gpu
+        if native:
+            return "bf16", f"bf16 (auto): {card} computes bf16 natively; {COVERS}{ignored}"
+        return "fp32", f"fp32 (auto): {card} has no native bf16{ignored}"
     cpu = cpu or cpu_info()
     key = machine_key(cpu)
     path = Path(cache_dir if cache_dir is not None else default_cache_dir()) / CACHE_FILE
@@ -207,27 +215,18 @@ def resolve_precision(settings: Any, vgg: Any = None, **choose: Any) -> tuple[st
 
         precision = "bf16" if getattr(vgg, "compute_dtype", torch.float32) == torch.bfloat16 else "fp32"
         return precision, f"{precision}: the caller's VGG network runs in {precision}"
-    gpu = gpu_precision(settings, **choose)
-    if gpu is not None:
-        return gpu
-    return choose_precision(getattr(settings, "precision", "fp32"), working_size(settings.working_width), **choose)
+    return choose_precision(getattr(settings, "precision", "fp32"), working_size(settings.working_width),
+                            gpu=cuda_card(settings), **choose)
 
 
-def gpu_precision(settings: Any, env: Mapping[str, str] | None = None, **_: Any) -> tuple[str, str] | None:
-    """``auto`` on a CUDA run: bf16 where the card computes it natively (compute capability 8.0 and up, as
-    ``torch.cuda.is_bf16_supported``), else fp32; ``$GSTYLE_PRECISION`` and an explicit choice still win. None
-    when the run is not on CUDA (the CPU's rules apply)."""
-    requested = getattr(settings, "precision", "fp32")
-    if requested != "auto" or getattr(settings, "device", "cpu") not in ("auto", "cuda"):
+def cuda_card(settings: Any) -> tuple[str, bool] | None:
+    """(the card's name, whether it computes bf16 natively: compute capability 8.0 and up, as
+    ``torch.cuda.is_bf16_supported``) for a run on CUDA (``settings.device`` auto or cuda, and torch sees one); None
+    for a run elsewhere (the CPU's rules apply)."""
+    if getattr(settings, "device", "cpu") not in ("auto", "cuda"):
         return None
     import torch
 
     if not torch.cuda.is_available():
         return None
-    forced = (os.environ if env is None else env).get(PRECISION_ENV, "").strip().lower()
-    if forced in ("fp32", "bf16"):
-        return forced, f"{forced} (auto): set by ${PRECISION_ENV}"
-    card = torch.cuda.get_device_name(0)
-    if torch.cuda.is_bf16_supported(including_emulation=False):
-        return "bf16", f"bf16 (auto): {card} computes bf16 natively; {COVERS}"
-    return "fp32", f"fp32 (auto): {card} has no native bf16"
+    return torch.cuda.get_device_name(0), bool(torch.cuda.is_bf16_supported(including_emulation=False))

@@ -41,7 +41,6 @@ class Refit(Phase):
         self.steps_done = 0
         self.trainer: Trainer | None = None
         self._ids: torch.Tensor | None = None  # rows of run.params the trainer's copy holds (None: every row)
-        self._copied = False  # the trainer trains a copy (of ``_ids``' rows, or on the GPU), written back each step
         self._frozen: tuple[torch.Tensor, dict[str, torch.Tensor]] | None = None  # region: rows that stay put
 
     @classmethod
@@ -75,8 +74,8 @@ class Refit(Phase):
         device = run.raster_device
         cfg = FitConfig(iterations=self.iterations, sh_degree=0, sh_increase_every=10**9, trainable=GEOMETRY_AND_GT,
                         seed=seed, backend=run.settings.raster_backend, device=str(device))
-        self._copied = ids is not None or device.type != "cpu"
-        params = run.params if not self._copied else torch.nn.ParameterDict(
+        copied = ids is not None or device.type != "cpu"  # then written back into run.params after each step
+        params = run.params if not copied else torch.nn.ParameterDict(
             {k: torch.nn.Parameter((v.detach() if ids is None else v.detach()[ids]).to(device, copy=True))
              for k, v in run.params.items()})
         self._ids, self._frozen = ids, None
@@ -99,7 +98,7 @@ class Refit(Phase):
                 rows, values = self._frozen
                 for k, v in self.trainer.params.items():
                     v[rows] = values[k]
-            if self._copied:
+            if self.trainer.params is not self.run.params:  # a copy (of ``_ids``' rows, or on the GPU)
                 for k, v in self.trainer.params.items():
                     target = self.run.params[k]
                     if self._ids is None:
