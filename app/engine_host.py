@@ -62,6 +62,7 @@ class EngineHost:
         self.snapshot_pending = False
         self.last_report: dict[str, Any] | None = None
         self.params: dict[str, float] = {}
+        self.build_params: dict[str, float] = {}  # the params the engine was built with (its fingerprint's settings)
         self.sent_decisions: dict[str, Any] | None = None
         self.in_thread = False  # a worker thread of the UI process (ThreadWorkerBridge), not a spawned process
 
@@ -76,6 +77,8 @@ class EngineHost:
         self.send("error", f"{during}: {one_line_error(exc)}")
 
     def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
+        """Build the engine from ``config`` (default: the current one); ``resume_from``: a checkpoint to continue
+        (a result's run is rebuilt from the inputs kept with it, ``adopt_saved_inputs``)."""
         if config is not None:
             self.config = config
             for key in PAINTING_PARAMS:  # a new config's paintings come with their own mix (its style_weights)
@@ -83,9 +86,13 @@ class EngineHost:
         self.engine, self.done, self.failed = None, False, False
         self.sent_geometry_version = object()
         self.sent_decisions = None
+        saved = self.read_saved(resume_from) if resume_from else None
+        if saved is not None:
+            self.adopt_saved_inputs(saved[1])
         try:
             self.engine = self.factory(**self.config)
             single_compute_thread(self.in_thread)
+            self.build_params = dict(self.params)
             if self.params:
                 self.engine.set_params(**self.params)
             current = getattr(self.engine, "current_params", None)
@@ -99,8 +106,8 @@ class EngineHost:
             return
         self.send("ready", {"paused": self.paused})
         self.send_plans()
-        if resume_from:
-            self.load_checkpoint(resume_from)
+        if saved is not None:
+            self.load_checkpoint(resume_from, saved)
         if self.params:
             self.send("params", dict(self.params))
         self.send_decisions()
@@ -249,7 +256,27 @@ class EngineHost:
             traceback.print_exc()
             self.send("export_failed", f"export: {one_line_error(exc)}")
             return
+        self.keep_run(written)
         self.send("exported", written)
+
+    def saved_meta(self) -> dict[str, Any]:
+        """What a checkpoint of this engine says of its inputs: the config and params it was built from (to build
+        it again), its fingerprint, the params now."""
+        return {"scene": self.config.get("scene"), "style": self.config.get("style"), "config": dict(self.config),
+                "fingerprint": self.fingerprint, "build_params": dict(self.build_params), "params": dict(self.params)}
+
+    def keep_run(self, written: str) -> None:
+        """Keep the engine's state with the result just written (``app/result_state.py``), so that the result can
+        be continued when it is reopened; a failure only says so (the result itself was written)."""
+        if not hasattr(self.engine, "state_dict") or not hasattr(self.engine, "input_scene"):
+            return
+        try:
+            from .result_state import save_result_state
+
+            save_result_state(written, self.engine.state_dict(), self.saved_meta())
+        except Exception as exc:  # noqa: BLE001
+            traceback.print_exc()
+            self.send("error", f"saved, but its run was not kept (it cannot be continued): {one_line_error(exc)}")
 
     def checkpoint(self) -> None:
         """Save the engine's state, the fingerprint of its inputs and the slider values (cache folder)."""
@@ -258,19 +285,37 @@ class EngineHost:
         try:
             from gstyle_core.pipeline.checkpoint import save_checkpoint
 
-            meta = {"kind": "studio", "scene": self.config.get("scene"), "style": self.config.get("style"),
-                    "fingerprint": self.fingerprint, "params": dict(self.params)}
-            save_checkpoint(self.checkpoint_path, self.engine.state_dict(), meta)
+            save_checkpoint(self.checkpoint_path, self.engine.state_dict(), {"kind": "studio", **self.saved_meta()})
             self.send("checkpoint", str(self.checkpoint_path))
         except Exception as exc:  # noqa: BLE001
             self.send("error", f"checkpoint: {one_line_error(exc)}")
 
-    def load_checkpoint(self, path: str) -> None:
-        """Continue from a checkpoint made for the same inputs; otherwise say why in one line and start fresh."""
+    def read_saved(self, path: str) -> tuple[dict[str, Any], dict[str, Any]] | None:
+        """The checkpoint at ``path`` (state, meta), or None after saying in one line why it cannot be read."""
         try:
-            from gstyle_core.pipeline.checkpoint import load_checkpoint
+            from gstyle_core.pipeline.checkpoint import read_checkpoint
 
-            state, meta = load_checkpoint(path, self.fingerprint)
+            return read_checkpoint(path)
+        except Exception as exc:  # noqa: BLE001
+            self.send("error", f"resume: {one_line_error(exc)}; starting afresh")
+            return None
+
+    def adopt_saved_inputs(self, meta: dict[str, Any]) -> None:
+        """Before building an engine that will load a checkpoint: the params it was built with (so the settings
+        match its fingerprint) and, for a result's run, the config it was built from (a region's mask included)."""
+        if isinstance(meta.get("build_params"), dict):
+            self.params = dict(meta["build_params"])
+        if meta.get("kind") == "result" and isinstance(meta.get("config"), dict):
+            self.config = dict(meta["config"])
+
+    def load_checkpoint(self, path: str, saved: tuple[dict[str, Any], dict[str, Any]]) -> None:
+        """Continue from ``saved`` (``read_saved(path)``) when it was made for the same inputs; otherwise say why in
+        one line and go on with the fresh engine."""
+        try:
+            from gstyle_core.pipeline.checkpoint import check_fingerprint
+
+            state, meta = saved
+            check_fingerprint(path, meta, self.fingerprint)
             self.engine.load_state_dict(state)
         except Exception as exc:  # noqa: BLE001 - a bad checkpoint is reported; the fresh engine carries on
             traceback.print_exc()

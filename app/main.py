@@ -198,7 +198,8 @@ def open_studio(window, args: argparse.Namespace):
 
     glfw.set_drop_callback(window.handle, dropped)
     if app.result is not None and not args.resume:  # a stylized result opens as one: nothing starts on it
-        print(f"gstyle-studio: {app.result.line}; nothing started (the panel offers to stylize it again or to "
+        ways = "continue its run, " if app.result.state is not None and app.result.source is not None else ""
+        print(f"gstyle-studio: {app.result.line}; nothing started (the panel offers to {ways}stylize it again or "
               "restart from the original)")
     elif not app.start_engine(resume=args.resume) and args.resume:
         print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",

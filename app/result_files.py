@@ -8,10 +8,12 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from gstyle_core.pipeline.settings import StylizeSettings, ui_params
 
 from .export import summary_path
+from .result_state import find_result_state
 from .takes import widths_text
 
 
@@ -26,6 +28,8 @@ class ResultInfo:
     line: str = ""
     preset: str = ""
     styles: list[Path] = field(default_factory=list)  # its paintings whose files are found
+    state: Path | None = None  # the run kept with it (``result_state.py``), when the file is still the one written
+    state_config: dict[str, Any] = field(default_factory=dict)  # the engine config that run was built from
 
 
 def read_result(scene_path: str | Path) -> ResultInfo | None:
@@ -57,6 +61,10 @@ def read_result(scene_path: str | Path) -> ResultInfo | None:
         found = _found(Path(str(entry.get("path", ""))), summary.parent) if isinstance(entry, dict) else None
         if found is not None:
             info.styles.append(found)
+    kept = find_result_state(path)
+    if kept is not None:
+        info.state, note = kept
+        info.state_config = dict(note.get("config") or {})
     return info
 
 

@@ -146,6 +146,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         p.result_line = info.line if info else ""
         p.result_source = (str(info.source or info.source_named)) if info else ""
         p.result_source_found = bool(info and info.source)
+        p.result_continuable = bool(info and info.source and info.state)
         if info is not None:
             p.params.update({k: v for k, v in info.params.items() if k in p.params})
             p.phase = "result (nothing running)"
@@ -231,18 +232,20 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self._resume_probe = (now, path, exists)
         return exists and self.engine_factory is not None and self._resumed_from != path
 
-    def start_engine(self, resume: bool = False, action: str = "restart") -> bool:
+    def start_engine(self, resume: bool = False, action: str = "restart", resume_from: Path | None = None) -> bool:
         """Spawn the engine worker with the current scene/style config (restarts it if running; a stylized result
         it replaces is saved first and becomes a step back, ``action`` naming what replaced it).
 
         ``resume``: continue from the saved session of this scene + style; returns False when there is none (the
-        engine then starts afresh). Whether the checkpoint fits (same inputs and settings) the worker checks."""
+        engine then starts afresh). ``resume_from``: continue from that checkpoint instead (a result's kept run).
+        Whether the checkpoint fits (same inputs and settings) the worker checks."""
         if self.engine_factory is None:
             return False
         self.keep_result(action)
         self._region_to_config()
         path = self.session_checkpoint()
-        resume_from = path if resume and path is not None and path.is_file() else None
+        if resume_from is None and resume and path is not None and path.is_file():
+            resume_from = path
         self._resumed_from = resume_from
         if self.bridge is None:
             bridge_class = ThreadWorkerBridge if self.worker_mode == "thread" else WorkerBridge
@@ -253,7 +256,8 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self.bridge.set_checkpoint_path(path)
             self.bridge.restart(self.engine_config, resume_from=resume_from)
         if resume_from is not None:
-            self.panel.status = f"resuming the last session ({resume_from.name}) ..."
+            what = "the last session" if resume_from == path else "this result's run"
+            self.panel.status = f"resuming {what} ({resume_from.name}) ..."
         self._snapshots_seen = 0
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
         return resume_from is not None

@@ -16,6 +16,7 @@ from gstyle_core.scene import GaussianScene
 
 from .export import EXPORT_SUFFIXES, export_shown_result
 from .panels import Command
+from .result_state import copy_result_state
 from .snapshot import has_scene, scene_from_snapshot
 from .video_job import VideoJob, turntable_path
 
@@ -42,6 +43,8 @@ class StudioCommands:
             self.start_engine()
         elif name == "restart_from_original":
             self.restart_from_original()
+        elif name == "continue_result":
+            self.continue_result()
         elif name == "resume_session":
             self.start_engine(resume=True)
         elif name == "set_params":
@@ -83,6 +86,26 @@ class StudioCommands:
         if self.open_path(str(info.source)) and self.bridge is None:
             self.start_engine()
         self._apply_params({k: v for k, v in info.params.items() if k in self.panel.params})  # from the first step
+
+    def continue_result(self) -> None:
+        """A result whose run was kept (``result_state.py``) was opened: open its original and paintings, put its
+        region back, and start the engine from that run (where it ended; nothing is stylized again)."""
+        info = self.result
+        if info is None or info.state is None or info.source is None:
+            self.panel.status = "this result's run was not kept or its original is missing: Restart from the original"
+            return
+        state, config = info.state, info.state_config
+        if info.preset:
+            self.engine_config["preset"] = info.preset
+        for slot, painting in enumerate(info.styles[:2]):
+            self.open_path(str(painting), style_slot=slot)
+        if not self.open_path(str(info.source)):
+            return
+        if config.get("region"):
+            self.enable_region(True)
+            self.set_region_box(tuple(float(v) for v in config["region"]))
+            self.region_feather = float(config.get("region_feather") or 0.0)
+        self.start_engine(action="continue", resume_from=state)
 
     def _apply_params(self, values: dict[str, float]) -> None:
         """Controls to the panel and the engine (from the next step; a finished run's switch back returns its
@@ -194,6 +217,10 @@ class StudioCommands:
         except GStyleError as exc:
             self.panel.status = f"export: {exc}"
             return
+        try:  # its run goes with it, so the copy can be continued too
+            copy_result_state(self.loaded.path, path)
+        except OSError as exc:
+            print(f"gstyle-studio: saved, but its run was not copied: {exc}", flush=True)
         self._shelve_exports([str(path)])
         self.panel.status = f"saved {path} (kept as {self.takes.takes[0].name})"
 

@@ -88,7 +88,10 @@ class StudioSync:
         self._fill_quality(st)
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
-            p.status = f"resumed the last session at step {st.resumed.get('step')}"
+            session = self.session_checkpoint()
+            what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
+                else "the saved result's run"
+            p.status = f"resumed {what} at step {st.resumed.get('step')}"
         self._sync_exports(st)
         self._show_takes_error()
 

@@ -43,6 +43,10 @@ def _describe(entry: Path) -> str:
         return "fp32 or bf16 per CPU model (--precision auto)"
     if entry.name == "checkpoints" and entry.is_dir():
         return "checkpoints of interrupted runs (gstyle stylize --resume, gstyle-studio --resume)"
+    if entry.name == "results" and entry.is_dir():
+        return "the runs of results the studio saved (Continue this run; the newest 24 within 2 GB)"
+    if entry.name == "history" and entry.is_dir():
+        return "results kept for the studio's undo (deleted when it closes)"
     if entry.is_dir() and any(entry.rglob("*.nbi")):
         return "numba compiled kernels"
     return "other"

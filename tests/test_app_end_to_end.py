@@ -1,6 +1,7 @@
 """The studio end to end in a real X window (Xvfb) with real input (xdotool), as issue #35 asks: a run → keep
 colours ticked and unticked (the colours back, checked on the scene view's pixels) → Restart → Ctrl+Z (the earlier
-result back) → Save As → the saved file reopened (it opens as a result: no engine starts; its settings shown).
+result back) → Save As → the saved file reopened (it opens as a result: no engine starts; its settings shown) →
+Continue this run (the run kept with the file loads on the original, where it ended).
 
 The studio runs as its own process with ``tests/e2e_hooks.py``: a small real engine (the real ``Stylizer``, a cheap
 objective) and a map of what the panel drew (widget rectangles, texts, the studio's state), so that clicks land on
@@ -185,3 +186,13 @@ def test_run_keep_colours_restart_undo_save_as_and_reopen(display, tmp_path):  #
         assert any("a stylized result (preset preview" in t for t in reopened["texts"]), reopened["texts"]
         shown = studio.scene_view(tmp_path, "reopened")
         assert np.abs(colour_of(shown) - colour_of(run)).max() < 2.0, "the reopened result is not the one saved"
+
+        studio.click_widget("Continue this run")  # its run was kept (undo's copy, carried by Save As)
+        continued = studio.wait(lambda d: d["state"]["engine"] is not None and (d["state"]["engine"]["resumed"]
+                                                                               or d["state"]["engine"]["error"]),
+                                "Continue to load the run")
+        assert continued["state"]["engine"]["error"] is None, continued["state"]["engine"]["error"]
+        assert continued["state"]["result"] is None and continued["state"]["scene"] == str(scene.resolve())
+        studio.settle("the continued run to show", after=0, timeout=60)
+        again = studio.scene_view(tmp_path, "continued")
+        assert np.abs(colour_of(again) - colour_of(run)).max() < 2.0, "Continue did not start from the saved run"

@@ -136,3 +136,44 @@ def test_a_result_on_show_without_an_engine_saves_as_it_is(window, tmp_path, mon
         assert len(list(target.parent.glob("stylized_*.ply"))) == 1
     finally:
         app.close(timeout=30)
+
+
+def test_a_saved_result_reopens_and_continues_its_run_on_its_original(window, tmp_path, monkeypatch):
+    """Save As from a running engine keeps its run with the file; reopened, the result offers Continue, which opens
+    the original and starts the engine from that run (no pre-processing again: it resumes at the step it was at);
+    Save As of the reopened result carries the run to the copy."""
+    from fakes import make_small_stylizer, ring_studio
+
+    from app.panels import Command
+    from app.result_state import find_result_state
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    original = tmp_path / "original.ply"
+    save_scene(blob_scene(80, seed=5), original)
+    app = ring_studio(window, tmp_path, factory=make_small_stylizer)
+    try:
+        assert app.open_path(str(original))  # the engine restarts on it
+        assert app.bridge.wait_until(lambda s: (s.last_report or {}).get("step", 0) >= 6 or s.error, 120)
+        app.bridge.pause()
+        out = tmp_path / "saved" / "kept.ply"
+        out.parent.mkdir()
+        app.save_as(out)
+        assert app.bridge.wait_until(lambda s: s.exported or s.error, 60) and app.bridge.state.error is None
+        assert app.bridge.wait_until(lambda s: find_result_state(out) is not None, 30), "the run was not kept"
+        step = app.bridge.state.last_report["step"]
+
+        assert app.open_path(str(out)) and app.bridge is None
+        assert app.panel.result_continuable and app.result.state is not None
+        app.execute(Command("continue_result"))
+        assert app.bridge is not None and app.result is None and app.loaded.path == str(original.resolve())
+        assert app.bridge.wait_until(lambda s: s.resumed or s.error, 120), "did not resume"
+        assert app.bridge.state.error is None, app.bridge.state.error
+        assert app.bridge.state.resumed["step"] >= step  # where the run was when it was saved
+
+        app.stop_engine()
+        assert app.open_path(str(out)) and app.result.state is not None
+        copy = tmp_path / "saved" / "copy.ply"
+        app.save_as(copy)
+        assert copy.is_file() and find_result_state(copy) is not None  # the copy can be continued too
+    finally:
+        app.close(timeout=30)

@@ -40,10 +40,16 @@ def files_section(state: PanelState, out: list[Command]) -> None:
 
 
 def result_block(state: PanelState, out: list[Command]) -> None:
-    """A stylized result was opened: what it is, its original, and the two ways on (neither starts by itself)."""
+    """A stylized result was opened: what it is, its original, and the ways on (none starts by itself)."""
     imgui.text_wrapped(font_safe(state.result_line))
     source = state.result_source
     imgui.text_wrapped(f"Original: {source}" + ("" if state.result_source_found or not source else " (not found)"))
+    imgui.begin_disabled(not state.result_continuable)
+    if button("Continue this run", "Load the run this result was saved from (kept when it was saved) on its "
+                                   "original: it is where it ended, so Refine, keep colours and the other controls "
+                                   "go on from it. Needs the original scene and the file as it was saved."):
+        out.append(Command("continue_result"))
+    imgui.end_disabled()
     imgui.begin_disabled(not state.result_source_found)
     if button("Restart from the original", "Open the scene this result was stylized from and stylize it with the "
                                            "settings shown."):

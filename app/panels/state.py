@@ -28,6 +28,7 @@ class PanelState:
     result_line: str = ""  # the scene is a stylized result (app/result_files.py): what it is; "" for other scenes
     result_source: str = ""  # the original scene it came from ("" when its summary names none)
     result_source_found: bool = False
+    result_continuable: bool = False  # its run was kept and its original found: Continue can load it
     style_path: str = ""
     style_texture: int | None = None  # GL texture id of the style thumbnail
     style_size: tuple[int, int] = (1, 1)
