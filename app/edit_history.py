@@ -4,8 +4,11 @@ Ctrl+Shift+Z or Ctrl+Y. A slider dragged over many frames is one step: changes o
 ``COALESCE_SECONDS`` apart join the step before. The region tool's selection is undone the same way
 (``RegionEdit``: turned on or off, the box placed, dragged or resized, a rectangle selected). A stylized result that
 a restart, a refine or another scene or painting replaces is a step too (``ResultEdit``): the engine wrote it to disk
-first (scene and summary), and undo opens it as a result. No GL, no engine here: the studio carries the steps out
-(the engine returns the colours of a finished run bit for bit when a switch goes back, ``Stylizer._switch_chroma``).
+first (scene and summary), and undo opens it as a result. A painting opened, mixed in or removed when no result was
+replaced is a step of its own (``PaintingEdit``): undo puts the painting(s) before it back (the engine restarts with
+them; a result made after the change is saved first and comes back on redo). No GL, no engine here: the studio
+carries the steps out (the engine returns the colours of a finished run bit for bit when a switch goes back,
+``Stylizer._switch_chroma``).
 """
 
 from __future__ import annotations
@@ -50,6 +53,23 @@ class ResultEdit:
         return f"the result before {self.action} ({self.before.name})"
 
 
+@dataclass
+class PaintingEdit:
+    """The painting(s) chosen: ``(painting, second painting or "", mix)`` before and after; ``result_after`` the file
+    the result made after the new choice was saved to when an undo left it (redo opens it), None until then."""
+
+    before: tuple[str, str, float]
+    after: tuple[str, str, float]
+    result_after: Path | None = None
+    at: float = float("-inf")
+
+    def describe(self) -> str:
+        def names(state: tuple[str, str, float]) -> str:
+            return " + ".join(Path(p).name for p in state[:2] if p) or "no painting"
+
+        return f"the painting ({names(self.before)} -> {names(self.after)})"
+
+
 def _same_region(a: tuple, b: tuple) -> bool:
     """Two region states (on, box, rectangle mask) select the same."""
     if a[0] != b[0] or a[1] != b[1]:
@@ -72,13 +92,16 @@ class RegionEdit:
         return "the region selection"
 
 
+Edit = ParamEdit | ResultEdit | RegionEdit | PaintingEdit
+
+
 class EditHistory:
     """The undo and redo stacks of parameter edits."""
 
     def __init__(self, limit: int = LIMIT) -> None:
         self.limit = limit
-        self.done: list[ParamEdit | ResultEdit | RegionEdit] = []
-        self.undone: list[ParamEdit | ResultEdit | RegionEdit] = []
+        self.done: list[Edit] = []
+        self.undone: list[Edit] = []
 
     def record(self, before: dict[str, float], after: dict[str, float], now: float | None = None) -> None:
         """A change the artist made: ``before`` the values of the controls in ``after`` until now. A change that
@@ -110,13 +133,17 @@ class EditHistory:
         self.done.append(RegionEdit(before, after, now))
         del self.done[:-self.limit]
 
-    def record_result(self, edit: ResultEdit) -> None:
-        """A result replaced (saved at ``edit.before``); a new step forgets what was undone."""
+    def record_result(self, edit: ResultEdit | PaintingEdit) -> None:
+        """A result replaced (saved at ``edit.before``) or a painting chosen; a new step forgets what was undone."""
         self.undone.clear()
         self.done.append(edit)
         del self.done[:-self.limit]
 
-    def undo(self) -> ParamEdit | ResultEdit | RegionEdit | None:
+    def last(self) -> Edit | None:
+        """The newest step (None: none)."""
+        return self.done[-1] if self.done else None
+
+    def undo(self) -> Edit | None:
         """The step to take back (apply its ``before``), or None."""
         if not self.done:
             return None
@@ -126,7 +153,7 @@ class EditHistory:
             self.done[-1].at = float("-inf")  # the next change is a step of its own
         return edit
 
-    def redo(self) -> ParamEdit | ResultEdit | RegionEdit | None:
+    def redo(self) -> Edit | None:
         """The step to take again (apply its ``after``), or None."""
         if not self.undone:
             return None

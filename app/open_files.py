@@ -103,11 +103,13 @@ class OpenFiles:
             if len(paths) > 1:
                 self.panel.status += f" ({len(paths) - 1} more dropped file(s) ignored)"
 
-    def open_path(self, path: str, style_slot: int = 0) -> bool:
+    def open_path(self, path: str, style_slot: int = 0, record: bool = True) -> bool:
         """Open a dropped or chosen file: a scene (.ply/.compressed.ply/.splat/.spz) or a style image (``style_slot``
-        1: as the second painting of a mix). True when it opened; the status line (and the terminal) says what
-        happened either way."""
+        1: as the second painting of a mix; ``record``: the choice is an undo step). True when it opened; the status
+        line (and the terminal) says what happened either way."""
         name = Path(path).name
+        painting_before = self.painting_state() if record and has_suffix(name, IMAGE_SUFFIXES) else None
+        last_step = self.history.last()
         try:
             if has_suffix(name, SCENE_SUFFIXES) and style_slot == 0:
                 self.set_scene(load_scene_with_cameras(path, None))
@@ -128,6 +130,8 @@ class OpenFiles:
             self._say(f"{self.result.line}; nothing started")
         elif self.bridge is not None:
             self.start_engine(action=f"opening {name}")
+        if painting_before is not None:
+            self.painting_step(painting_before, last_step)
         return True
 
     def show_result_painting(self) -> None:

@@ -64,10 +64,12 @@ class StudioCommands:
                 self.keep_result("refine")
                 bridge.refine()
         elif name == "remove_style2":
+            before, last_step = self.painting_state(), self.history.last()
             self.remove_second_style()
             self.panel.status = "back to one painting"
             if bridge is not None:
                 self.start_engine()
+            self.painting_step(before, last_step)
         else:
             return False
         return True
@@ -81,8 +83,8 @@ class StudioCommands:
             return
         if info.preset:
             self.engine_config["preset"] = info.preset
-        if info.styles:
-            self.open_path(str(info.styles[0]))  # a painting that no longer reads: one line, the current one kept
+        if info.styles:  # a painting that no longer reads: one line, the current one kept
+            self.open_path(str(info.styles[0]), record=False)
         if self.open_path(str(info.source)) and self.bridge is None:
             self.start_engine()
         self._apply_params({k: v for k, v in info.params.items() if k in self.panel.params})  # from the first step
@@ -98,7 +100,7 @@ class StudioCommands:
         if info.preset:
             self.engine_config["preset"] = info.preset
         for slot, painting in enumerate(info.styles[:2]):
-            self.open_path(str(painting), style_slot=slot)
+            self.open_path(str(painting), style_slot=slot, record=False)
         if not self.open_path(str(info.source)):
             return
         if config.get("region"):

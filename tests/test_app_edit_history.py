@@ -168,3 +168,102 @@ def test_an_unchanged_region_is_no_step():
     h.record_region((False, None, None), state, now=0.0)
     h.record_region(state, (True, (0.0, 0.0, 0.0, 2.0, 2.0, 2.0), None), now=0.5)  # within the coalescing time
     assert len(h.done) == 1 and h.done[0].before == (False, None, None)
+
+
+def _paintings(tmp_path):
+    import numpy as np
+    from PIL import Image
+
+    paths = []
+    for name, rgb in (("first.png", (200, 40, 40)), ("second.png", (40, 40, 200)), ("third.png", (40, 200, 40))):
+        path = tmp_path / name
+        Image.fromarray(np.full((12, 12, 3), rgb, np.uint8)).save(path)
+        paths.append(str(path))
+    return paths
+
+
+def test_a_painting_choice_is_a_step_of_its_own(window, tmp_path, monkeypatch):
+    """With no result replaced, opening a painting, mixing in a second one and removing it are undo steps: undo puts
+    the painting(s) and the mix before it back and the engine restarts with them; redo chooses again."""
+    from fakes import ring_studio
+
+    from app.edit_history import PaintingEdit
+    from app.panels import Command
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    first, second, third = _paintings(tmp_path)
+    app = ring_studio(window, tmp_path)
+    try:
+        assert app.open_path(first, record=False) and app.history.done == []
+        assert app.open_path(second)
+        assert isinstance(app.history.last(), PaintingEdit) and app.engine_config["style"] == second
+        assert app.open_path(third, style_slot=1)
+        app.execute(Command("set_params", {"style_mix": 0.8}))
+        app.history.done[-1].at = float("-inf")
+        app.execute(Command("remove_style2"))
+        assert app.panel.style2_path == "" and app.engine_config["style"] == second
+        app.execute(Command("undo"))  # the second painting back, at its mix
+        assert app.panel.style2_path == third and app.engine_config["style"] == [second, third]
+        assert app.engine_config["style_weights"] == pytest.approx((0.2, 0.8))
+        assert app.panel.status == "undo: the painting (second.png + third.png -> second.png)"
+        app.execute(Command("undo"))  # the mix
+        app.execute(Command("undo"))  # the second painting mixed in
+        assert app.panel.style2_path == "" and app.engine_config["style"] == second
+        app.execute(Command("undo"))  # the first painting
+        assert app.panel.style_path == first and app.engine_config["style"] == first
+        assert app.bridge.wait_until(lambda s: s.ready and not s.error, 30)
+        assert app.bridge.config["style"] == first  # the engine restarted with it
+        app.execute(Command("redo"))
+        assert app.panel.style_path == second and app.bridge.config["style"] == second
+    finally:
+        app.close(timeout=30)
+
+
+def test_a_painting_that_replaces_a_result_is_one_step_with_it(window, tmp_path, monkeypatch):
+    """A painting chosen while a result is shown: the replaced result is the step (undo brings it back with its
+    painting), not a second one."""
+    from fakes import ring_studio
+
+    from app.edit_history import ResultEdit
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    first, second, _ = _paintings(tmp_path)
+    app = ring_studio(window, tmp_path, _stylizing_engine, snapshots=2)
+    try:
+        assert app.open_path(first, record=False)
+        assert app.bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60)
+        steps = len(app.history.done)
+        assert app.open_path(second)
+        assert len(app.history.done) == steps + 1 and isinstance(app.history.last(), ResultEdit)
+    finally:
+        app.close(timeout=30)
+
+
+def test_redo_of_a_painting_brings_back_the_result_made_after_it(window, tmp_path, monkeypatch):
+    """Undo of a painting saves the result made with it first (``save_result``); redo opens that result instead of
+    starting over."""
+    import json
+
+    from fakes import ring_studio
+    from synthetic import blob_scene
+
+    from gstyle_core.io import save_scene
+    from gstyle_core.pipeline.settings import resolve_settings
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    first, second, _ = _paintings(tmp_path)
+    made = tmp_path / "made_with_second.ply"
+    save_scene(blob_scene(40, seed=2), made)
+    made.with_suffix(".json").write_text(json.dumps({"settings": resolve_settings("preview", "360", 4).to_dict()}))
+    app = ring_studio(window, tmp_path)
+    try:
+        app.open_path(first, record=False)
+        app.open_path(second)
+        monkeypatch.setattr(app, "save_result", lambda: made)  # the run with the second painting made a result
+        app.undo_or_redo("undo")
+        assert app.panel.style_path == first and app.history.undone[-1].result_after == made
+        app.undo_or_redo("redo")
+        assert app.result is not None and app.loaded.path == str(made) and app.bridge is None
+        assert app.panel.status == f"redo: {made.name} is back"
+    finally:
+        app.close(timeout=30)
