@@ -8,7 +8,7 @@ first (scene and summary), and undo opens it as a result. A painting opened, mix
 replaced is a step of its own (``PaintingEdit``): undo puts the painting(s) before it back (the engine restarts with
 them; a result made after the change is saved first and comes back on redo). No GL, no engine here: the studio
 carries the steps out (the engine returns the colours of a finished run bit for bit when a switch goes back,
-``Stylizer._switch_chroma``).
+``LiveControls.switch_chroma``).
 """
 
 from __future__ import annotations

@@ -143,12 +143,12 @@ class EngineHost:
             self.send("error", f"estimating the presets: {one_line_error(exc)}")
 
     def send_summary(self) -> None:
-        """The finished run's summary (``gstyle_core.pipeline.cli.result_summary``: its speckle at a display's
+        """The finished run's summary (``gstyle_core.pipeline.run_figures.result_summary``: its speckle at a display's
         size), for engines that have one."""
         if not hasattr(self.engine, "input_scene"):
             return
         try:
-            from gstyle_core.pipeline.cli import result_summary
+            from gstyle_core.pipeline.run_figures import result_summary
 
             self.send("summary", result_summary(self.engine))
         except Exception as exc:  # noqa: BLE001

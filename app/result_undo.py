@@ -14,7 +14,7 @@ from pathlib import Path
 from gstyle_core.paths import cache_dir
 from gstyle_core.pipeline.plan import STYLIZED_PHASES
 
-from .edit_history import Edit, PaintingEdit, ParamEdit, RegionEdit, ResultEdit
+from .edit_history import PaintingEdit, ParamEdit, RegionEdit, ResultEdit
 from .export import summary_path
 
 KEPT_RESULTS = 12
@@ -94,48 +94,6 @@ class ResultUndo:
             return
         self._open_restoring(target)
         self.panel.status = f"{name}: {edit.describe()} is back" if name == "undo" else f"redo: {target.name} is back"
-
-    # ------------------------------------------------------------------ paintings
-    def painting_state(self) -> tuple[str, str, float]:
-        """The painting(s) chosen now: (painting, second painting or "", mix)."""
-        p = self.panel
-        return p.style_path or "", p.style2_path or "", float(p.params.get("style_mix", 0.0))
-
-    def painting_step(self, before: tuple[str, str, float], last_step: Edit | None) -> None:
-        """A painting was opened, mixed in or removed: one undo step, unless it changed nothing or a result it
-        replaced is the step already (``last_step``: the newest step before the change)."""
-        after = self.painting_state()
-        if after != before and self.history.last() is last_step and not self._restoring:
-            self.history.record_result(PaintingEdit(before, after))
-
-    def undo_or_redo_painting(self, edit: PaintingEdit, name: str) -> None:
-        """Put the painting(s) before (undo) or after (redo) ``edit`` back; the engine restarts with them. Undo saves
-        a result made after the change first; redo opens it again instead of starting over."""
-        if name == "undo":
-            edit.result_after = self.save_result() or edit.result_after
-        elif edit.result_after is not None and self._wait_for(edit.result_after):
-            self._open_restoring(edit.result_after)
-            self.panel.status = f"redo: {edit.result_after.name} is back"
-            return
-        style, style2, mix = edit.before if name == "undo" else edit.after
-        from gstyle_core.errors import GStyleError
-
-        self._restoring = True
-        try:
-            if style:
-                self.set_style(style)
-            if style2:
-                self.set_style(style2, 1, mix)
-            elif self.panel.style2_path:
-                self.remove_second_style()
-            if self.bridge is not None:
-                self.start_engine(action=f"{name} of a painting")
-        except GStyleError as exc:
-            self.panel.status = f"{name}: {exc}"
-            return
-        finally:
-            self._restoring = False
-        self.panel.status = f"{name}: {edit.describe()}"
 
     def _open_restoring(self, path: Path) -> None:
         """Open a saved result as undo and redo do: what it replaces was saved already."""

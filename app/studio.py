@@ -2,7 +2,8 @@
 
 Its other concerns are mixins in their own modules: opening files (``open_files``), input (``studio_input``),
 panel commands, exports and videos (``studio_commands``), per-frame engine and panel updates (``studio_sync``), the
-region tool (``region_tool``) and the takes (``takes_view``)."""
+region tool (``region_tool``), the takes (``takes_view``), undo of results (``result_undo``) and the paintings
+(``paintings``)."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from .camera_control import CameraControl
 from .edit_history import EditHistory
 from .keys import KeyPresses
 from .open_files import LoadedScene, OpenFiles
+from .paintings import Paintings
 from .panels import Command, PanelState, draw_panel
 from .region_tool import RegionTool
 from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
@@ -55,7 +57,7 @@ def encode_png(rgb: np.ndarray) -> bytes:
 
 
 class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, StudioSync, StudioFraming,
-                ResultUndo):
+                ResultUndo, Paintings):
     """Owns the renderers and the worker bridge; ``frame()`` draws one frame into the current framebuffer."""
 
     result: ResultInfo | None = None  # the scene shown is a stylized result (set_scene): it opens as one
@@ -170,51 +172,6 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
                                               defaults=self.engine_config.get("defaults"), **overrides))
         except ValueError:  # an unknown preset: the worker reports the error when it starts
             return dict(self.panel.params)
-
-    def set_style(self, path: str, slot: int = 0, mix: float | None = None) -> None:
-        """Use a new style image (``slot`` 0: the painting; 1: a second painting mixed in with the mix slider, at
-        ``mix``, by default the slider's value or an even mix): thumbnail in the panel; the caller restarts the
-        engine with it."""
-        from gstyle_core.images import load_style_image
-
-        rgb = load_style_image(path)
-        thumb = np.ascontiguousarray((np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8))
-        self._release_style_texture(slot)
-        h, w = thumb.shape[:2]
-        texture = self.ctx.texture((w, h), 3, thumb.tobytes(), alignment=1)
-        self._style_textures[slot] = texture
-        if slot == 0:
-            self.panel.style_texture, self.panel.style_size, self.panel.style_path = texture.glo, (w, h), str(path)
-        else:
-            self.panel.style2_texture, self.panel.style2_size, self.panel.style2_path = texture.glo, (w, h), str(path)
-            if mix is not None:
-                self.panel.params["style_mix"] = float(mix)
-            elif not self.panel.params.get("style_mix"):  # a new second painting starts at an even mix
-                self.panel.params["style_mix"] = 0.5
-        self._update_style_config()
-
-    def remove_second_style(self) -> None:
-        """Back to one painting (the caller restarts the engine)."""
-        self._release_style_texture(1)
-        self.panel.style2_texture, self.panel.style2_path = None, ""
-        self.panel.params["style_mix"] = 0.0
-        self._update_style_config()
-
-    def _release_style_texture(self, slot: int) -> None:
-        if self._style_textures[slot] is not None:
-            self._style_textures[slot].release()
-            self._style_textures[slot] = None
-
-    def _update_style_config(self) -> None:
-        """The engine config's style: the painting's path, or both paths with their weights (the mix slider)."""
-        p = self.panel
-        if p.style2_path and p.style_path:
-            mix = float(p.params.get("style_mix", 0.5))
-            self.engine_config["style"] = [p.style_path, p.style2_path]
-            self.engine_config["style_weights"] = (1.0 - mix, mix)
-        else:
-            self.engine_config["style"] = p.style_path or None
-            self.engine_config.pop("style_weights", None)
 
     def session_checkpoint(self) -> Path | None:
         """Where the session of this scene + style is saved when the studio closes (cache folder), or None."""

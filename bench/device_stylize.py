@@ -74,7 +74,7 @@ def warm_up(device: str, precision: str) -> None:
 
 def run_once(args: argparse.Namespace, device: str, precision: str) -> dict:
     """Build and run one engine to the end; per-phase seconds, figures."""
-    from gstyle_core.pipeline.cli import evaluate_run
+    from gstyle_core.pipeline.run_figures import evaluate_run
 
     warm_up(device, precision)
     if device == "cuda":

@@ -28,7 +28,8 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request, evaluation_cameras  # noqa: E402
+from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.pipeline.run_figures import evaluation_cameras  # noqa: E402
 from gstyle_core.render_cli import render_scene_image  # noqa: E402
 from gstyle_core.style.speckle import FINE_BANDS, chroma_energies, display_speckle, fine_share  # noqa: E402
 from gstyle_core.style.texture_scale import matched_side  # noqa: E402

@@ -41,8 +41,8 @@ def luminance_nnfm(vgg, style: np.ndarray, renders: list[np.ndarray], alphas: li
 def run_variant(name: str, scene: str | None, style_path: str | None, preset: str) -> dict:
     """One stylization and its measurements."""
     from gstyle_core.pipeline.build import BuildRequest, build_stylizer
-    from gstyle_core.pipeline.cli import evaluate_run, evaluation_cameras
     from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.pipeline.run_figures import evaluate_run, evaluation_cameras
     from gstyle_core.render_cli import render_scene_image
     from gstyle_core.style.keep_colours import chroma
 

@@ -43,7 +43,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gstyle_core.pipeline import colour_field  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer, style_paths  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request, evaluate_run, texture_scale_line  # noqa: E402
+from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.pipeline.run_figures import evaluate_run, texture_scale_line  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.render_cli import save_png  # noqa: E402
 from gstyle_core.style import multiscale  # noqa: E402

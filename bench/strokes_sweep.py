@@ -65,7 +65,7 @@ def run_point(job: tuple) -> dict:
     torch.set_num_threads(threads)
     sys.path.insert(0, str(HERE.parent))
     from gstyle_core.pipeline.build import BuildRequest, build_stylizer
-    from gstyle_core.pipeline.cli import evaluate_run
+    from gstyle_core.pipeline.run_figures import evaluate_run
 
     o = dict(overrides)
     request = BuildRequest(scene=scene, style=style, preset=o.pop("preset", "preview"),

@@ -43,12 +43,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from gstyle_core.fit.model import scene_from_params  # noqa: E402
 from gstyle_core.pipeline import colour_field  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import (  # noqa: E402
-    add_stylize_arguments,
-    build_request,
-    evaluation_cameras,
-    run_texture_scale,
-)
+from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.pipeline.run_figures import evaluation_cameras, run_texture_scale  # noqa: E402
 from gstyle_core.render_cli import render_scene_image  # noqa: E402
 from gstyle_core.scene import rgb_to_sh_dc  # noqa: E402
 from gstyle_core.style.texture_scale import BAND_NAMES, added_energies, shares  # noqa: E402

@@ -158,7 +158,7 @@ def run_point(scene: str | None, style: Path, preset: str, overrides: dict, came
               pictures: tuple[Path, str] | None = None) -> dict:
     """One stylization with ``overrides``; wall time per phase and the quality figures (``pictures`` = (folder,
     name): also the pictures of ``save_pictures``)."""
-    from gstyle_core.pipeline.cli import evaluate_run, evaluation_cameras
+    from gstyle_core.pipeline.run_figures import evaluate_run, evaluation_cameras
 
     kw = {**BASE, **overrides} if preset == "preview" else dict(overrides)
     kw = {"precision": POINT_PRECISION, **kw}

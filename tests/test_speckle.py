@@ -9,7 +9,7 @@ import torch
 from synthetic import blob_scene, ring_cameras
 from test_resume_phases import NoisyPull
 
-from gstyle_core.pipeline.cli import display_speckle_line
+from gstyle_core.pipeline.run_figures import display_speckle_line
 from gstyle_core.pipeline.settings import resolve_settings
 from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.style.losses import StyleLoss, StyleWeights, chroma_tv_loss

@@ -19,7 +19,7 @@ from ..style.speckle import DEFAULT_DISPLAY_WIDTH
 from .arg_types import display_width_arg, region_arg, style_weights_arg, widths_arg
 from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, style_paths
 from .controls import add_control_arguments
-from .levels import level_widths
+from .run_figures import display_speckle_line, evaluate_run, texture_scale_line
 
 STYLIZE_COMPANIONS = (SUMMARY, "_before.png", "_after.png")  # beside OUT.ply: its summary, before/after pictures
 
@@ -313,132 +313,6 @@ def _resume(engine, path: Path, saved, fingerprint: dict[str, str]) -> dict:
     skipped = engine.global_step
     print(f"resumed from {path}: skipped {skipped} of {engine.total_steps()} steps (now in phase {engine.phase})")
     return {"checkpoint": str(path), "skipped_steps": skipped, "phase": engine.phase}
-
-
-def evaluation_cameras(engine, n_views: int = 3, width: int = 256) -> list:
-    """The fixed views the quality figures are measured on: ``n_views`` training cameras spread over the list
-    (``choose_views``), resized to ``width`` px."""
-    from .stylizer import choose_views
-
-    return [engine.full_cameras[i].resized_to_width(width) for i in choose_views(engine.full_cameras, n_views)]
-
-
-def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: int = 3, width: int = 256,
-                 display_width: int = 0) -> dict:
-    """Quality figures on fixed evaluation views, before (input scene) and after (stylized scene); a list of
-    paintings is measured with the engine's mix weights (``Evaluator``). ``display_width`` > 0 adds ``display``, the
-    speckle figure of the same views rendered that wide (``run_display_speckle``)."""
-    from ..render_cli import render_scene_image
-    from .evaluate import Evaluator, structure_kept
-
-    cams = evaluation_cameras(engine, n_views, width)
-    # the run's own network when its objective was built; the figures are measured in fp32 whatever the run's
-    # precision and on the CPU whatever the run's device, so that runs at either precision or on any device compare
-    vgg = getattr(engine.objective, "vgg", None)
-    if (vgg is None or getattr(vgg, "compute_dtype", torch.float32) != torch.float32
-            or next(vgg.parameters()).device.type != "cpu"):
-        from ..style.vgg import load_vgg
-
-        vgg = load_vgg(engine.settings.vgg_weights)
-    ev = Evaluator(vgg, style, width, weights=None if isinstance(style, np.ndarray) else engine.settings.style_weights)
-    before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
-    after_scene = engine.stylized_scene()
-    after, _ = zip(*(render_scene_image(after_scene, c, with_alpha=True) for c in cams), strict=True)
-    before, after, alpha = list(before), list(after), list(alpha)
-    initial = ev.measure(before, before, alpha)
-    final = ev.measure(after, before, alpha)
-    nnfm_drop = 1.0 - final["nnfm"] / max(initial["nnfm"], 1e-12)
-    out = {"views": len(cams), "width": width, "initial": initial, "final": final,
-           "nnfm_drop": nnfm_drop, "structure": structure_kept(before, after, alpha),
-           "texture_scale": run_texture_scale(engine, style, before, after, alpha, width).to_dict()}
-    final_width = level_widths(engine.settings.working_width, engine.settings.refine_widths)[-1]
-    if final_width > width:  # the run ended at a finer level: its figures there too
-        out["at_final_width"] = width_figures(engine, scene, after_scene, style, vgg, n_views, final_width)
-    if display_width and display_width > 0:
-        out["display"] = run_display_speckle(engine, scene, after_scene, style, n_views, display_width).to_dict()
-    out["images"] = (np.concatenate(before, axis=1), np.concatenate(after, axis=1))
-    return out
-
-
-EVAL_MAX_VECTORS = 16384  # the figures at a finer level's width search at most this many of a painting's vectors
-
-
-def width_figures(engine, scene, after_scene, style, vgg, n_views: int, width: int) -> dict:
-    """NNFM drop and structure of the evaluation views rendered ``width`` px wide (the width a run with finer levels
-    ends at), the painting resized to that width; only the covered feature vectors are searched, against at most
-    ``EVAL_MAX_VECTORS`` of the painting's (a random subset, the same for before and after)."""
-    from ..render_cli import render_scene_image
-    from .evaluate import Evaluator, structure_kept
-
-    cams = evaluation_cameras(engine, n_views, width)
-    ev = Evaluator(vgg, style, width, weights=None if isinstance(style, np.ndarray) else engine.settings.style_weights,
-                   max_vectors=EVAL_MAX_VECTORS)
-    before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
-    after = [render_scene_image(after_scene, c) for c in cams]
-    initial = ev.measure(list(before), list(before), list(alpha), whole_frame=False)
-    final = ev.measure(after, list(before), list(alpha), whole_frame=False)
-    return {"width": width, "nnfm_initial": initial["nnfm"], "nnfm_final": final["nnfm"],
-            "nnfm_drop": 1.0 - final["nnfm"] / max(initial["nnfm"], 1e-12),
-            "structure": structure_kept(list(before), after, list(alpha))}
-
-
-def texture_scale_line(ts: dict) -> str:
-    """The end-of-run line of the texture-scale figure (from ``TextureScale.to_dict()``)."""
-    from ..style.texture_scale import TextureScale
-
-    return TextureScale(tuple(ts["added"].values()), tuple(ts["painting"].values()), ts["painting_side"]).line()
-
-
-def run_texture_scale(engine, style, before, after, alpha, width: int):
-    """The texture-scale figure (``style/texture_scale.py``) of evaluation renders ``width`` px wide: band shares of
-    what stylization added inside the scene beside the painting's own at the size it is matched (its luminance with
-    keep colours: only that pattern is transferred)."""
-    from ..style.keep_colours import grey
-    from ..style.texture_scale import matched_side, texture_scale
-
-    s = engine.settings
-    paintings = [style] if isinstance(style, np.ndarray) else list(style)
-    if s.keep_colours:
-        paintings = [grey(np.asarray(p, np.float32)) for p in paintings]
-    side = matched_side(s.working_width, s.style_scale, width)
-    weights = None if len(paintings) == 1 else s.style_weights
-    return texture_scale(before, after, [np.asarray(a) for a in alpha], paintings, side, weights)
-
-
-def run_display_speckle(engine, scene, after_scene, style, n_views: int, width: int):
-    """The speckle figure (``style/speckle.py``) of the evaluation views rendered ``width`` px wide: the fine share of
-    the chroma stylization added inside the scene against the painting's own at its matched size in those pixels (its
-    luminance with keep colours, where only that pattern is transferred)."""
-    from ..render_cli import render_scene_image
-    from ..style.speckle import display_speckle
-    from ..style.texture_scale import matched_side
-
-    s = engine.settings
-    cams = evaluation_cameras(engine, n_views, width)
-    before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
-    after = [render_scene_image(after_scene, c) for c in cams]
-    paintings = [style] if isinstance(style, np.ndarray) else list(style)
-    return display_speckle(list(before), after, [np.asarray(a) for a in alpha], paintings,
-                           matched_side(s.working_width, s.style_scale, width),
-                           None if len(paintings) == 1 else s.style_weights,
-                           channels="luminance" if s.keep_colours else "chroma")
-
-
-def result_summary(engine, width: int = DEFAULT_DISPLAY_WIDTH) -> dict:
-    """What a finished run's summary shows (the studio's): the speckle figure of the evaluation views at a display's
-    ``width`` and the widths the run worked at."""
-    display = run_display_speckle(engine, engine.input_scene, engine.stylized_scene(), engine.style_input(), 3,
-                                  width).to_dict()
-    return {"display": display, "levels": list(engine.levels), "line": display_speckle_line(display)}
-
-
-def display_speckle_line(display: dict) -> str:
-    """The end-of-run line of the speckle figure (from ``DisplaySpeckle.to_dict()``)."""
-    ratio = display["speckle_ratio"]
-    views = " / ".join("-" if r is None else f"{r:.2f}" for r in display["speckle_ratio_per_view"])
-    value = "- (no detail to compare)" if ratio is None else f"{ratio:.2f}"
-    return (f"speckle at {display['width']} px ({display['channels']} finer than σ 4 px, added over the painting's at "
-            f"{display['painting_side']} px): {value} (views {views}; 1: the painting's grain, above: specks)")
 
 
 def _json_default(o):

@@ -33,13 +33,12 @@ from ..fit.model import scene_from_params
 from ..scene import GaussianScene, rgb_to_sh_dc
 from ..style.clip import clip_term_name
 from ..style.mix import normalise_style_weights
-from .active import ActiveSet
 from .controls import Effect, apply_controls
-from .feather import feathered_colours
+from .feather import feathered_colours, merge_unselected
 from .levels import check_refine_widths, level_widths, next_width
-from .notes import note_levels, note_loss_terms, note_networks, note_planned_clip, note_style, sh_note
+from .live_controls import LiveControls
+from .notes import note_levels, note_loss_terms, note_planned_clip, note_style, sh_note
 from .phases import ColourMatch, GroundTruth, Phase, Preprocess, Refine, StepReport, Stylize
-from .phases.colour_match import match_content_targets
 from .plan import STYLIZED_PHASES
 from .region import region_note, selected_box, selection_mask
 from .run_state import RunState
@@ -108,8 +107,7 @@ class Stylizer:
             run.max_gaussians, how = default_max_gaussians(settings.working_width)
         run.decisions["max_gaussians"] = f"at most {run.max_gaussians:,} Gaussians ({how})"
         self.phase_step = 0  # steps since the run entered the current phase
-        # keep colours turned on: c_s before it took the scene's chroma, and the colour version right after
-        self._before_keep_colours: tuple[torch.Tensor, int] | None = None
+        self.live = LiveControls(self)
         self._settle()
 
     # ----------------------------------------------------------------- what callers read
@@ -183,7 +181,8 @@ class Stylizer:
         return ui_params(self.settings)
 
     # ----------------------------------------------------------------- progress
-    def _current(self) -> Phase | None:
+    def current_phase(self) -> Phase | None:
+        """The phase the next step belongs to (None: the run is done)."""
         return next((p for p in self.phases if not p.finished), None)
 
     def _settle(self) -> None:
@@ -197,13 +196,13 @@ class Stylizer:
     @property
     def phase(self) -> str:
         """The current phase's name ("ground_truth" ... "finish", "refit" inside the stylization), or "done"."""
-        current = self._current()
+        current = self.current_phase()
         return "done" if current is None else current.current
 
     @property
     def done(self) -> bool:
         """True once every phase has run."""
-        return self._current() is None
+        return self.current_phase() is None
 
     def total_steps(self) -> int:
         """Steps done plus every phase's remaining steps as planned now (splits add theirs when performed)."""
@@ -211,7 +210,7 @@ class Stylizer:
 
     def step(self) -> StepReport:
         """Advance by one step of the current phase."""
-        run, current = self.run_state, self._current()
+        run, current = self.run_state, self.current_phase()
         if current is None:
             return StepReport("done", run.global_step, self.total_steps(), gaussians=self.gaussian_count, done=True,
                               width=self.current_width)
@@ -270,7 +269,7 @@ class Stylizer:
     @property
     def current_width(self) -> int:
         """The width the run works at now: the level under way (or the last one, once done)."""
-        current = self._current()
+        current = self.current_phase()
         if isinstance(current, Refine):
             return current.width
         if current is None or isinstance(current, ColourMatch) and current.final:
@@ -306,48 +305,7 @@ class Stylizer:
         lr, style mix: the last painting's weight when several are mixed, the others share the rest) from the next
         step on; a term whose weight turns non-zero is built then. ``ValueError`` (nothing changed) for an unknown
         name or a refused value."""
-        self._carry_out(apply_controls(self.settings, kw))
-
-    def _carry_out(self, effects: Effect) -> None:
-        """What the engine does now for controls that changed (``controls.Effect``)."""
-        s, run = self.settings, self.run_state
-        if effects & Effect.REWEIGHT:
-            for objective in run.level_objectives.values():
-                objective.set_weights(s.weights)
-            if run.objective is not None:
-                run.objective.set_weights(s.weights)
-                note_networks(run.decisions, run.objective)
-            else:
-                note_planned_clip(run.decisions, s)
-            note_loss_terms(run.decisions, s, run.objective)
-        if effects & Effect.CONTENT_TARGETS and run.content_images:  # past the colour match: new content targets
-            match_content_targets(run)
-            if effects & Effect.RESTORE_CHROMA:
-                self._switch_chroma(s.keep_colours)
-        for objective in run.objectives():
-            if effects & Effect.CONTENT_TARGETS and hasattr(objective, "clear_content_cache"):
-                objective.clear_content_cache()
-            if effects & Effect.STYLE_FEATURES and hasattr(objective, "refresh_style"):  # test objectives: none
-                objective.refresh_style()  # the painting's features for the settings as they are now
-        if effects & Effect.STYLE_FEATURES:
-            note_style(run.decisions, s, run.objective, len(run.styles))
-
-    def _switch_chroma(self, keep: bool) -> None:
-        """Keep colours turned on: c_s takes c_gt's chroma, the colours before it kept. Turned off before any step
-        changed the colours since: those colours come back bit for bit (after steps, the painting's colours return
-        from the next step and the final colour match)."""
-        run = self.run_state
-        current = self._current()
-        steps = getattr(current, "colour_steps", None) or self.stylize.colour_steps
-        before, self._before_keep_colours = self._before_keep_colours, None
-        if keep:
-            kept = run.c_s.detach().clone()
-            steps.restore_chroma()
-            run.colour_version += 1
-            self._before_keep_colours = (kept, run.colour_version)
-        elif before is not None and before[1] == run.colour_version and before[0].shape == run.c_s.shape:
-            steps.put_back(before[0])
-            run.colour_version += 1
+        self.live.carry_out(apply_controls(self.settings, kw))
 
     # ----------------------------------------------------------------- outputs
     def snapshot(self) -> dict[str, Any]:
@@ -404,24 +362,6 @@ class Stylizer:
             self.settings.style_weights = normalise_style_weights(saved["style_weights"], len(self.styles))
         # a resumed run keeps its stroke size and keep colours; the painting's features follow them and the mix
         kept = {"style_scale": saved.get("style_scale"), "keep_colours": saved.get("keep_colours")}
-        self._carry_out(apply_controls(self.settings, kept) | Effect.STYLE_FEATURES)
+        self.live.carry_out(apply_controls(self.settings, kept) | Effect.STYLE_FEATURES)
         self._settle()
 
-
-def merge_unselected(scene: GaussianScene, input_scene: GaussianScene, active: ActiveSet) -> GaussianScene:
-    """``scene`` (the stylized one) with the Gaussians outside a region's selection taken back from the input
-    exactly (every attribute, SH bands included; the stylized ones get zero bands); ``scene`` outside region runs."""
-    if active.selected is None:
-        return scene
-    keep = (~active.selected).numpy()
-    rows = active.origin.numpy()[keep]
-    fields = {}
-    for name in ("means", "log_scales", "quats", "opacity_logits", "sh_dc"):
-        src = np.asarray(getattr(input_scene, name))
-        arr = np.asarray(getattr(scene, name)).astype(src.dtype, copy=True)
-        arr[keep] = src[rows]
-        fields[name] = arr
-    rest = np.asarray(input_scene.sh_rest)
-    sh_rest = np.zeros((scene.count,) + rest.shape[1:], rest.dtype)
-    sh_rest[keep] = rest[rows]
-    return GaussianScene(**fields, sh_rest=sh_rest)
