@@ -4,11 +4,11 @@ Ctrl+Shift+Z or Ctrl+Y. A slider dragged over many frames is one step: changes o
 ``COALESCE_SECONDS`` apart join the step before. The region tool's selection is undone the same way
 (``RegionEdit``: turned on or off, the box placed, dragged or resized, a rectangle selected). A stylized result that
 a restart, a refine or another scene or painting replaces is a step too (``ResultEdit``): the engine wrote it to disk
-first (scene and summary), and undo opens it as a result. A painting opened, mixed in or removed when no result was
-replaced is a step of its own (``PaintingEdit``): undo puts the painting(s) before it back (the engine restarts with
-them; a result made after the change is saved first and comes back on redo). No GL, no engine here: the studio
-carries the steps out (the engine returns the colours of a finished run bit for bit when a switch goes back,
-``LiveControls.switch_chroma``).
+first (scene and summary), and undo opens it as a result. A painting opened, mixed in or removed, or another
+quality, when no result was replaced is a step of its own (``ChoiceEdit``): undo puts the choice before it back (the
+engine restarts with it; a result made after the change is saved first and comes back on redo). No GL, no engine
+here: the studio carries the steps out (the engine returns the colours of a finished run bit for bit when a switch
+goes back, ``LiveControls.switch_chroma``).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -54,16 +55,21 @@ class ResultEdit:
 
 
 @dataclass
-class PaintingEdit:
-    """The painting(s) chosen: ``(painting, second painting or "", mix)`` before and after; ``result_after`` the file
-    the result made after the new choice was saved to when an undo left it (redo opens it), None until then."""
+class ChoiceEdit:
+    """A choice that restarts the engine, made when no result was replaced: ``kind`` "painting" (``before`` and
+    ``after`` are ``(painting, second painting or "", mix)``) or "quality" (the preset's name); ``result_after`` the
+    file the result made after the choice was saved to when an undo left it (redo opens it), None until then."""
 
-    before: tuple[str, str, float]
-    after: tuple[str, str, float]
+    kind: str
+    before: Any
+    after: Any
     result_after: Path | None = None
     at: float = float("-inf")
 
     def describe(self) -> str:
+        if self.kind == "quality":
+            return f"the quality ({self.before} -> {self.after})"
+
         def names(state: tuple[str, str, float]) -> str:
             return " + ".join(Path(p).name for p in state[:2] if p) or "no painting"
 
@@ -92,7 +98,7 @@ class RegionEdit:
         return "the region selection"
 
 
-Edit = ParamEdit | ResultEdit | RegionEdit | PaintingEdit
+Edit = ParamEdit | ResultEdit | RegionEdit | ChoiceEdit
 
 
 class EditHistory:
@@ -133,8 +139,8 @@ class EditHistory:
         self.done.append(RegionEdit(before, after, now))
         del self.done[:-self.limit]
 
-    def record_result(self, edit: ResultEdit | PaintingEdit) -> None:
-        """A result replaced (saved at ``edit.before``) or a painting chosen; a new step forgets what was undone."""
+    def record_result(self, edit: ResultEdit | ChoiceEdit) -> None:
+        """A result replaced (saved at ``edit.before``) or a choice made; a new step forgets what was undone."""
         self.undone.clear()
         self.done.append(edit)
         del self.done[:-self.limit]

@@ -131,7 +131,7 @@ class OpenFiles:
         elif self.bridge is not None:
             self.start_engine(action=f"opening {name}")
         if painting_before is not None:
-            self.painting_step(painting_before, last_step)
+            self.choice_step("painting", painting_before, last_step)
         return True
 
     def show_result_painting(self) -> None:

@@ -1,16 +1,14 @@
 """The studio's painting(s): the painting opened, a second one mixed in with the mix slider, removed; their
 thumbnails, the engine config's ``style`` (and ``style_weights``), and a painting choice as an undo step of its own
-(``PaintingEdit``: when no result was replaced). ``Paintings`` is a mixin of ``StudioApp``."""
+(``ChoiceEdit``, ``result_undo.py``). ``Paintings`` is a mixin of ``StudioApp``."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .edit_history import Edit, PaintingEdit
-
 
 class Paintings:
-    """``StudioApp``'s painting(s) and their undo steps."""
+    """``StudioApp``'s painting(s)."""
 
     def set_style(self, path: str, slot: int = 0, mix: float | None = None) -> None:
         """Use a new style image (``slot`` 0: the painting; 1: a second painting mixed in with the mix slider, at
@@ -57,44 +55,18 @@ class Paintings:
             self.engine_config["style"] = p.style_path or None
             self.engine_config.pop("style_weights", None)
 
-    # ------------------------------------------------------------------ undo steps
     def painting_state(self) -> tuple[str, str, float]:
         """The painting(s) chosen now: (painting, second painting or "", mix)."""
         p = self.panel
         return p.style_path or "", p.style2_path or "", float(p.params.get("style_mix", 0.0))
 
-    def painting_step(self, before: tuple[str, str, float], last_step: Edit | None) -> None:
-        """A painting was opened, mixed in or removed: one undo step, unless it changed nothing or a result it
-        replaced is the step already (``last_step``: the newest step before the change)."""
-        after = self.painting_state()
-        if after != before and self.history.last() is last_step and not self._restoring:
-            self.history.record_result(PaintingEdit(before, after))
-
-    def undo_or_redo_painting(self, edit: PaintingEdit, name: str) -> None:
-        """Put the painting(s) before (undo) or after (redo) ``edit`` back; the engine restarts with them. Undo saves
-        a result made after the change first; redo opens it again instead of starting over."""
-        if name == "undo":
-            edit.result_after = self.save_result() or edit.result_after
-        elif edit.result_after is not None and self._wait_for(edit.result_after):
-            self._open_restoring(edit.result_after)
-            self.panel.status = f"redo: {edit.result_after.name} is back"
-            return
-        style, style2, mix = edit.before if name == "undo" else edit.after
-        from gstyle_core.errors import GStyleError
-
-        self._restoring = True
-        try:
-            if style:
-                self.set_style(style)
-            if style2:
-                self.set_style(style2, 1, mix)
-            elif self.panel.style2_path:
-                self.remove_second_style()
-            if self.bridge is not None:
-                self.start_engine(action=f"{name} of a painting")
-        except GStyleError as exc:
-            self.panel.status = f"{name}: {exc}"
-            return
-        finally:
-            self._restoring = False
-        self.panel.status = f"{name}: {edit.describe()}"
+    def put_paintings(self, state: tuple[str, str, float]) -> None:
+        """Choose ``state``'s painting(s) and mix (``painting_state``); ``GStyleError`` for a file that no longer
+        reads. The caller restarts the engine."""
+        style, style2, mix = state
+        if style:
+            self.set_style(style)
+        if style2:
+            self.set_style(style2, 1, mix)
+        elif self.panel.style2_path:
+            self.remove_second_style()

@@ -14,7 +14,7 @@ from pathlib import Path
 from gstyle_core.paths import cache_dir
 from gstyle_core.pipeline.plan import STYLIZED_PHASES
 
-from .edit_history import PaintingEdit, ParamEdit, RegionEdit, ResultEdit
+from .edit_history import ChoiceEdit, Edit, ParamEdit, RegionEdit, ResultEdit
 from .export import summary_path
 
 KEPT_RESULTS = 12
@@ -81,8 +81,8 @@ class ResultUndo:
             self.restore_region(edit.before if name == "undo" else edit.after)
             self.panel.status = f"{name}: {edit.describe()}"
             return
-        if isinstance(edit, PaintingEdit):
-            self.undo_or_redo_painting(edit, name)
+        if isinstance(edit, ChoiceEdit):
+            self.undo_or_redo_choice(edit, name)
             return
         if name == "undo":
             edit.after = self.save_result() or edit.after  # the result undo leaves, for redo
@@ -94,6 +94,45 @@ class ResultUndo:
             return
         self._open_restoring(target)
         self.panel.status = f"{name}: {edit.describe()} is back" if name == "undo" else f"redo: {target.name} is back"
+
+    # ------------------------------------------------------------------ choices that restart the engine
+    def choice_state(self, kind: str):
+        """What is chosen now: the painting(s) (``painting_state``) or the quality."""
+        return self.painting_state() if kind == "painting" else str(self.engine_config.get("preset") or "preview")
+
+    def choice_step(self, kind: str, before, last_step: Edit | None) -> None:
+        """A choice was made (a painting opened, mixed in or removed; another quality): one undo step, unless it
+        changed nothing or a result it replaced is the step already (``last_step``: the newest step before it)."""
+        after = self.choice_state(kind)
+        if after != before and self.history.last() is last_step and not self._restoring:
+            self.history.record_result(ChoiceEdit(kind, before, after))
+
+    def undo_or_redo_choice(self, edit: ChoiceEdit, name: str) -> None:
+        """Put the choice before (undo) or after (redo) ``edit`` back; the engine restarts with it. Undo saves a
+        result made after the choice first; redo opens it again instead of starting over."""
+        from gstyle_core.errors import GStyleError
+
+        if name == "undo":
+            edit.result_after = self.save_result() or edit.result_after
+        elif edit.result_after is not None and self._wait_for(edit.result_after):
+            self._open_restoring(edit.result_after)
+            self.panel.status = f"redo: {edit.result_after.name} is back"
+            return
+        state = edit.before if name == "undo" else edit.after
+        self._restoring = True
+        try:
+            if edit.kind == "painting":
+                self.put_paintings(state)
+            else:
+                self.engine_config["preset"] = self.panel.quality = state
+            if self.bridge is not None:
+                self.start_engine(action=f"{name} of the {edit.kind}")
+        except GStyleError as exc:
+            self.panel.status = f"{name}: {exc}"
+            return
+        finally:
+            self._restoring = False
+        self.panel.status = f"{name}: {edit.describe()}"
 
     def _open_restoring(self, path: Path) -> None:
         """Open a saved result as undo and redo do: what it replaces was saved already."""

@@ -55,10 +55,12 @@ class StudioCommands:
         elif name == "set_quality":
             self.panel.quality = str(args["preset"])
         elif name == "restart_quality":
+            before, last_step = self.choice_state("quality"), self.history.last()
             self.engine_config["preset"] = str(args["preset"])
             self.panel.quality = str(args["preset"])
             self.panel.status = f"restarting at the {args['preset']} quality"
             self.start_engine()
+            self.choice_step("quality", before, last_step)
         elif name == "refine":
             if bridge is not None:
                 self.keep_result("refine")
@@ -69,7 +71,7 @@ class StudioCommands:
             self.panel.status = "back to one painting"
             if bridge is not None:
                 self.start_engine()
-            self.painting_step(before, last_step)
+            self.choice_step("painting", before, last_step)
         else:
             return False
         return True

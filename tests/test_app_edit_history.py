@@ -187,7 +187,7 @@ def test_a_painting_choice_is_a_step_of_its_own(window, tmp_path, monkeypatch):
     the painting(s) and the mix before it back and the engine restarts with them; redo chooses again."""
     from fakes import ring_studio
 
-    from app.edit_history import PaintingEdit
+    from app.edit_history import ChoiceEdit
     from app.panels import Command
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
@@ -196,7 +196,7 @@ def test_a_painting_choice_is_a_step_of_its_own(window, tmp_path, monkeypatch):
     try:
         assert app.open_path(first, record=False) and app.history.done == []
         assert app.open_path(second)
-        assert isinstance(app.history.last(), PaintingEdit) and app.engine_config["style"] == second
+        assert isinstance(app.history.last(), ChoiceEdit) and app.engine_config["style"] == second
         assert app.open_path(third, style_slot=1)
         app.execute(Command("set_params", {"style_mix": 0.8}))
         app.history.done[-1].at = float("-inf")
@@ -265,5 +265,30 @@ def test_redo_of_a_painting_brings_back_the_result_made_after_it(window, tmp_pat
         app.undo_or_redo("redo")
         assert app.result is not None and app.loaded.path == str(made) and app.bridge is None
         assert app.panel.status == f"redo: {made.name} is back"
+    finally:
+        app.close(timeout=30)
+
+
+def test_another_quality_is_a_step_of_its_own(window, tmp_path, monkeypatch):
+    """With no result replaced, choosing another quality (which restarts the engine) is an undo step: undo puts the
+    quality before it back and restarts with it; redo chooses again."""
+    from fakes import ring_studio
+
+    from app.edit_history import ChoiceEdit
+    from app.panels import Command
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    app = ring_studio(window, tmp_path)
+    try:
+        assert app.choice_state("quality") == "preview"
+        app.execute(Command("restart_quality", {"preset": "balanced"}))
+        assert isinstance(app.history.last(), ChoiceEdit) and app.bridge.config["preset"] == "balanced"
+        app.execute(Command("undo"))
+        assert app.panel.quality == "preview" and app.bridge.config["preset"] == "preview"
+        assert app.panel.status == "undo: the quality (preview -> balanced)"
+        app.execute(Command("redo"))
+        assert app.panel.quality == "balanced" and app.bridge.config["preset"] == "balanced"
+        app.execute(Command("restart_quality", {"preset": "balanced"}))  # the same quality again: no step
+        assert len(app.history.done) == 1
     finally:
         app.close(timeout=30)
