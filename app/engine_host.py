@@ -266,12 +266,12 @@ class EngineHost:
                 "fingerprint": self.fingerprint, "build_params": dict(self.build_params), "params": dict(self.params)}
 
     def keep_run(self, written: str) -> None:
-        """Keep the engine's state with the result just written (``app/result_state.py``), so that the result can
-        be continued when it is reopened; a failure only says so (the result itself was written)."""
+        """Keep the engine's state with the result just written (``gstyle_core/pipeline/kept_runs.py``), so that the
+        result can be continued when it is reopened; a failure only says so (the result itself was written)."""
         if not hasattr(self.engine, "state_dict") or not hasattr(self.engine, "input_scene"):
             return
         try:
-            from .result_state import save_result_state
+            from gstyle_core.pipeline.kept_runs import save_result_state
 
             save_result_state(written, self.engine.state_dict(), self.saved_meta())
         except Exception as exc:  # noqa: BLE001

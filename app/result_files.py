@@ -10,10 +10,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gstyle_core.pipeline.kept_runs import find_result_state
 from gstyle_core.pipeline.settings import StylizeSettings, ui_params
 
 from .export import summary_path
-from .result_state import find_result_state
 from .takes import widths_text
 
 
@@ -28,7 +28,7 @@ class ResultInfo:
     line: str = ""
     preset: str = ""
     styles: list[Path] = field(default_factory=list)  # its paintings whose files are found
-    state: Path | None = None  # the run kept with it (``result_state.py``), when the file is still the one written
+    state: Path | None = None  # the run kept with it (``pipeline/kept_runs.py``) while the file is still as written
     state_config: dict[str, Any] = field(default_factory=dict)  # the engine config that run was built from
 
 

@@ -145,7 +145,7 @@ def test_a_saved_result_reopens_and_continues_its_run_on_its_original(window, tm
     from fakes import make_small_stylizer, ring_studio
 
     from app.panels import Command
-    from app.result_state import find_result_state
+    from gstyle_core.pipeline.kept_runs import find_result_state
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     original = tmp_path / "original.ply"

@@ -24,6 +24,7 @@ from gstyle_core.io import load_scene
 from gstyle_core.pipeline import cli
 from gstyle_core.pipeline.build import BuiltEngine
 from gstyle_core.pipeline.checkpoint import stylize_checkpoint_path
+from gstyle_core.pipeline.kept_runs import find_result_state
 
 PHASES = ("ground_truth", "stylize", "finish")
 STEPS_PER_PHASE = 3
@@ -127,6 +128,8 @@ def test_every_file_is_named_from_the_whole_output_name(tiny, tmp_path, capsys, 
     assert f"wrote {', '.join(map(str, files))} (" in capsys.readouterr().out  # the files actually written
     assert load_scene(out)[0].count == 40
     assert not stylize_checkpoint_path(out).exists()  # a complete run leaves no checkpoint
+    kept = find_result_state(out)  # its run is kept for the studio's Continue
+    assert kept is not None and kept[1]["config"]["preset"] == "preview" and kept[1]["config"]["scene"] is None
 
 
 def test_dotted_names_never_share_a_summary_and_companions_need_force(tiny, tmp_path, capsys):

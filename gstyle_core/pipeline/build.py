@@ -57,6 +57,24 @@ def style_paths(style: str | Sequence[str] | None) -> list[str]:
     return [str(style)] if isinstance(style, (str, Path)) else [str(s) for s in style]
 
 
+def request_config(request: BuildRequest) -> dict[str, Any]:
+    """The engine config (the studio's engine factory's keywords) that builds ``request``'s engine again from
+    anywhere: paths absolute, the preset's values (None overrides) left out."""
+    def absolute(path: Any) -> str | None:
+        return str(Path(path).expanduser().resolve()) if path else None
+
+    style = request.style
+    config: dict[str, Any] = {
+        "scene": absolute(request.scene),
+        "style": [absolute(s) for s in style] if isinstance(style, (list, tuple)) else absolute(style),
+        "cameras": absolute(request.cameras), "preset": request.preset, "scene_kind": request.scene_kind,
+        "defaults": request.defaults}
+    config.update({k: v for k, v in request.overrides.items() if v is not None})
+    if request.selection is not None:
+        config["selection"] = request.selection
+    return config
+
+
 def build_stylizer(request: BuildRequest) -> BuiltEngine:
     """Load the scene, cameras, photos and style, resolve the settings and build the engine."""
     from ..cameras import classify_scene_kind

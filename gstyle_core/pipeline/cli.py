@@ -17,7 +17,7 @@ from ..outputs import SUMMARY, companions
 from ..style.precision import PRECISIONS
 from ..style.speckle import DEFAULT_DISPLAY_WIDTH
 from .arg_types import display_width_arg, region_arg, style_weights_arg, widths_arg
-from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, style_paths
+from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, request_config, style_paths
 from .controls import add_control_arguments
 from .run_figures import display_speckle_line, evaluate_run, texture_scale_line
 
@@ -131,6 +131,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     except OutputWriteError as exc:
         raise kept_run_error(exc, checkpointer, args) from exc
     checkpointer.remove()
+    keep_finished_run(engine, out, build_request(args))
     q = quality
     print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
           f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
@@ -145,6 +146,20 @@ def stylize_command(args: argparse.Namespace) -> int:
         print(display_speckle_line(q["display"]))
     print(f"wrote {', '.join(map(str, written))} ({summary['seconds_total']:.0f} s)")
     return 0
+
+
+def keep_finished_run(engine, out: Path, request: BuildRequest) -> None:
+    """Keep the finished run's state with OUT.ply (``kept_runs.py``), so that the studio can continue or refine the
+    result when it is opened there; a failure is one note line (the outputs were written)."""
+    from .checkpoint import engine_fingerprint
+    from .kept_runs import save_result_state
+
+    try:
+        config = request_config(request)
+        save_result_state(out, engine.state_dict(), {"config": config, "fingerprint": engine_fingerprint(engine),
+                                                     "build_params": {}, "params": {}})
+    except Exception as exc:  # noqa: BLE001 - the result is written; only continuing it in the studio is lost
+        print(f"note: the run was not kept for the studio's Continue ({type(exc).__name__}: {exc})")
 
 
 def _checked_output(args: argparse.Namespace) -> tuple[Path, float]:

@@ -2,12 +2,13 @@
 
 A PLY holds only the stylized scene: the engine's state (the ground-truth colours of the split Gaussians, the
 optimisers, the content targets) is not in it. So whenever the studio's engine writes a result (Save, Save As, a
-result kept for undo), the worker also saves the engine's checkpoint for it (``pipeline/checkpoint.py``'s format,
-in the cache folder; beside the file in the session's history folder for undo's results) with a small note: the
-digest of the file written and the run's inputs. Reopened later, a result whose file still has that digest and whose
-original scene and paintings are found can be continued: the engine is rebuilt on the original from the same inputs
-and loads that state, so the run is where it ended (Refine, the controls and keep colours go on from it). At most
-``KEPT_STATES`` states and ``KEPT_BYTES`` are kept in the cache folder (the oldest go first).
+result kept for undo) and when ``gstyle stylize`` has written OUT.ply, the engine's checkpoint is saved for it
+(``pipeline/checkpoint.py``'s format, in the cache folder; beside the file in the session's history folder for undo's
+results) with a small note: the digest of the file written and the engine config it was built from. Reopened later,
+a result whose file still has that digest and whose original scene and paintings are found can be continued: the
+engine is rebuilt on the original from the same inputs and loads that state, so the run is where it ended (Refine,
+the controls and keep colours go on from it). At most ``KEPT_STATES`` states and ``KEPT_BYTES`` are kept in the
+cache folder (the oldest go first).
 """
 
 from __future__ import annotations

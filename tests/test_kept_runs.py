@@ -1,14 +1,22 @@
-"""A saved result keeps its run (issue #35 item 3, app/result_state.py): the worker keeps the engine's state with
-every result it writes, a reopened result whose file is unchanged finds it, and the engine rebuilt on the original
-from the inputs kept with it loads that run where it ended (however the sliders stood when it was built)."""
+"""A saved result keeps its run (issue #35 item 3, ``gstyle_core/pipeline/kept_runs.py``): the studio's worker and
+``gstyle stylize`` keep the engine's state with every result they write, a reopened result whose file is unchanged
+finds it, and the engine rebuilt on the original from the inputs kept with it loads that run where it ended (however
+the sliders stood when it was built)."""
 
 import json
 
 import numpy as np
 from fakes import make_small_stylizer
 
-from app.result_state import file_digest, find_result_state, note_path, prune, result_state_path, save_result_state
 from app.worker import WorkerBridge
+from gstyle_core.pipeline.kept_runs import (
+    file_digest,
+    find_result_state,
+    note_path,
+    prune,
+    result_state_path,
+    save_result_state,
+)
 
 
 def test_a_kept_run_is_found_for_its_file_and_lost_when_the_file_changes(tmp_path, monkeypatch):
@@ -90,3 +98,30 @@ def test_a_result_reopened_continues_its_run_where_it_ended(tmp_path, monkeypatc
     finally:
         again.quit()
     assert json.loads(note_path(state_path).read_text())["result"] == str(result.resolve())
+
+
+def test_the_config_kept_for_a_command_line_run_builds_the_same_engine(tmp_path, monkeypatch):
+    """``gstyle stylize``'s request, kept as the studio's engine config (paths made absolute), builds an engine with
+    the same fingerprint from another folder: the kept run loads into it."""
+    from PIL import Image
+    from synthetic import blob_scene
+
+    from app.engine_factory import make_stylizer
+    from gstyle_core.io import save_scene
+    from gstyle_core.pipeline.build import BuildRequest, build_stylizer, request_config
+    from gstyle_core.pipeline.checkpoint import engine_fingerprint
+
+    (tmp_path / "work").mkdir()
+    save_scene(blob_scene(50, seed=3), tmp_path / "work" / "scene.ply")
+    Image.fromarray(np.random.default_rng(1).integers(0, 255, (16, 16, 3), dtype=np.uint8)).save(
+        tmp_path / "work" / "art.png")
+    monkeypatch.chdir(tmp_path / "work")
+    request = BuildRequest(scene="scene.ply", style=["art.png"], preset="balanced",
+                           overrides={"lambda_content": 0.2, "working_width": 64, "region": None})
+    built = build_stylizer(request)
+    config = request_config(request)
+    assert config["scene"] == str(tmp_path / "work" / "scene.ply") and "region" not in config
+    monkeypatch.chdir(tmp_path)
+    again = make_stylizer(**config)
+    assert engine_fingerprint(again) == engine_fingerprint(built.engine)
+    again.load_state_dict(built.engine.state_dict())
