@@ -214,7 +214,7 @@ def test_zero_weight_terms_are_never_computed_and_change_nothing(random_vgg_obje
     tiny.run()
     steps = skipped.stylize_steps
     assert skipped.decisions["loss_terms"] == ("computed: nnfm, tv; never computed (weight 0): clip, content, "
-                                               "multiscale, chroma_tv")
+                                               "multiscale, chroma_tv, edges")
     assert skipped.decisions["clip"] == "CLIP term off (λ_CLIP = 0)"
     assert skipped.objective.calls == {"vgg": steps, "clip": 0}  # NNFM only: no content features, no CLIP
     assert tiny.objective.calls == {"vgg": steps + len(tiny.cameras), "clip": 0}  # + one content pass per view
@@ -243,7 +243,7 @@ def test_clip_without_weights_never_runs_and_weights_set_to_zero_stop_the_networ
     assert eng.objective.calls == {"vgg": 2, "clip": 0}  # NNFM + the coarse-VGG substitute; the ViT never runs
     eng.set_params(lambda_clip=0.0, lambda_nnfm=0.0)
     assert eng.decisions["loss_terms"] == ("computed: tv; never computed (weight 0): clip, nnfm, content, multiscale, "
-                                           "chroma_tv")
+                                           "chroma_tv, edges")
     eng.step()
     assert eng.objective.calls == {"vgg": 2, "clip": 0}
 

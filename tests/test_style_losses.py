@@ -120,6 +120,7 @@ def test_combined_loss_and_zero_weight_terms_are_skipped(parts):
     assert loss_fn.calls == {"vgg": 2, "clip": 1} and vgg.forward_calls == 2 and encoder.calls == 1
     assert terms.pop("multiscale") == 0.0  # weight 0 by default (the settings turn it on without CLIP weights)
     assert terms.pop("chroma_tv") == 0.0  # likewise (the settings' defaults set it)
+    assert terms.pop("edges") == 0.0  # likewise
     assert all(v > 0 for v in terms.values()) and torch.isfinite(render.grad).all()
     w = StyleWeights()
     expected = w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"] + w.tv * terms["tv"]
@@ -161,3 +162,35 @@ def test_coarse_substitute_counts_as_vgg(parts):
     loss_fn = StyleLoss(vgg, target, coarse, weights=StyleWeights(nnfm=0.0, content=0.0, tv=0.0))
     total, terms = loss_fn(torch.rand(1, 3, 64, 64))
     assert loss_fn.calls == {"vgg": 1, "clip": 0} and terms["clip"] > 0
+
+
+def test_the_edges_term_holds_luminance_edges_and_leaves_colour_free():
+    """``edges_loss``: 0 for the content target itself and for any change of hue at the same luminance; positive for
+    an edge moved or a new one; the scene's silhouette (coverage 0 outside) does not count; its weight at 0 skips
+    it and without a content target it is refused."""
+    from gstyle_core.style.losses import edges_loss, luminance
+
+    gt = torch.zeros(1, 3, 16, 16)
+    gt[..., :, 8:] = 0.8  # a vertical edge
+    assert float(edges_loss(gt, gt)) == 0.0
+    hue = gt.clone()
+    hue[:, 0] += 0.1 * 0.587
+    hue[:, 1] -= 0.1 * 0.299  # same luminance, another colour
+    assert torch.allclose(luminance(hue), luminance(gt), atol=1e-6) and float(edges_loss(hue, gt)) < 1e-10
+    moved = torch.zeros_like(gt)
+    moved[..., :, 5:] = 0.8
+    assert float(edges_loss(moved, gt)) > 0.01
+    outside = gt.clone()
+    outside[..., :, 12:] = 0.0  # a new edge where the scene is not
+    cover = torch.ones(16, 16)
+    cover[:, 12:] = 0.0
+    assert float(edges_loss(outside, gt, cover)) == 0.0 < float(edges_loss(outside, gt))
+    render = moved.clone().requires_grad_(True)
+    loss = StyleLoss(None, None, weights={"nnfm": 0.0, "content": 0.0, "clip": 0.0, "tv": 0.0, "edges": 2.0})
+    total, terms = loss(render, gt)
+    total.backward()
+    assert float(total) == pytest.approx(2.0 * terms["edges"]) and render.grad.abs().sum() > 0
+    with pytest.raises(ValueError, match="content target"):
+        loss(render)
+    loss.weights = {"edges": 0.0}
+    assert loss(render)[1]["edges"] == 0.0  # weight 0: not computed (no target needed)

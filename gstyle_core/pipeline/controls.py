@@ -158,6 +158,11 @@ CONTROLS: tuple[Control, ...] = (
           "display's size) while edges and shading stay. Strongest at the finer levels (Refine), whose pixels are "
           "the display's.",
           "colour-smoothness term (total variation of the render's chroma, per pixel)"),
+    _term("edges", "lambda edges", 0.0, 1.0, 1e5,
+          "Weight of edge keeping: the render's light-and-dark edges (luminance gradients, pixel to pixel) held to "
+          "the scene's, so faces, outlines and shapes stay legible under the strokes while colours and texture "
+          "change; more keeps more structure and lets less of the painting's texture in. At every level's pixels.",
+          "edge-keeping term (luminance gradients held to the scene's, per pixel)"),
     Control("strength", "style strength", 1.0, 0.1, 100.0, True,
             "Style strength: multiplies the style terms (CLIP, NNFM, broad strokes) against content preservation; "
             "1 keeps the lambda values as they are, more paints harder, less keeps more of the scene.",

@@ -274,7 +274,8 @@ class StyleObjective:
                 gt_feats = self.loss.content_features(content.permute(2, 0, 1)[None], render.shape[-2:])
                 if view is not None:
                     self._content_cache[view] = gt_feats
-        return self.loss(render, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view,
+        gt = content.permute(2, 0, 1)[None] if self.loss.weights.edges > 0 else None  # at the render's size
+        return self.loss(render, gt=gt, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view,
                          multiscale_view=multiscale_view)
 
     def network_box(self, view: int | None, coverage: torch.Tensor | None, grow: int = 1) -> tuple[slice, slice] | None:

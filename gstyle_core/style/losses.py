@@ -42,6 +42,7 @@ class StyleWeights:
     tv: float = 1e-4
     multiscale: float = 0.0
     chroma_tv: float = 0.0  # colour smoothness (``chroma_tv_loss``), not the paper's: 0 here, the settings set it
+    edges: float = 0.0  # the scene's light-and-dark edges kept (``edges_loss``), not the paper's: 0 here
 
     @classmethod
     def for_scene_kind(cls, kind: str) -> StyleWeights:
@@ -249,6 +250,30 @@ def chroma_tv_loss(img: torch.Tensor, coverage: torch.Tensor | None = None) -> t
         ((dy * dy).sum(1) * wy).sum() / (wy.sum() * img.shape[0] + eps)
 
 
+def luminance(img: torch.Tensor) -> torch.Tensor:
+    """[B, 3, H, W] RGB → [B, H, W] luminance (Rec. 601 weights)."""
+    return 0.299 * img[:, 0] + 0.587 * img[:, 1] + 0.114 * img[:, 2]
+
+
+def edges_loss(img: torch.Tensor, gt: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
+    """Edges kept: the mean squared difference between the luminance gradients (differences of neighbouring pixels,
+    horizontal and vertical) of ``img`` and of ``gt`` (its content target), both [B, 3, H, W], each pair weighted
+    by the product of the two pixels' ``coverage`` as in ``chroma_tv_loss``. The painting's colours and the
+    texture NNFM adds may change everything but where the scene's light and dark edges lie and how strong they are
+    (a gradient-domain content term, after Li et al.'s Laplacian-steered style transfer, 2017). A mean: its weight
+    means the same at every render size."""
+    lum, ref = luminance(img), luminance(gt.to(img.dtype))
+    dx = (lum[..., :, 1:] - lum[..., :, :-1]) - (ref[..., :, 1:] - ref[..., :, :-1])
+    dy = (lum[..., 1:, :] - lum[..., :-1, :]) - (ref[..., 1:, :] - ref[..., :-1, :])
+    if coverage is None:
+        return (dx * dx).mean() + (dy * dy).mean()
+    w = torch.as_tensor(coverage, dtype=img.dtype).reshape(img.shape[-2:])
+    wx, wy = w[:, 1:] * w[:, :-1], w[1:, :] * w[:-1, :]
+    eps = 1e-8
+    return (dx * dx * wx).sum() / (wx.sum() * img.shape[0] + eps) + (dy * dy * wy).sum() / (wy.sum() * img.shape[0]
+                                                                                            + eps)
+
+
 def vgg_input_size(size: tuple[int, int] | torch.Size) -> tuple[int, int]:
     """``size`` (h, w) with each side raised to at least ``MIN_VGG_SIDE``."""
     return max(int(size[0]), MIN_VGG_SIDE), max(int(size[1]), MIN_VGG_SIDE)
@@ -338,7 +363,8 @@ class StyleLoss(nn.Module):
         (a wider crop: its coarse levels need more context and a coarser pixel grid than NNFM's)."""
         w = self._weights
         zero = render.new_zeros(())
-        terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero, "multiscale": zero, "chroma_tv": zero}
+        terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero, "multiscale": zero, "chroma_tv": zero,
+                 "edges": zero}
         small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip or w.multiscale) \
             else render
         if w.nnfm > 0 or w.content > 0:
@@ -367,12 +393,18 @@ class StyleLoss(nn.Module):
             terms["tv"] = tv_loss(render)
         if w.chroma_tv > 0:  # only the colour variation beyond the painting's own
             terms["chroma_tv"] = (chroma_tv_loss(render, coverage) - self.chroma_floor).clamp_min(0.0)
+        if w.edges > 0:
+            if gt is None:
+                raise ValueError("the edges term needs the content target (gt) at the render's size")
+            terms["edges"] = edges_loss(render, gt, coverage)
         total = (w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"]
                  + w.tv * terms["tv"])
         if w.multiscale > 0:  # added last: with the term off the total is the same sum, bit for bit
             total = total + w.multiscale * terms["multiscale"]
         if w.chroma_tv > 0:
             total = total + w.chroma_tv * terms["chroma_tv"]
+        if w.edges > 0:
+            total = total + w.edges * terms["edges"]
         return total, {name: float(value.detach()) for name, value in terms.items()}
 
     @torch.no_grad()

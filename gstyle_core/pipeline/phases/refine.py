@@ -35,7 +35,7 @@ from .colour_match import content_target, detail_sigma
 from .ground_truth import ground_truth_view
 
 REFINE_MODES = ("crops", "whole")
-CROP_TERMS = ("nnfm", "content", "tv", "chroma_tv")  # what a crop computes: the large-pattern terms need whole views
+CROP_TERMS = ("nnfm", "content", "tv", "chroma_tv", "edges")  # a crop's terms: the large-pattern ones need whole views
 
 
 class Refine(Phase):
