@@ -26,6 +26,7 @@ from gstyle_core.io import save_scene  # noqa: E402
 from tests.synthetic import blob_scene  # noqa: E402
 
 SIZE = (1280, 800)
+PANEL_TOP = 24  # the panel window's title bar covers y 0-19: a widget scrolled under it is not clickable
 WITH_HOOKS = ("import sys; sys.path.insert(0, sys.argv.pop(1)); import e2e_hooks; e2e_hooks.install(); "
               "from app.main import main; sys.exit(main(sys.argv[1:]))")
 
@@ -83,7 +84,7 @@ class Mapped(Studio):
             widgets = [w for w in self.panel()["widgets"] if w[1] == path]
             assert widgets, f"no widget {path!r} drawn: {[w[1] for w in self.panel()['widgets']]}"
             kind, _, (x0, y0, x1, y1) = widgets[-1]
-            if y0 < 4:
+            if y0 < PANEL_TOP:  # under the panel's title bar, or above it
                 self.wheel(4)
             elif y1 > SIZE[1] - 4:
                 self.wheel(5)
