@@ -168,7 +168,7 @@ def test_the_edges_term_holds_luminance_edges_and_leaves_colour_free():
     """``edges_loss``: 0 for the content target itself and for any change of hue at the same luminance; positive for
     an edge moved or a new one; the scene's silhouette (coverage 0 outside) does not count; its weight at 0 skips
     it and without a content target it is refused."""
-    from gstyle_core.style.losses import edges_loss, luminance
+    from gstyle_core.style.pixel_terms import edges_loss, luminance
 
     gt = torch.zeros(1, 3, 16, 16)
     gt[..., :, 8:] = 0.8  # a vertical edge

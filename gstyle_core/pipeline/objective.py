@@ -188,7 +188,7 @@ class StyleObjective:
     def _chroma_floor(self) -> float:
         """The colour-smoothness term's floor: the chroma variation per pixel (``chroma_tv_loss``) of the painting(s)
         as matched (weighted over a mix): the render may be as grainy in colour as the painting, not more."""
-        from ..style.losses import chroma_tv_loss
+        from ..style.pixel_terms import chroma_tv_loss
 
         weights = self._style_weights() or (1.0,)
         with torch.no_grad():

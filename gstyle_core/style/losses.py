@@ -26,6 +26,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .pixel_terms import chroma_tv_loss, edges_loss, tv_loss
+
 FEATURE_LAYERS = ("relu3_1", "relu3_2", "relu3_3")
 _NORM_EPS = 1e-8
 MIN_VGG_SIDE = 4  # relu3_x follow two 2x poolings: a smaller input has no feature vector (VGG raises)
@@ -213,65 +215,6 @@ def content_loss(render_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tenso
     else:
         pairs = list(zip(render_feats, gt_feats, strict=True))
     return sum(weighted_mean((r - g.detach()) ** 2, weights) for r, g in pairs)
-
-
-def tv_loss(img: torch.Tensor, kind: str = "squared") -> torch.Tensor:
-    """Total variation of ``img`` [B,3,H,W], **summed** over pixels, channels and the batch:
-    Σ (Δ_x)² + Σ (Δ_y)² (``kind="squared"``, the G-Style reference) or Σ|Δ_x| + Σ|Δ_y| (``kind="abs"``)."""
-    dx = img[..., :, 1:] - img[..., :, :-1]
-    dy = img[..., 1:, :] - img[..., :-1, :]
-    if kind == "squared":
-        return (dx * dx).sum() + (dy * dy).sum()
-    if kind == "abs":
-        return dx.abs().sum() + dy.abs().sum()
-    raise ValueError(f"tv kind must be 'squared' or 'abs', got {kind!r}")
-
-
-def opponent_chroma(img: torch.Tensor) -> torch.Tensor:
-    """[B, 3, H, W] RGB → [B, 2, H, W] opponent chroma r − g and (r + g)/2 − b (``style/speckle.py``'s channels)."""
-    r, g, b = img[:, 0], img[:, 1], img[:, 2]
-    return torch.stack([r - g, 0.5 * (r + g) - b], dim=1)
-
-
-def chroma_tv_loss(img: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
-    """Colour smoothness: the **mean** squared difference of the opponent chroma of neighbouring pixels of ``img``
-    [B, 3, H, W] (horizontal and vertical pairs, summed), each pair weighted by the product of the two pixels'
-    ``coverage`` ([H, W] in [0, 1]; None: 1), so the scene's silhouette against an empty background does not count.
-    A mean, not a sum: its weight means the same at every render size. Luminance is left free: edges and shading
-    carry the scene's structure."""
-    c = opponent_chroma(img)
-    dx, dy = c[..., :, 1:] - c[..., :, :-1], c[..., 1:, :] - c[..., :-1, :]
-    if coverage is None:
-        return (dx * dx).mean() + (dy * dy).mean()
-    w = torch.as_tensor(coverage, dtype=img.dtype).reshape(img.shape[-2:])
-    wx, wy = w[:, 1:] * w[:, :-1], w[1:, :] * w[:-1, :]
-    eps = 1e-8
-    return ((dx * dx).sum(1) * wx).sum() / (wx.sum() * img.shape[0] + eps) + \
-        ((dy * dy).sum(1) * wy).sum() / (wy.sum() * img.shape[0] + eps)
-
-
-def luminance(img: torch.Tensor) -> torch.Tensor:
-    """[B, 3, H, W] RGB → [B, H, W] luminance (Rec. 601 weights)."""
-    return 0.299 * img[:, 0] + 0.587 * img[:, 1] + 0.114 * img[:, 2]
-
-
-def edges_loss(img: torch.Tensor, gt: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
-    """Edges kept: the mean squared difference between the luminance gradients (differences of neighbouring pixels,
-    horizontal and vertical) of ``img`` and of ``gt`` (its content target), both [B, 3, H, W], each pair weighted
-    by the product of the two pixels' ``coverage`` as in ``chroma_tv_loss``. The painting's colours and the
-    texture NNFM adds may change everything but where the scene's light and dark edges lie and how strong they are
-    (a gradient-domain content term, after Li et al.'s Laplacian-steered style transfer, 2017). A mean: its weight
-    means the same at every render size."""
-    lum, ref = luminance(img), luminance(gt.to(img.dtype))
-    dx = (lum[..., :, 1:] - lum[..., :, :-1]) - (ref[..., :, 1:] - ref[..., :, :-1])
-    dy = (lum[..., 1:, :] - lum[..., :-1, :]) - (ref[..., 1:, :] - ref[..., :-1, :])
-    if coverage is None:
-        return (dx * dx).mean() + (dy * dy).mean()
-    w = torch.as_tensor(coverage, dtype=img.dtype).reshape(img.shape[-2:])
-    wx, wy = w[:, 1:] * w[:, :-1], w[1:, :] * w[:-1, :]
-    eps = 1e-8
-    return (dx * dx * wx).sum() / (wx.sum() * img.shape[0] + eps) + (dy * dy * wy).sum() / (wy.sum() * img.shape[0]
-                                                                                            + eps)
 
 
 def vgg_input_size(size: tuple[int, int] | torch.Size) -> tuple[int, int]:
