@@ -11,7 +11,7 @@ import shutil
 import time
 from pathlib import Path
 
-from gstyle_core.paths import cache_dir
+from gstyle_core.pipeline.kept_runs import history_root
 from gstyle_core.pipeline.plan import STYLIZED_PHASES
 
 from .edit_history import ChoiceEdit, Edit, ParamEdit, RegionEdit, ResultEdit
@@ -22,7 +22,7 @@ KEPT_RESULTS = 12
 
 def history_folder() -> Path:
     """This studio session's folder for replaced results (one per process)."""
-    return cache_dir() / "history" / f"session_{os.getpid()}"
+    return history_root() / f"session_{os.getpid()}"
 
 
 def in_history(path: str | Path) -> bool:

@@ -27,17 +27,21 @@ KEPT_BYTES = 2 << 30  # a state is about 2.5x its PLY (measured: 39 MB beside a 
 NOTE_SUFFIX = ".json"
 
 
-
 def results_folder() -> Path:
     """``cache_dir()/results``: the states of the artist's saved results."""
     return cache_dir() / "results"
+
+
+def history_root() -> Path:
+    """``cache_dir()/history``: the studio sessions' folders of results kept for undo (one per session)."""
+    return cache_dir() / "history"
 
 
 def result_state_path(result: str | Path) -> Path:
     """Where the run of the result file ``result`` is kept: beside it for undo's results (they go with the session's
     history folder), else in ``results_folder()`` under a name keyed by the file's absolute path."""
     path = Path(result).expanduser().resolve()
-    if path.parent.parent == (cache_dir() / "history").resolve():  # any session's (the worker has its own pid)
+    if path.parent.parent == history_root().resolve():  # any session's (the worker has its own pid)
         return path.parent / f"{path.name}.state.ckpt"
     key = hashlib.blake2b(str(path).encode("utf-8", "surrogateescape"), digest_size=8).hexdigest()
     stem = "".join(ch if ch.isalnum() or ch in "._-" else "_" for ch in path.stem)[:40] or "result"
@@ -77,13 +81,18 @@ def save_result_state(result: str | Path, state: dict[str, Any], meta: dict[str,
     path = result_state_path(result)
     path.parent.mkdir(parents=True, exist_ok=True)
     save_checkpoint(path, state, {**meta, "kind": "result", "result": str(Path(result).resolve())})
-    note = {"result": str(Path(result).resolve()), "digest": file_digest(result), "saved": time.time(),
-            "config": jsonable_config(meta.get("config") or {}),
-            "selection": meta.get("config", {}).get("selection") is not None}
-    atomic_write_text(note_path(path), json.dumps(note, indent=2))
-    if path.parent == results_folder():
-        prune(path.parent)
+    config = meta.get("config") or {}
+    _write_note(path, result, {"config": jsonable_config(config), "selection": config.get("selection") is not None})
     return path
+
+
+def _write_note(state: Path, result: str | Path, fields: dict[str, Any]) -> None:
+    """The note beside ``state`` (just written for the file ``result``): ``fields`` with the file and its digest;
+    then the cache folder's states pruned."""
+    note = {**fields, "result": str(Path(result).resolve()), "digest": file_digest(result), "saved": time.time()}
+    atomic_write_text(note_path(state), json.dumps(note, indent=2))
+    if state.parent == results_folder():
+        prune(state.parent)
 
 
 def prune(folder: Path, keep: int = KEPT_STATES, budget: int = KEPT_BYTES) -> None:
@@ -123,8 +132,5 @@ def copy_result_state(source: str | Path, result: str | Path) -> Path | None:
     path = result_state_path(result)
     path.parent.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(state, path)
-    note = {**note, "result": str(Path(result).resolve()), "digest": file_digest(result), "saved": time.time()}
-    atomic_write_text(note_path(path), json.dumps(note, indent=2))
-    if path.parent == results_folder():
-        prune(path.parent)
+    _write_note(path, result, note)
     return path
