@@ -104,7 +104,8 @@ def stylize_command(args: argparse.Namespace) -> int:
     if args.threads:
         torch.set_num_threads(args.threads)
     t0 = time.perf_counter()
-    built = build_stylizer(build_request(args))
+    request = build_request(args)
+    built = build_stylizer(request)
     engine, s = built.engine, built.engine.settings
     print(f"stylize: {built.scene.count} Gaussians, {len(engine.cameras)} views ({built.cameras.source}), scene kind "
           f"{s.scene_kind}, preset {s.preset} ({s.working_width} px wide)")
@@ -131,7 +132,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     except OutputWriteError as exc:
         raise kept_run_error(exc, checkpointer, args) from exc
     checkpointer.remove()
-    keep_finished_run(engine, out, build_request(args))
+    keep_finished_run(engine, out, request)
     q = quality
     print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
           f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
