@@ -40,6 +40,15 @@ def worker_nice() -> int:
         return WORKER_NICE
 
 
+def worker_torch_threads() -> int:
+    """Torch's threads in a helper: 1, or ``GSTYLE_WORKER_THREADS`` where that is a positive integer (a bench's
+    experiment: ``bench/studio_rate.py --worker-threads``)."""
+    try:
+        return max(1, int(os.environ.get("GSTYLE_WORKER_THREADS", "1")))
+    except ValueError:
+        return 1
+
+
 def single_compute_thread(in_thread: bool = False) -> None:
     """One compute thread in a helper: torch's (measured best on 2 cores, gl-stack.md §3) and numba's (the
     rasterizer's parallel loops). With two numba threads the worker kept 20 % of its stand-alone step rate beside
@@ -51,7 +60,7 @@ def single_compute_thread(in_thread: bool = False) -> None:
     differs from its launched pool, so it uses numba's per-thread ``set_num_threads`` instead."""
     torch = sys.modules.get("torch")
     if torch is not None:
-        torch.set_num_threads(1)
+        torch.set_num_threads(worker_torch_threads())
     numba = sys.modules.get("numba")
     if numba is None and not in_thread:
         os.environ["NUMBA_NUM_THREADS"] = "1"  # numba reads it at import (the engine imports it lazily)

@@ -2,7 +2,7 @@
 # The GPU check, on a machine with an NVIDIA GPU, from the repository root (under 8 minutes on an H100/H200 with a
 # module built before; about one more minute when it builds gsplat's):
 #
-#   bash bench/gpu_check.sh [quick|full]
+#   bash bench/gpu_check.sh [quick|full|studio]
 #
 # 1. the machine: the card, its driver, nvcc, torch;
 # 2. packages: wheels in .whl/ are installed into /tmp/site first where the machine has no internet (gsplat 1.5.3,
@@ -11,9 +11,12 @@
 #    and card is there, else built once and kept there (GSTYLE_GSPLAT_SLIM=1: only the channel counts G-Style uses
 #    are compiled, about a minute on 16 cores instead of several);
 # 4. the GPU tests: the twin test (gsplat against the numba rasterizer), the colour cache, a whole run on CUDA;
-# 5. bench/device_stylize.py: the demo's preview on CUDA with the studio's rate at 512 px ("quick" stops here); with
-#    "full" (the default) the demo's and biker.spz's final tier on CUDA, then the demo's preview on CUDA and on the
-#    CPU side by side.
+# 5. bench/device_stylize.py: the demo's preview on CUDA with the engine's rate at 512 px ("quick" stops here); with
+#    "full" (the default) the studio's worker streaming on CUDA (bench/studio_rate.py), the demo's final tier on
+#    CUDA, `gstyle fit` on CUDA (a copy of the LLFF fern in .gpu/fern), biker.spz's final tier, then the demo's
+#    preview on CUDA and on the CPU side by side.
+# "studio": after 1-3, only the studio's worker streaming on CUDA (1 and 4 torch threads) and a profile of the
+# stylize steps at 512 px (bench/studio_rate.py, bench/device_profile.py).
 # Every figure is printed and kept in $OUT/gpu_check.log (OUT defaults to out/gpu_check).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -52,14 +55,36 @@ from gstyle_core.raster.gsplat_module import ensure_gsplat, built_module_path
 t = time.perf_counter(); ensure_gsplat(); print(f'gsplat ready in {time.perf_counter() - t:.1f} s: {built_module_path()}')
 " || exit 1
 
+if [[ $MODE == studio ]]; then  # the studio's live rate only: the worker at 1 and 4 torch threads, then a profile
+  for threads in 1 4; do
+    stage "the studio's worker on CUDA at 512 px, preview preset, $threads torch thread(s)"
+    timeout 100 "$PY" bench/studio_rate.py --device cuda --working-width 512 --preset preview --skip 2 --seconds 15 \
+      --worker-threads "$threads"
+  done
+  stage "profile: 8 stylize steps at 512 px on CUDA"
+  timeout 100 "$PY" bench/device_profile.py --device cuda --preset preview --working-width 512 --skip 2 --steps 8
+  stage "done"
+  exit 0
+fi
+
 stage "GPU tests"
 "$PY" -m pytest -q -p no:cacheprovider tests/test_raster_gsplat.py 2>&1 | tail -25
 
 stage "demo preview: CUDA, and the studio's rate at 512 px"
 timeout 120 "$PY" bench/device_stylize.py --preset preview --devices cuda --rate-width 512
-if [[ $MODE == full ]]; then
+if [[ $MODE == full ]]; then  # most wanted first: a cut-short run still brings back the earlier figures
+  stage "the studio's worker on CUDA at 512 px (spawned, streaming snapshots)"
+  timeout 120 "$PY" bench/studio_rate.py --device cuda --working-width 512 --skip 2 --seconds 20
   stage "demo final: CUDA"
   timeout 150 "$PY" bench/device_stylize.py --preset final --devices cuda
+  if [[ -d .gpu/fern ]]; then
+    stage "gstyle fit on CUDA: fern (images_8), the default 1,500 iterations"
+    t0=$SECONDS
+    timeout 150 "$PY" -m gstyle_core.cli fit .gpu/fern --device cuda --out /tmp/fern_cuda.ply --force 2>&1 \
+      | tr '\r' '\n' | grep -v "it/s]$" | grep -v "^fit:" | tail -6
+    echo "fit: $((SECONDS - t0)) s wall (the process, imports and writing included)"
+    cat /tmp/fern_cuda*.json 2>/dev/null | head -40
+  fi
   if [[ -f .gpu/biker.spz ]]; then
     stage "biker.spz final: CUDA"
     timeout 200 "$PY" bench/device_stylize.py .gpu/biker.spz --preset final --devices cuda

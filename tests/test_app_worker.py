@@ -6,7 +6,7 @@ import time
 import pytest
 from fakes import FakeReport, make_fake_engine
 
-from app.child_process import one_line_error
+from app.child_process import one_line_error, worker_torch_threads
 from app.engine_host import report_to_dict
 from app.worker import ThreadWorkerBridge, WorkerBridge
 
@@ -143,6 +143,14 @@ def test_report_and_error_helpers():
     d = report_to_dict(FakeReport("stylize", 3, 10, {"a": 1}, 0.5, 7))
     assert d["phase"] == "stylize" and d["losses"] == {"a": 1.0} and d["gaussians"] == 7
     assert one_line_error(ValueError("x\n  y")) == "ValueError: x y"
+
+
+def test_worker_torch_threads_is_one_unless_the_bench_asks(monkeypatch):
+    monkeypatch.delenv("GSTYLE_WORKER_THREADS", raising=False)
+    assert worker_torch_threads() == 1
+    for value, expected in (("4", 4), ("0", 1), ("-2", 1), ("many", 1)):
+        monkeypatch.setenv("GSTYLE_WORKER_THREADS", value)
+        assert worker_torch_threads() == expected
 
 
 def test_export_writes_ply_and_summary_or_reports_one_line(bridge_factory, tmp_path):
