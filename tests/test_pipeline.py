@@ -91,6 +91,26 @@ def test_calibrated_360_defaults_and_the_clip_substitute():
     assert cal.to_dict()["defaults"] == "calibrated"  # recorded in OUT.json with the other settings
 
 
+def test_calibrated_360_runs_with_finer_levels_keep_edges():
+    """Calibrated 360° runs with finer levels (balanced, final) take λ_edges and a doubled λ_NNFM
+    (settings.CALIBRATED_360_LEVELS), the terms tied to λ_NNFM following it; the preview, a run without levels, the
+    paper's defaults and forward-facing scenes do not; given values win."""
+    from gstyle_core.pipeline.settings import CALIBRATED_360, CALIBRATED_360_LEVELS
+
+    for preset in ("balanced", "final"):
+        w = resolve_settings(preset, "360", 16, clip_available=False).weights
+        assert (w.nnfm, w.edges) == (CALIBRATED_360_LEVELS["nnfm"], CALIBRATED_360_LEVELS["edges"])
+        assert w.edges > 0 and w.nnfm == 2 * CALIBRATED_360["nnfm"] and w.multiscale == w.nnfm
+        assert w.chroma_tv == pytest.approx(w.nnfm * 15.0)
+    for settings in (resolve_settings("preview", "360", 16, clip_available=False),
+                     resolve_settings("balanced", "360", 16, clip_available=False, refine_widths=()),
+                     resolve_settings("balanced", "360", 16, defaults="paper", clip_available=False),
+                     resolve_settings("balanced", "forward", 16, clip_available=False)):
+        assert settings.weights.edges == 0.0 and settings.weights.nnfm != CALIBRATED_360_LEVELS["nnfm"]
+    given = resolve_settings("final", "360", 16, clip_available=False, lambda_nnfm=150.0, lambda_edges=0.0)
+    assert (given.weights.nnfm, given.weights.edges, given.weights.multiscale) == (150.0, 0.0, 150.0)
+
+
 def test_flat_split_mask_and_elongation_clamp():
     log_scales = torch.log(torch.full((100, 3), 0.01))
     log_scales[7] = torch.log(torch.tensor([1.0, 1.0, 0.01]))  # one big flat Gaussian

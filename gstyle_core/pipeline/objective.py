@@ -253,17 +253,20 @@ class StyleObjective:
         the networks see the luminance of both. ``view`` None: a one-off image (a crop): nothing of it is cached.
         Inputs on another device than the networks' are moved there (the render inside the autograd graph)."""
         image, content = image.to(self.device), content.to(self.device)
+        # the scene's box is found on the CPU's copy of the coverage: on a GPU its reads would wait for the queue
+        box_coverage = None if coverage is None else torch.as_tensor(coverage).detach().cpu()
         coverage = None if coverage is None else torch.as_tensor(coverage).to(self.device)
         if self._luminance_only():
             from ..style.keep_colours import grey
 
             image, content = grey(image), grey(content)
-        box = self.network_box(view, coverage)
+        box = self.network_box(view, box_coverage)
         clip_view = multiscale_view = None
         if box is not None:  # VGG on the box; the CLIP term (or its coarse substitute) keeps the whole frame
             clip_view = (image.permute(2, 0, 1)[None], coverage)
             if self.loss.weights.multiscale > 0:  # its coarsest level: a box grown and aligned by its factor
-                wide = self.network_box(view, coverage, grow=int(math.ceil(max(self.loss.multiscale_term.factors))))
+                grow = int(math.ceil(max(self.loss.multiscale_term.factors)))
+                wide = self.network_box(view, box_coverage, grow=grow)
                 multiscale_view = clip_view if wide is None else (image[wide].permute(2, 0, 1)[None], coverage[wide])
             image, content, coverage = image[box], content[box], coverage[box]
         render = image.permute(2, 0, 1)[None]

@@ -168,6 +168,12 @@ CALIBRATED_360 = dict(
 # coarse ratio and the structure on all nine (docs/texture-scale.md).
 BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0, colour_field=True)
 CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0)}  # strokes need 256 px; 32 steps of 4 views
+# Calibrated 360° runs with finer levels (balanced, final): the content term (VGG block 3) does not hold edges as fine
+# as a 512- or 1024-px pixel, so the edge-keeping term holds them there, with twice the style weight for the drop it
+# costs (docs/display-size.md, "Edges kept": balanced over 3 captures × 3 paintings, structure at 512 px 0.72-0.82
+# against 0.46-0.67, drop at 512 px 0.2-3.3 points lower; final on biker.spz, structure at 1024 px 0.42 against
+# 0.21 at the same drop). At the working width the content term keeps the structure, so the preview keeps its weights.
+CALIBRATED_360_LEVELS = dict(nnfm=400.0, edges=4000.0)
 # Forward-facing preview: the reference splits into children at 1/16 of the parent's scale and lets a refit of
 # max(5·n_views, 2000) iterations regrow them; the preview refits 60, so its children keep 3DGS's 1/1.6 and cover
 # the parent's footprint (fern, measured: Mandelbrot −30.4 % / structure 0.49 at 1/16, −35.9 % / 0.55 at 1/1.6,
@@ -220,6 +226,8 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     s = replace(s, **p)
     live = {k: overrides.pop(k) for k in control_names() if k in overrides}  # λ weights, strength, stroke size...
     s = replace(s, **{k: v for k, v in overrides.items() if v is not None})
+    if defaults == "calibrated" and scene_kind == "360" and s.refine_widths:
+        s.weights = replace(s.weights, **CALIBRATED_360_LEVELS)  # the given λ weights are set over these next
     apply_controls(s, live)  # checked and set as the studio's controls are (controls.py)
     if broad_strokes and live.get("lambda_multiscale") is None:  # tied to λ_NNFM, the given one included
         s.weights = replace(s.weights, multiscale=s.weights.nnfm * BROAD_STROKES["multiscale_per_nnfm"])

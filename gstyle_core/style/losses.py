@@ -348,7 +348,9 @@ class StyleLoss(nn.Module):
             total = total + w.chroma_tv * terms["chroma_tv"]
         if w.edges > 0:
             total = total + w.edges * terms["edges"]
-        return total, {name: float(value.detach()) for name, value in terms.items()}
+        # the terms' values read in one transfer (on a GPU each read of a value waits for the queue to drain)
+        values = torch.stack([value.detach().float().reshape(()) for value in terms.values()]).cpu().tolist()
+        return total, dict(zip(terms, values, strict=True))
 
     @torch.no_grad()
     def content_features(self, gt: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> dict[str, torch.Tensor]:

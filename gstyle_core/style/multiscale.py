@@ -83,7 +83,7 @@ class MultiScaleStyleLoss(nn.Module):
             per_painting = [StyleTarget.from_image(vgg, upsample_for_vgg(downsample(p, f))) for p in paintings]
             self.targets.append(per_painting[0] if len(per_painting) == 1
                                 else WeightedTargets(per_painting, style_weights))
-        self.last_levels: dict[float, float] = {}
+        self.last_levels: dict[float, torch.Tensor] = {}
 
     def with_factors(self, factors: Sequence[float]) -> MultiScaleStyleLoss:
         """The same term (network, paintings, mix weights) at other downsampling ``factors``."""
@@ -108,6 +108,6 @@ class MultiScaleStyleLoss(nn.Module):
             feats = concat_features(self.vgg(small))
             grid = feature_weights(coverage, feats.shape[-2:])
             d = style_nnfm(feats, target, self.chunk, weights=grid)
-            self.last_levels[factor] = float(d.detach())
+            self.last_levels[factor] = d.detach()  # a tensor: reading it here would wait for the GPU
             terms.append(d)
         return torch.stack(terms).mean()

@@ -122,8 +122,8 @@ class Refine(Phase):
         total, terms = 0.0, {}
         for k in picks:
             loss, view_terms = self._fine_loss(k, colours, gen) if fine else self._coarse_loss(k, colours)
+            total += float(loss.detach()) / len(picks)  # before the backward: the loss's terms were just read
             (loss / len(picks)).backward()
-            total += float(loss.detach()) / len(picks)
             for name, v in view_terms.items():
                 terms[name] = terms.get(name, 0.0) + v / len(picks)
         self.colour_steps.finish()

@@ -120,8 +120,8 @@ class Stylize(Phase):
             image = run.render_seen(view, run.active.place_in_seen(run.c_s, colours))
             loss, view_terms = run.objective_fn()(image, run.content_images[view], view,
                                                   coverage=run.objective_coverage(view))
+            total += float(loss.detach()) / len(views)  # before the backward: the loss's terms were just read
             (loss / len(views)).backward()
-            total += float(loss.detach()) / len(views)
             for k, v in view_terms.items():
                 terms[k] = terms.get(k, 0.0) + v / len(views)
         steps.finish(accumulate=self.step_index >= self.accumulate_from)
