@@ -167,6 +167,10 @@ class EngineHost:
             return
         self.done = False
         self.send("refining", width)
+        current = getattr(self.engine, "current_params", None)
+        if current is not None and current() != {k: self.params.get(k) for k in current()}:
+            self.params.update(current())  # the level changed weights (a 360° preview's first level): the sliders
+            self.send("params", dict(self.params))
         self.send_plans()
         self.send_decisions()
 

@@ -145,6 +145,38 @@ def test_report_and_error_helpers():
     assert one_line_error(ValueError("x\n  y")) == "ValueError: x y"
 
 
+def test_a_level_that_changes_the_weights_sends_them_to_the_sliders():
+    """A calibrated 360° preview's first level takes other weights (``Stylizer.refine``): the host sends the new
+    values, so the panel's sliders show what the level runs with; a level that changes nothing sends none."""
+    import queue
+    import threading
+
+    from app.engine_host import EngineHost
+
+    class LevelEngine:
+        def __init__(self, change: bool) -> None:
+            self.params, self.change = {"lambda_nnfm": 200.0, "lambda_edges": 0.0}, change
+
+        def refine(self) -> int:
+            if self.change:
+                self.params.update(lambda_nnfm=400.0, lambda_edges=4000.0)
+            return 64
+
+        def current_params(self) -> dict:
+            return dict(self.params)
+
+    for change in (True, False):
+        events = queue.Queue()
+        host = EngineHost(lambda: None, {}, events, threading.Semaphore(2), None)
+        host.engine, host.params = LevelEngine(change), {"lambda_nnfm": 200.0, "lambda_edges": 0.0, "strength": 1.0}
+        host.refine()
+        sent = [payload for kind, payload in list(events.queue) if kind == "params"]
+        if change:
+            assert sent == [{"lambda_nnfm": 400.0, "lambda_edges": 4000.0, "strength": 1.0}]
+        else:
+            assert sent == []
+
+
 def test_worker_torch_threads_is_one_unless_the_bench_asks(monkeypatch):
     monkeypatch.delenv("GSTYLE_WORKER_THREADS", raising=False)
     assert worker_torch_threads() == 1

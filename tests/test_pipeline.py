@@ -111,6 +111,26 @@ def test_calibrated_360_runs_with_finer_levels_keep_edges():
     assert (given.weights.nnfm, given.weights.edges, given.weights.multiscale) == (150.0, 0.0, 150.0)
 
 
+def test_a_previews_first_level_takes_the_weights_of_runs_with_levels():
+    """``level_weight_changes``: what a calibrated 360° preview changes when the studio refines it, the same weights
+    ``resolve_settings`` gives a run with levels; nothing for weights the artist moved or runs that already have
+    levels, forward-facing scenes or the paper's defaults."""
+    from gstyle_core.pipeline.settings import level_weight_changes, ui_params
+
+    with_levels = ui_params(resolve_settings("balanced", "360", 16, clip_available=False))
+    changes = level_weight_changes(resolve_settings("preview", "360", 16, clip_available=False))
+    assert changes and all(with_levels[k] == v for k, v in changes.items())
+    assert set(changes) == {"lambda_nnfm", "lambda_edges", "lambda_multiscale", "lambda_chroma_tv"}
+    moved = resolve_settings("preview", "360", 16, clip_available=False, lambda_chroma_tv=100.0)
+    assert "lambda_chroma_tv" not in level_weight_changes(moved) and "lambda_nnfm" in level_weight_changes(moved)
+    for settings in (resolve_settings("preview", "360", 16, clip_available=False, lambda_nnfm=150.0),
+                     resolve_settings("preview", "360", 16, clip_available=False, lambda_edges=10.0),
+                     resolve_settings("balanced", "360", 16, clip_available=False),
+                     resolve_settings("preview", "forward", 16, clip_available=False),
+                     resolve_settings("preview", "360", 16, defaults="paper", clip_available=False)):
+        assert level_weight_changes(settings) == {}
+
+
 def test_flat_split_mask_and_elongation_clamp():
     log_scales = torch.log(torch.full((100, 3), 0.01))
     log_scales[7] = torch.log(torch.tensor([1.0, 1.0, 0.01]))  # one big flat Gaussian

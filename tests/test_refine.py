@@ -156,7 +156,12 @@ def test_refine_carries_a_finished_run_on_at_the_next_width_and_a_resumed_run_ke
     engine.run()
     assert engine.levels == (32,) and engine.current_width == 32 and engine.done
     before = engine.c_s.clone()
+    w = engine.settings.weights
+    assert (w.nnfm, w.edges, w.multiscale, w.chroma_tv) == (200.0, 0.0, 200.0, 3000.0)  # a calibrated 360° preview
     assert engine.refine() == 64 and not engine.done and engine.levels == (32, 64)
+    w = engine.settings.weights  # its first level takes the weights of runs with levels (settings.py)
+    assert (w.nnfm, w.edges, w.multiscale, w.chroma_tv) == (400.0, 4000.0, 400.0, 6000.0)
+    assert "lambda_edges 0 -> 4000" in engine.decisions["level_weights"]
     assert [p.name for p in engine.phases][-2:] == ["refine_0", "finish"]
     widths = set()
     while not engine.done:

@@ -237,6 +237,24 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
     return check_settings(s)
 
 
+def level_weight_changes(s: StylizeSettings) -> dict[str, float]:
+    """The live-control changes a calibrated 360° run resolved without finer levels (a preview) takes when its first
+    finer level is added (the studio's Refine): λ_NNFM and λ_edges become ``CALIBRATED_360_LEVELS``' and the terms
+    tied to λ_NNFM (broad strokes, colour smoothness) follow it where they still do, as ``resolve_settings`` gives a
+    run with levels. Empty for other runs, once the run has levels, and when the artist moved λ_NNFM or λ_edges."""
+    if s.defaults != "calibrated" or s.scene_kind != "360" or s.refine_widths:
+        return {}
+    w, nnfm = s.weights, CALIBRATED_360_LEVELS["nnfm"]
+    if w.nnfm != CALIBRATED_360["nnfm"] or w.edges != 0.0:
+        return {}
+    changes = {"lambda_nnfm": nnfm, "lambda_edges": CALIBRATED_360_LEVELS["edges"]}
+    if w.multiscale > 0 and w.multiscale == w.nnfm * BROAD_STROKES["multiscale_per_nnfm"]:
+        changes["lambda_multiscale"] = nnfm * BROAD_STROKES["multiscale_per_nnfm"]
+    if w.chroma_tv > 0 and w.chroma_tv == w.nnfm * DISPLAY["chroma_tv_per_nnfm"]:
+        changes["lambda_chroma_tv"] = nnfm * DISPLAY["chroma_tv_per_nnfm"]
+    return changes
+
+
 def _display_defaults(s: StylizeSettings, live: dict, overrides: dict) -> None:
     """The defaults for the display's size (``DISPLAY``), where the caller gave no value."""
     if overrides.get("match_detail_px") is None:

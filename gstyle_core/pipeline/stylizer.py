@@ -42,7 +42,7 @@ from .phases import ColourMatch, GroundTruth, Phase, Preprocess, Refine, StepRep
 from .plan import STYLIZED_PHASES
 from .region import region_note, selected_box, selection_mask
 from .run_state import RunState
-from .settings import StylizeSettings, ui_params
+from .settings import StylizeSettings, level_weight_changes, ui_params
 
 __all__ = ["Stylizer", "StepReport", "choose_views", "ENGINE_STATE"]
 
@@ -289,7 +289,15 @@ class Stylizer:
         if width is None:
             raise ValueError(f"the run already ends at {self.levels[-1]} px, the largest a level may have")
         s = self.settings
+        changes = level_weight_changes(s)  # a calibrated 360° preview's first level: the weights of runs with levels
         s.refine_widths = check_refine_widths((*s.refine_widths, width), s.working_width)
+        if changes:
+            before = ui_params(s)
+            self.set_params(**changes)
+            self.run_state.decisions["level_weights"] = (
+                "the first finer level takes the calibrated weights of runs with finer levels: "
+                + ", ".join(f"{k} {before[k]:g} -> {v:g}" for k, v in changes.items())
+                + " (the content term does not hold edges as fine as these pixels; docs/display-size.md)")
         level = Refine(self.run_state, width, len(s.refine_widths) - 1)
         finish = [p for p in self.phases if isinstance(p, ColourMatch) and p.final]
         self.phases = [p for p in self.phases if p not in finish] + [level] + finish
