@@ -15,8 +15,8 @@
 #    "full" (the default) the studio's worker streaming on CUDA (bench/studio_rate.py), the demo's final tier on
 #    CUDA, `gstyle fit` on CUDA (a copy of the LLFF fern in .gpu/fern), biker.spz's final tier, then the demo's
 #    preview on CUDA and on the CPU side by side.
-# "studio": after 1-3, only the studio's worker streaming on CUDA (1 and 4 torch threads) and a profile of the
-# stylize steps at 512 px (bench/studio_rate.py, bench/device_profile.py).
+# "studio": after 1-3, only the studio's worker streaming on CUDA (1 and 4 torch threads), the engine's own rate at
+# 512 px and a profile of the stylize steps there (bench/studio_rate.py, device_stylize.py, device_profile.py).
 # Every figure is printed and kept in $OUT/gpu_check.log (OUT defaults to out/gpu_check).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -61,6 +61,8 @@ if [[ $MODE == studio ]]; then  # the studio's live rate only: the worker at 1 a
     timeout 100 "$PY" bench/studio_rate.py --device cuda --working-width 512 --preset preview --skip 2 --seconds 15 \
       --worker-threads "$threads"
   done
+  stage "the engine alone at 512 px (the same figure as quick's: a change's effect side by side with earlier logs)"
+  timeout 120 "$PY" bench/device_stylize.py --preset preview --devices cuda --rate-width 512
   stage "profile: 8 stylize steps at 512 px on CUDA"
   timeout 100 "$PY" bench/device_profile.py --device cuda --preset preview --working-width 512 --skip 2 --steps 8
   stage "done"
