@@ -168,8 +168,9 @@ class EngineHost:
         self.done = False
         self.send("refining", width)
         current = getattr(self.engine, "current_params", None)
-        if current is not None and current() != {k: self.params.get(k) for k in current()}:
-            self.params.update(current())  # the level changed weights (a 360° preview's first level): the sliders
+        now = current() if current is not None else {}
+        if any(self.params.get(k) != v for k, v in now.items()):  # the level changed weights (a 360° preview's
+            self.params.update(now)  # first level): the sliders show them
             self.send("params", dict(self.params))
         self.send_plans()
         self.send_decisions()

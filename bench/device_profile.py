@@ -23,19 +23,15 @@ from torch.profiler import ProfilerActivity, profile
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gstyle_core.pipeline.build import SETTING_OPTIONS, BuildRequest, build_stylizer  # noqa: E402
+from gstyle_core.pipeline.phases.stylize import is_optimiser_step  # noqa: E402
 
 
 def next_optimiser_step(engine) -> None:
     """Step the engine until one stylization optimiser step was taken."""
     while not engine.done:
         rep = engine.step()
-        if is_optimiser_step(rep):
+        if is_optimiser_step(rep.phase, rep.message):
             return
-
-
-def is_optimiser_step(rep) -> bool:
-    """True for the report of a stylization optimiser step (not a split, a refit or a finer level's step)."""
-    return rep.phase == "stylize" and "stylize view" in rep.message
 
 
 def profiled_optimiser_steps(engine, steps: int, cuda: bool) -> tuple[dict[str, list[float]], float]:
@@ -53,7 +49,7 @@ def profiled_optimiser_steps(engine, steps: int, cuda: bool) -> tuple[dict[str, 
             if cuda:
                 torch.cuda.synchronize()
             seconds = time.perf_counter() - t0
-        if not is_optimiser_step(rep):
+        if not is_optimiser_step(rep.phase, rep.message):
             continue
         kept, wall = kept + 1, wall + seconds
         for e in prof.key_averages():

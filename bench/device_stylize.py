@@ -33,6 +33,7 @@ from gstyle_core.pipeline.build import (  # noqa: E402
     BuildRequest,
     build_stylizer,
 )
+from gstyle_core.pipeline.phases.stylize import is_optimiser_step  # noqa: E402
 
 
 def gpu_description() -> str:
@@ -92,7 +93,7 @@ def run_once(args: argparse.Namespace, device: str, precision: str) -> dict:
         rep = engine.step()
         sync(device)
         phases[rep.phase] += time.perf_counter() - ts
-        stylize_steps += rep.phase == "stylize" and "stylize view" in rep.message
+        stylize_steps += is_optimiser_step(rep.phase, rep.message)
     run_s = time.perf_counter() - t1
     peak = torch.cuda.max_memory_allocated() / 2**30 if device == "cuda" else 0.0
     quality = evaluate_run(engine, built.scene, built.style, display_width=0)
@@ -116,7 +117,7 @@ def step_rate(args: argparse.Namespace, device: str, width: int, steps: int = 40
         ts = time.perf_counter()
         rep = engine.step()
         sync(device)
-        if "stylize view" in rep.message:
+        if is_optimiser_step(rep.phase, rep.message):
             done, own = done + 1, own + time.perf_counter() - ts
     return done / max(own, 1e-9), done / (time.perf_counter() - t0)
 

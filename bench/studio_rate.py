@@ -32,13 +32,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from app.engine_factory import make_stylizer  # noqa: E402
 from app.worker import WorkerBridge  # noqa: E402
 from gstyle_core.machine import cpu_description  # noqa: E402
+from gstyle_core.pipeline.phases.stylize import is_optimiser_step  # noqa: E402
 
-STYLIZE_PHASES = ("stylize", "refit")
 
-
-def is_optimiser_step(report: dict | None) -> bool:
-    """True for the report of a stylization optimiser step (not a split, a refit or a finer level's step)."""
-    return bool(report) and report.get("phase") == "stylize" and "stylize view" in str(report.get("message", ""))
+def optimiser_report(report: dict | None) -> bool:
+    """True for a worker's report of a stylization optimiser step."""
+    return bool(report) and is_optimiser_step(report.get("phase"), report.get("message"))
 
 
 def measure(config: dict, seconds: float, skip: int, poll_s: float, timeout: float) -> dict:
@@ -60,7 +59,7 @@ def measure(config: dict, seconds: float, skip: int, poll_s: float, timeout: flo
             if t0 is not None and (now - t0 >= seconds or bridge.state.done):
                 break
             for kind, payload in bridge.poll():
-                if kind == "report" and t0 is None and is_optimiser_step(payload):
+                if kind == "report" and t0 is None and optimiser_report(payload):
                     seen_stylize += 1
                     if seen_stylize > skip:
                         t0, reached = time.perf_counter(), time.perf_counter() - t_start
@@ -70,7 +69,7 @@ def measure(config: dict, seconds: float, skip: int, poll_s: float, timeout: flo
                 if kind == "report":
                     counts["steps"] += 1
                     arrived = time.perf_counter()
-                    if is_optimiser_step(payload):
+                    if optimiser_report(payload):
                         counts["stylize_steps"] += 1
                         counts["own_s"] += float(payload.get("seconds") or 0.0)
                         if last_arrival is not None:

@@ -253,9 +253,10 @@ class StyleObjective:
         the networks see the luminance of both. ``view`` None: a one-off image (a crop): nothing of it is cached.
         Inputs on another device than the networks' are moved there (the render inside the autograd graph)."""
         image, content = image.to(self.device), content.to(self.device)
+        coverage = None if coverage is None else torch.as_tensor(coverage)
         # the scene's box is found on the CPU's copy of the coverage: on a GPU its reads would wait for the queue
-        box_coverage = None if coverage is None else torch.as_tensor(coverage).detach().cpu()
-        coverage = None if coverage is None else torch.as_tensor(coverage).to(self.device)
+        box_coverage = None if coverage is None else coverage.detach().cpu()
+        coverage = None if coverage is None else coverage.to(self.device)
         if self._luminance_only():
             from ..style.keep_colours import grey
 

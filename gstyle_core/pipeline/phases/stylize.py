@@ -24,6 +24,13 @@ from .base import Phase, StepReport
 from .colour_split import ColourSplit
 from .refit import Refit
 
+STEP_MESSAGE = "stylize view"  # how an optimiser step's report message starts (the views follow)
+
+
+def is_optimiser_step(phase: str | None, message: str | None) -> bool:
+    """True for the report of a stylization optimiser step (not a split, a refit or a finer level's step)."""
+    return phase == "stylize" and str(message or "").startswith(STEP_MESSAGE)
+
 
 class Stylize(Phase):
     """The stylization's optimiser steps, splits and refits."""
@@ -129,7 +136,7 @@ class Stylize(Phase):
         if self.step_index >= self.steps:
             steps.stop()
         return self.report(losses={"total": total, **terms}, colours_changed=True,
-                           message=f"stylize view{'s' if len(views) > 1 else ''} {', '.join(map(str, views))}")
+                           message=f"{STEP_MESSAGE}{'s' if len(views) > 1 else ''} {', '.join(map(str, views))}")
 
     def restore_chroma(self) -> None:
         """Keep colours: c_s (and the optimised copy) take the chroma of c_gt back."""
