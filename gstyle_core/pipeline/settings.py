@@ -230,7 +230,7 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         s.weights = replace(s.weights, **CALIBRATED_360_LEVELS)  # the given λ weights are set over these next
     apply_controls(s, live)  # checked and set as the studio's controls are (controls.py)
     if broad_strokes and live.get("lambda_multiscale") is None:  # tied to λ_NNFM, the given one included
-        s.weights = replace(s.weights, multiscale=s.weights.nnfm * BROAD_STROKES["multiscale_per_nnfm"])
+        s.weights = replace(s.weights, multiscale=tied_to_nnfm(s.weights.nnfm)["multiscale"])
     if broad_strokes and live.get("colour_field") is None:
         s.colour_field = BROAD_STROKES["colour_field"]
     _display_defaults(s, live, overrides)
@@ -244,15 +244,22 @@ def level_weight_changes(s: StylizeSettings) -> dict[str, float]:
     run with levels. Empty for other runs, once the run has levels, and when the artist moved λ_NNFM or λ_edges."""
     if s.defaults != "calibrated" or s.scene_kind != "360" or s.refine_widths:
         return {}
-    w, nnfm = s.weights, CALIBRATED_360_LEVELS["nnfm"]
+    w = s.weights
     if w.nnfm != CALIBRATED_360["nnfm"] or w.edges != 0.0:
         return {}
-    changes = {"lambda_nnfm": nnfm, "lambda_edges": CALIBRATED_360_LEVELS["edges"]}
-    if w.multiscale > 0 and w.multiscale == w.nnfm * BROAD_STROKES["multiscale_per_nnfm"]:
-        changes["lambda_multiscale"] = nnfm * BROAD_STROKES["multiscale_per_nnfm"]
-    if w.chroma_tv > 0 and w.chroma_tv == w.nnfm * DISPLAY["chroma_tv_per_nnfm"]:
-        changes["lambda_chroma_tv"] = nnfm * DISPLAY["chroma_tv_per_nnfm"]
+    changes = {"lambda_nnfm": CALIBRATED_360_LEVELS["nnfm"], "lambda_edges": CALIBRATED_360_LEVELS["edges"]}
+    now, then = tied_to_nnfm(w.nnfm), tied_to_nnfm(CALIBRATED_360_LEVELS["nnfm"])
+    for name, value in now.items():  # a tied term still at its tie (on, and not moved by the artist) follows
+        if getattr(w, name) > 0 and getattr(w, name) == value:
+            changes[f"lambda_{name}"] = then[name]
     return changes
+
+
+def tied_to_nnfm(nnfm: float) -> dict[str, float]:
+    """The λ weights that follow λ_NNFM by default: the broad strokes (where they stand in for CLIP,
+    ``BROAD_STROKES``) and the colour smoothness (``DISPLAY``), at ``nnfm``."""
+    return {"multiscale": nnfm * BROAD_STROKES["multiscale_per_nnfm"],
+            "chroma_tv": nnfm * DISPLAY["chroma_tv_per_nnfm"]}
 
 
 def _display_defaults(s: StylizeSettings, live: dict, overrides: dict) -> None:
@@ -260,7 +267,7 @@ def _display_defaults(s: StylizeSettings, live: dict, overrides: dict) -> None:
     if overrides.get("match_detail_px") is None:
         s.match_detail_px = DISPLAY["match_detail_px"]
     if live.get("lambda_chroma_tv") is None:
-        s.weights = replace(s.weights, chroma_tv=s.weights.nnfm * DISPLAY["chroma_tv_per_nnfm"])
+        s.weights = replace(s.weights, chroma_tv=tied_to_nnfm(s.weights.nnfm)["chroma_tv"])
 
 
 def check_settings(s: StylizeSettings) -> StylizeSettings:
