@@ -2,10 +2,22 @@
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
 import numpy as np
 from synthetic import blob_scene
+
+BENCH = Path(__file__).resolve().parents[1] / "bench"
+
+
+def load_bench(name: str):
+    """The bench script ``bench/NAME.py`` as a module of its own (``NAME_bench``), as its command line would run."""
+    spec = importlib.util.spec_from_file_location(f"{name}_bench", BENCH / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
 
 TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 3, "refit_iterations": 2, "preprocess_rounds": 1,
         "split_at": (0.5,), "working_width": 32}

@@ -3,24 +3,16 @@ from the same colours, and the command line."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 import torch
-from bench_cli import tiny_bench_inputs
+from bench_cli import load_bench, tiny_bench_inputs
 from synthetic import blob_scene, ring_cameras
-
-BENCH = Path(__file__).resolve().parents[1] / "bench"
 
 
 @pytest.fixture(scope="module")
 def cost():
-    spec = importlib.util.spec_from_file_location("final_match_cost_bench", BENCH / "final_match_cost.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_bench("final_match_cost")
 
 
 @pytest.fixture

@@ -3,36 +3,25 @@ the optimiser patches, a whole run from the command line, and both dissection mo
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
-from bench_cli import tiny_bench_inputs
+from bench_cli import load_bench, tiny_bench_inputs
 from fakes import engine_at_stylize
 from synthetic import blob_scene
-
-BENCH = Path(__file__).resolve().parents[1] / "bench"
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(f"{name}_bench", BENCH / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
 def causes():
-    return _load("scale_causes")
+    return load_bench("scale_causes")
 
 
 @pytest.fixture(scope="module")
 def step_bench():
-    return _load("scale_step")
+    return load_bench("scale_step")
 
 
 @pytest.fixture

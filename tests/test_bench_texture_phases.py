@@ -3,25 +3,18 @@ and a whole run from the command line."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
-from bench_cli import tiny_bench_inputs
+from bench_cli import load_bench, tiny_bench_inputs
 from synthetic import blob_scene, ring_cameras
-
-BENCH = Path(__file__).resolve().parents[1] / "bench"
 
 
 @pytest.fixture(scope="module")
 def phases():
-    spec = importlib.util.spec_from_file_location("texture_phases_bench", BENCH / "texture_phases.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_bench("texture_phases")
 
 
 @pytest.fixture

@@ -2,25 +2,20 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_cli import load_bench
 from PIL import Image
 
 from gstyle_core.style.texture_scale import band_shares
 
-BENCH = Path(__file__).resolve().parents[1] / "bench" / "texture_scale.py"
-
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("texture_scale_bench", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_bench("texture_scale")
 
 
 def _png(path: Path, image: np.ndarray) -> None:

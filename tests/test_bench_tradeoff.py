@@ -3,19 +3,17 @@
 from __future__ import annotations
 
 import csv
-import importlib.util
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from bench_cli import load_bench
 from synthetic import blob_scene
 
 from gstyle_core.io import save_scene
 
-BENCH = Path(__file__).resolve().parents[1] / "bench" / "tradeoff.py"
 TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 2, "refit_iterations": 2, "preprocess_rounds": 1}
 
 
@@ -26,9 +24,7 @@ def tradeoff(tmp_path, monkeypatch, vgg, no_clip_weights):
 
     from gstyle_core.style import vgg as vgg_module
 
-    spec = importlib.util.spec_from_file_location("tradeoff_bench", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_bench("tradeoff")
     scene, style = tmp_path / "tiny.ply", tmp_path / "style.png"
     save_scene(blob_scene(150, seed=2), scene)
     Image.fromarray((np.random.default_rng(0).uniform(size=(16, 16, 3)) * 255).astype(np.uint8)).save(style)
