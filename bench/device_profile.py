@@ -71,7 +71,7 @@ def top_rows(totals: dict[str, list[float]], column: int, count: int, steps: int
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--device", default="cuda")
-    p.add_argument("--preset", default="final")
+    p.add_argument("--preset", default="preview")
     p.add_argument("--working-width", type=int, default=512)
     p.add_argument("--skip", type=int, default=5)
     p.add_argument("--steps", type=int, default=8)
