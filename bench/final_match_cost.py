@@ -29,7 +29,7 @@ from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
 from gstyle_core.pipeline.levels import level_widths  # noqa: E402
 from gstyle_core.pipeline.phases.colour_match import ColourMatch, transfer  # noqa: E402
-from gstyle_core.pipeline.run_figures import EVAL_MAX_VECTORS, evaluation_cameras  # noqa: E402
+from gstyle_core.pipeline.run_figures import evaluation_cameras, figure_evaluator  # noqa: E402
 
 EVAL_VIEWS = 3  # as evaluate_run
 
@@ -38,17 +38,15 @@ class Figures:
     """The figures of the engine's current colours on the evaluation views at ``widths``, against the input scene."""
 
     def __init__(self, engine, scene_in, style, widths: list[int]) -> None:
-        from gstyle_core.pipeline.evaluate import Evaluator
         from gstyle_core.render_cli import render_scene_image
         from gstyle_core.style.vgg import load_vgg
 
         self.engine, self.render = engine, render_scene_image
         vgg = load_vgg(engine.settings.vgg_weights)  # fp32 on the CPU, as the run's figures
-        weights = None if isinstance(style, np.ndarray) else engine.settings.style_weights
         self.views = {}
         for width in widths:
             whole = width <= engine.settings.working_width  # evaluate_run's definition; above it width_figures'
-            ev = Evaluator(vgg, style, width, weights=weights, max_vectors=None if whole else EVAL_MAX_VECTORS)
+            ev = figure_evaluator(engine, vgg, style, width, whole_frame=whole)
             cams = evaluation_cameras(engine, EVAL_VIEWS, width)
             before, alpha = zip(*(render_scene_image(scene_in, c, with_alpha=True) for c in cams), strict=True)
             initial = ev.measure(list(before), list(before), list(alpha), whole_frame=whole)
@@ -67,9 +65,9 @@ class Figures:
         return out
 
 
-def remaining_map(engine) -> tuple[np.ndarray, float]:
-    """The singular values of the map A and |b| a final colour match would make of the engine's renders now."""
-    A, b = transfer(engine.run_state, *ColourMatch(engine.run_state, final=True)._renders())
+def remaining_map(engine, final: ColourMatch) -> tuple[np.ndarray, float]:
+    """The singular values of the map A and |b| the run's final colour match ``final`` would make of its renders now."""
+    A, b = transfer(engine.run_state, *final.renders())
     return np.linalg.svd(A, compute_uv=False), float(np.linalg.norm(b))
 
 
@@ -93,7 +91,7 @@ def match_rows(engine, figures: Figures, detail_px: list[float]) -> list[dict]:
         if px is not None:
             engine.settings.match_detail_px = float(px)
             final.step()
-        singular, offset = remaining_map(engine)
+        singular, offset = remaining_map(engine, final)
         rows.append({"detail_px": px, "figures": figures.measure(), "map_singular": singular.round(3).tolist(),
                      "map_offset": round(offset, 3)})
     engine.settings.match_detail_px = kept_px

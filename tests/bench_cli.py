@@ -6,7 +6,7 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
-from synthetic import blob_scene
+from synthetic import blob_scene, ring_cameras
 
 BENCH = Path(__file__).resolve().parents[1] / "bench"
 
@@ -44,3 +44,18 @@ def tiny_bench_inputs(module, vgg, style: np.ndarray, tmp_path: Path, monkeypatc
 
     monkeypatch.setattr(module, "build_request", tiny_request)
     return scene, painting
+
+
+def tiny_engine(vgg, scene, style, **overrides):
+    """A real engine on ``vgg`` over 3 ring cameras at a 32-px working width (a forward-facing preview cut to a few
+    steps), not yet stepped; ``overrides`` go to ``resolve_settings``."""
+    from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    opts = dict(max_views=3, epochs=1, min_steps=2, preprocess_rounds=1, refit_iterations=2, split_rate=0.0,
+                working_width=32)
+    opts.update(overrides)
+    settings = resolve_settings("preview", "forward", 3, **opts)
+    return Stylizer(scene, ring_cameras(3), style, settings,
+                    objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))

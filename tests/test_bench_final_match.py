@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from bench_cli import load_bench, tiny_bench_inputs
-from synthetic import blob_scene, ring_cameras
+from bench_cli import load_bench, tiny_bench_inputs, tiny_engine
+from synthetic import blob_scene
 
 
 @pytest.fixture(scope="module")
@@ -23,22 +23,16 @@ def style():
 
 
 def test_each_row_starts_from_the_same_colours_and_the_match_brings_the_palette(cost, vgg, style):
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
-
     scene = blob_scene(150, seed=3)
-    settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=1, min_steps=2, preprocess_rounds=1,
-                                refit_iterations=2, split_rate=0.0, working_width=32)
-    engine = Stylizer(scene, ring_cameras(3), style, settings,
-                      objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
+    engine = tiny_engine(vgg, scene, style)
+    detail_px = engine.settings.match_detail_px
     cost.step_to_final_match(engine)
     assert engine.current_phase().name == "finish"
     start = engine.run_state.c_s.clone()
     figures = cost.Figures(engine, scene, style, [32])
     rows = cost.match_rows(engine, figures, [0.0, 4.0])
     assert [r["detail_px"] for r in rows] == [None, 0.0, 4.0]
-    assert torch.equal(engine.run_state.c_s, start) and engine.settings.match_detail_px == settings.match_detail_px
+    assert torch.equal(engine.run_state.c_s, start) and engine.settings.match_detail_px == detail_px
     none, plain = rows[0]["figures"][32], rows[1]["figures"][32]
     assert plain["colour"] < none["colour"]  # the plain map moves the covered pixels' statistics to the painting's
     assert rows[0]["map_offset"] > rows[1]["map_offset"]  # what a match would still do shrinks once it is done

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 import torch
-from bench_cli import load_bench, tiny_bench_inputs
+from bench_cli import load_bench, tiny_bench_inputs, tiny_engine
 from synthetic import blob_scene, ring_cameras
 
 
@@ -20,20 +20,6 @@ def phases():
 @pytest.fixture
 def style():
     return np.random.default_rng(1).uniform(size=(16, 16, 3)).astype(np.float32)
-
-
-def tiny_engine(vgg, scene, style, **overrides):
-    """A real engine on ``vgg`` over 3 ring cameras, not yet stepped."""
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
-
-    opts = dict(max_views=3, epochs=1, min_steps=2, preprocess_rounds=1, refit_iterations=2, split_rate=0.0,
-                working_width=32)
-    opts.update(overrides)
-    settings = resolve_settings("preview", "forward", 3, **opts)
-    return Stylizer(scene, ring_cameras(3), style, settings,
-                    objective_factory=lambda s, st: StyleObjective(s, st, vgg=vgg))
 
 
 @pytest.mark.parametrize("final_match", [True, False])

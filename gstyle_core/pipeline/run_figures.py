@@ -26,7 +26,7 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     paintings is measured with the engine's mix weights (``Evaluator``). ``display_width`` > 0 adds ``display``, the
     speckle figure of the same views rendered that wide (``run_display_speckle``)."""
     from ..render_cli import render_scene_image
-    from .evaluate import Evaluator, structure_kept
+    from .evaluate import structure_kept
 
     cams = evaluation_cameras(engine, n_views, width)
     # the run's own network when its objective was built; the figures are measured in fp32 whatever the run's
@@ -37,7 +37,7 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
         from ..style.vgg import load_vgg
 
         vgg = load_vgg(engine.settings.vgg_weights)
-    ev = Evaluator(vgg, style, width, weights=None if isinstance(style, np.ndarray) else engine.settings.style_weights)
+    ev = figure_evaluator(engine, vgg, style, width, whole_frame=True)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
     after_scene = engine.stylized_scene()
     after, _ = zip(*(render_scene_image(after_scene, c, with_alpha=True) for c in cams), strict=True)
@@ -60,16 +60,25 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
 EVAL_MAX_VECTORS = 16384  # the figures at a finer level's width search at most this many of a painting's vectors
 
 
+def figure_evaluator(engine, vgg, style, width: int, whole_frame: bool):
+    """The ``Evaluator`` of the run's figures at ``width``: the painting(s) with the run's mix weights; at the working
+    width (``whole_frame``) every painting vector is searched, at a finer level's width at most ``EVAL_MAX_VECTORS``
+    of them (``width_figures``)."""
+    from .evaluate import Evaluator
+
+    weights = None if isinstance(style, np.ndarray) else engine.settings.style_weights
+    return Evaluator(vgg, style, width, weights=weights, max_vectors=None if whole_frame else EVAL_MAX_VECTORS)
+
+
 def width_figures(engine, scene, after_scene, style, vgg, n_views: int, width: int) -> dict:
     """NNFM drop and structure of the evaluation views rendered ``width`` px wide (the width a run with finer levels
     ends at), the painting resized to that width; only the covered feature vectors are searched, against at most
     ``EVAL_MAX_VECTORS`` of the painting's (a random subset, the same for before and after)."""
     from ..render_cli import render_scene_image
-    from .evaluate import Evaluator, structure_kept
+    from .evaluate import structure_kept
 
     cams = evaluation_cameras(engine, n_views, width)
-    ev = Evaluator(vgg, style, width, weights=None if isinstance(style, np.ndarray) else engine.settings.style_weights,
-                   max_vectors=EVAL_MAX_VECTORS)
+    ev = figure_evaluator(engine, vgg, style, width, whole_frame=False)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
     after = [render_scene_image(after_scene, c) for c in cams]
     initial = ev.measure(list(before), list(before), list(alpha), whole_frame=False)

@@ -156,7 +156,7 @@ class ColourMatch(Phase):
         run = self.run
         keep = run.settings.keep_colours
         if self.final:
-            A, b = transfer(run, *self._renders())
+            A, b = transfer(run, *self.renders())
             source = run.c_s
         else:
             if run.active.region:
@@ -173,7 +173,7 @@ class ColourMatch(Phase):
             return self.report(colours_changed=True, message=f"final colour match to the {what}")
         return self.report(colours_changed=True, message="colours matched to the style")
 
-    def _renders(self) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    def renders(self) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
         """The stylized renders of the training views and what of each the scene (or the region) covers."""
         run = self.run
         images = [run.render(v) for v in range(len(run.cameras))]
