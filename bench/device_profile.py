@@ -4,7 +4,10 @@ Builds the demo's engine (``--preset``, ``--working-width``, ``--device``), runs
 ``--skip`` optimiser steps untimed, then profiles the engine's steps one by one and keeps the next ``--steps``
 optimiser steps (splits and refits between them are left out). Prints the wall time per step, the device's busy time
 per step, the kernel launches and torch operator calls per step and the ``--top`` operators by their own CPU time
-and by their own device time.
+and by their own device time. Then, over as many further optimiser steps, without the profiler: the operators a step
+dispatches that compute (views of tensors left out: on a GPU each of the others launches at least one kernel; the
+count does not depend on the device, so the CPU measures it too) and, on CUDA, the times a step makes the CPU wait
+for the GPU (reads of values, copies from or to the CPU's pageable memory: torch's sync debug mode).
 
     python bench/device_profile.py [--device cuda] [--working-width 512] [--steps 8]
 """
@@ -14,11 +17,13 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 from collections import defaultdict
 from pathlib import Path
 
 import torch
 from torch.profiler import ProfilerActivity, profile
+from torch.utils._python_dispatch import TorchDispatchMode
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -60,6 +65,44 @@ def profiled_optimiser_steps(engine, steps: int, cuda: bool) -> tuple[dict[str, 
     return dict(totals), wall / max(kept, 1)
 
 
+class DispatchCount(TorchDispatchMode):
+    """Counts the operators dispatched that compute (views, aliases and detaches left out)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.count = 0
+
+    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+        if not (func.is_view or func.__name__.split(".")[0] in ("detach", "lift_fresh", "_unsafe_view")):
+            self.count += 1
+        return func(*args, **(kwargs or {}))
+
+
+def counted_optimiser_steps(engine, steps: int, cuda: bool) -> tuple[float, float | None]:
+    """Over the next ``steps`` optimiser steps (others are left out): the computing operators dispatched a step and,
+    on CUDA, the waits for the GPU a step (warnings of torch's sync debug mode; None elsewhere)."""
+    ops = syncs = kept = 0
+    while kept < steps and not engine.done:
+        counter = DispatchCount()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            if cuda:
+                torch.cuda.set_sync_debug_mode("warn")
+            try:
+                with counter:
+                    rep = engine.step()
+            finally:
+                if cuda:
+                    torch.cuda.set_sync_debug_mode("default")
+        if not is_optimiser_step(rep.phase, rep.message):
+            continue
+        kept += 1
+        ops += counter.count
+        syncs += sum("synchroniz" in str(w.message) for w in caught)
+    kept = max(kept, 1)
+    return ops / kept, (syncs / kept if cuda else None)
+
+
 def top_rows(totals: dict[str, list[float]], column: int, count: int, steps: int) -> str:
     """The ``count`` operators with the most of ``column`` (0: own CPU time, 1: own device time, 2: calls)."""
     lines = ["| operator | own CPU ms/step | own device ms/step | calls/step |", "|---|---|---|---|"]
@@ -95,8 +138,13 @@ def main() -> int:
     for column in ((1, 2) if cuda else (2,)):
         print()
         print(top_rows(totals, column, args.top, n))
+    ops, syncs = counted_optimiser_steps(engine, args.steps, cuda)
+    waits = "" if syncs is None else f", {syncs:.0f} waits for the GPU"
+    print(f"\nwithout the profiler, {args.steps} more optimiser steps: {ops:.0f} computing operators dispatched a "
+          f"step{waits}")
     print(f"RESULT profile_ms_per_step={1e3 * per_step:.1f} device_ms_per_step={device_us / 1e3 / n:.1f} "
-          f"launches_per_step={launches / n:.0f} aten_calls_per_step={aten_calls / n:.0f}")
+          f"launches_per_step={launches / n:.0f} aten_calls_per_step={aten_calls / n:.0f} "
+          f"dispatched_ops_per_step={ops:.0f}" + ("" if syncs is None else f" gpu_waits_per_step={syncs:.1f}"))
     return 0
 
 

@@ -7,13 +7,17 @@ import torch
 
 from gstyle_core.style.clip import ClipStyleLoss, ClipVisionEncoder, CoarseStyleLoss
 from gstyle_core.style.losses import (
+    CosineDistance,
     StyleLoss,
     StyleTarget,
     StyleWeights,
     concat_features,
     content_loss,
     nnfm_loss,
+    normalise_vectors,
+    stacked_content_loss,
     tv_loss,
+    vector_norms,
 )
 from gstyle_core.style.vgg import VGGFeatures
 
@@ -194,3 +198,31 @@ def test_the_edges_term_holds_luminance_edges_and_leaves_colour_free():
         loss(render)
     loss.weights = {"edges": 0.0}
     assert loss(render)[1]["edges"] == 0.0  # weight 0: not computed (no target needed)
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_the_stacked_content_loss_is_the_sum_of_the_layers_means(weighted):
+    gen = torch.Generator().manual_seed(4)
+    names = ("relu3_1", "relu3_2", "relu3_3")
+    f64 = torch.float64  # the identity, not float32's summation order
+    render = {name: torch.rand(1, 256, 9, 11, generator=gen, dtype=f64) for name in names}
+    gt = {name: torch.rand(1, 256, 9, 11, generator=gen, dtype=f64) for name in names}
+    grid = torch.rand(1, 1, 9, 11, generator=gen, dtype=f64) if weighted else None
+    torch.testing.assert_close(stacked_content_loss(concat_features(render), concat_features(gt), grid),
+                               content_loss(render, gt, weights=grid), rtol=1e-12, atol=0)
+
+
+def test_the_cosine_distances_closed_form_gradient_is_autograds():
+    gen = torch.Generator().manual_seed(2)
+    vectors = torch.randn(30, 8, dtype=torch.float64, generator=gen).requires_grad_(True)
+    matched = normalise_vectors(torch.randn(30, 8, dtype=torch.float64, generator=gen), dim=1)
+
+    def distance(v):  # the norms as nnfm_loss gives them: of the same vectors, without a graph of their own
+        return CosineDistance.apply(v, matched, vector_norms(v.detach()))
+
+    assert torch.autograd.gradcheck(distance, (vectors,))
+    through_autograd = 1.0 - (normalise_vectors(vectors, dim=1) * matched).sum(1)
+    torch.testing.assert_close(distance(vectors), through_autograd)
+    weights = torch.rand(30, dtype=torch.float64, generator=gen)
+    expected = torch.autograd.grad((through_autograd * weights).sum(), vectors)[0]
+    torch.testing.assert_close(torch.autograd.grad((distance(vectors) * weights).sum(), vectors)[0], expected)

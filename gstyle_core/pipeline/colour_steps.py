@@ -2,11 +2,18 @@
 
 The stylization phase (``phases/stylize.py``) and the finer levels (``phases/refine.py``) share it. A step is
 ``colours = steps.begin(lr)`` (the optimised colours the views render, with the coarse colour field added when it is
-on), the loss of each view backpropagated into ``colours``, then ``steps.finish()``: the gradient goes through the
-field once, Adam steps the colours (and the field, which is folded into them), the colours are clamped to [0, 1] and
-written into ``run.c_s``, and with keep colours c_s takes c_gt's chroma back. Only the active Gaussians are optimised
-(``active.py``): the unseen ones get no gradient and keep their colour; ``visible_adam`` moves only the Gaussians the
-step's views see. The field is rebuilt when the stroke size or its switch changes (``colour_field.py``).
+on), the loss of each view, rendered from ``steps.seen_colours()``, backpropagated, then ``steps.finish()``: the
+gradient goes through the field once, Adam steps the colours (and the field, which is folded into them), the colours
+are clamped to [0, 1] and written into ``run.c_s``, and with keep colours c_s takes c_gt's chroma back. Only the
+active Gaussians are optimised (``active.py``): the unseen ones get no gradient and keep their colour;
+``visible_adam`` moves only the Gaussians the step's views see. The field is rebuilt when the stroke size or its
+switch changes (``colour_field.py``).
+
+The colours the views render are made once a step (``seen_colours``): the seen rows, with the active ones the
+optimised colours, sent to the rasterizer's device once, as a leaf there whose gradient the views add up; ``finish``
+carries that sum back into the optimised colours in one pass. On a GPU a step thus sends the colours there once and
+their gradient back once, instead of once per view (each such copy waits for the GPU's queue to drain); on the CPU
+the views' gradients add up in the same order as before, so the result is the same to the bit.
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ class ColourSteps:
         self._field_for: tuple[bool, float] | None = None  # (switch, stroke size) the field was built for
         self._with_field: torch.Tensor | None = None
         self._colours: torch.Tensor | None = None
+        self._placed: tuple[torch.Tensor, torch.Tensor] | None = None  # (seen colours, their leaf on the device)
 
     @property
     def started(self) -> bool:
@@ -55,12 +63,35 @@ class ColourSteps:
             self._with_field = self.c_opt + field.sample()
             colours = self._with_field.detach().requires_grad_(True)
         self._colours = colours
+        self._placed = None
         return colours
+
+    def seen_colours(self) -> torch.Tensor:
+        """The step's colours of the seen Gaussians (the colour caches' columns) on the rasterizer's device, made on
+        the step's first call: a leaf there, whose gradient the views' backward passes add up (``finish`` carries it
+        back into ``begin``'s colours)."""
+        if self._colours is None:
+            raise RuntimeError("seen_colours() before begin()")
+        if self._placed is None:
+            run = self.run
+            placed = run.active.place_in_seen(run.c_s, self._colours)
+            leaf = placed.detach().to(run.raster_device).requires_grad_(True)
+            self._placed = (placed, leaf)
+        return self._placed[1]
+
+    def _carry_back(self) -> None:
+        """The seen colours' summed gradient, sent back once, through the placing into ``begin``'s colours."""
+        if self._placed is not None:
+            placed, leaf = self._placed
+            if leaf.grad is not None:
+                placed.backward(leaf.grad.to(placed.device))
+            self._placed = None
 
     def finish(self, accumulate: bool = False) -> None:
         """End the step: the optimiser steps on the gradients the views left in ``begin``'s colours; ``accumulate``
         adds each colour's gradient norm to ``run.grad_acc`` (the colour-gradient split's ranking)."""
         run = self.run
+        self._carry_back()
         if self._with_field is not None and self._colours is not None and self._colours.grad is not None:
             self._with_field.backward(self._colours.grad)
         self._with_field = self._colours = None
@@ -93,6 +124,7 @@ class ColourSteps:
     def stop(self) -> None:
         """Drop the optimiser (new rows after a split, or the phase ended); the next ``begin`` builds a new one."""
         self.optimiser, self.c_opt, self.field = None, None, None
+        self._with_field = self._colours = self._placed = None
 
     def sync_field(self, lr: float) -> None:
         """Build the colour field over the optimised Gaussians when the settings ask for it (for their stroke size),

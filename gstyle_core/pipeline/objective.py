@@ -11,6 +11,7 @@ import torch
 
 from ..cameras.images import resize_image
 from ..style.clip import CLIP_OFF
+from ..style.losses import concat_features, term_values
 from .scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, scene_box
 from .settings import StylizeSettings
 
@@ -92,8 +93,10 @@ class StyleObjective:
         multiscale_term = self._build_multiscale_term() if wanted["multiscale"] > 0 else None
         self.loss = StyleLoss(self.vgg, self.target, clip_term, weights=wanted, multiscale_term=multiscale_term)
         self.loss.chroma_floor = self._chroma_floor()
-        self._content_cache: dict[int, dict[str, torch.Tensor]] = {}
+        self._content_cache: dict[int, torch.Tensor] = {}  # per view: its relu3 features, stacked
         self._boxes: dict[tuple[int, tuple[int, ...]], tuple[slice, slice] | None] = {}
+        # per training view: (content, coverage as given, their copies on the networks' device)
+        self._device_inputs: dict[int, tuple[torch.Tensor, torch.Tensor | None, torch.Tensor, torch.Tensor | None]] = {}
 
     def _style_input(self, style: np.ndarray) -> np.ndarray:
         """A painting as the networks see it: its luminance as grey with keep colours, else as it is."""
@@ -195,8 +198,9 @@ class StyleObjective:
             return float(sum(w * chroma_tv_loss(small) for w, small in zip(weights, self._styles_small, strict=True)))
 
     def clear_content_cache(self) -> None:
-        """Forget the content views' features (the engine changed its content targets)."""
+        """Forget the content views' features and device copies (the engine changed its content targets)."""
         self._content_cache.clear()
+        self._device_inputs.clear()
 
     def _build_clip_term(self) -> torch.nn.Module:
         """CLIP ViT-B/32 on the style when its weights are found, else the coarse-VGG substitute (built when λ_CLIP
@@ -246,17 +250,24 @@ class StyleObjective:
         self.loss.weights = w
 
     def __call__(self, image: torch.Tensor, content: torch.Tensor, view: int | None,
-                 coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, dict]:
-        """Loss of a render [H,W,3] of training view ``view``; ``content`` is its colour-matched ground truth and
-        ``coverage`` [H,W] the scene's alpha there (None for photos: the whole frame is the scene). With
-        ``crop_to_scene`` VGG sees only the box the scene covers (``pipeline/scene_box.py``); with ``keep_colours``
-        the networks see the luminance of both. ``view`` None: a one-off image (a crop): nothing of it is cached.
-        Inputs on another device than the networks' are moved there (the render inside the autograd graph)."""
-        image, content = image.to(self.device), content.to(self.device)
+                 coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+        """The loss and each term's value (``evaluate``'s, read); the arguments are ``evaluate``'s."""
+        loss, values = self.evaluate(image, content, view, coverage)
+        return loss, term_values(values)
+
+    def evaluate(self, image: torch.Tensor, content: torch.Tensor, view: int | None,
+                 coverage: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Loss of a render [H,W,3] of training view ``view``, and its terms' values unread (``StyleLoss.evaluate``);
+        ``content`` is its colour-matched ground truth and ``coverage`` [H,W] the scene's alpha there (None for
+        photos: the whole frame is the scene). With ``crop_to_scene`` VGG sees only the box the scene covers
+        (``pipeline/scene_box.py``); with ``keep_colours`` the networks see the luminance of both. ``view`` None: a
+        one-off image (a crop): nothing of it is cached. Inputs on another device than the networks' are moved there
+        (the render inside the autograd graph; a view's content and coverage once, while they are the same)."""
+        image = image.to(self.device)
         coverage = None if coverage is None else torch.as_tensor(coverage)
         # the scene's box is found on the CPU's copy of the coverage: on a GPU its reads would wait for the queue
         box_coverage = None if coverage is None else coverage.detach().cpu()
-        coverage = None if coverage is None else coverage.to(self.device)
+        content, coverage = self._view_inputs(view, content, coverage)
         if self._luminance_only():
             from ..style.keep_colours import grey
 
@@ -275,12 +286,25 @@ class StyleObjective:
         if self.loss.weights.content > 0:
             gt_feats = self._content_cache.get(view) if view is not None else None
             if gt_feats is None:
-                gt_feats = self.loss.content_features(content.permute(2, 0, 1)[None], render.shape[-2:])
+                gt_feats = concat_features(self.loss.content_features(content.permute(2, 0, 1)[None],
+                                                                      render.shape[-2:]))
                 if view is not None:
                     self._content_cache[view] = gt_feats
         gt = content.permute(2, 0, 1)[None] if self.loss.weights.edges > 0 else None  # at the render's size
-        return self.loss(render, gt=gt, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view,
-                         multiscale_view=multiscale_view)
+        return self.loss.evaluate(render, gt=gt, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view,
+                                  multiscale_view=multiscale_view)
+
+    def _view_inputs(self, view: int | None, content: torch.Tensor, coverage: torch.Tensor | None
+                     ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """``content`` and ``coverage`` on the networks' device; a training view's copies are kept while the engine
+        gives the same tensors (on a GPU each copy from the CPU waits for the queue to drain)."""
+        if view is None or self.device.type == "cpu":
+            return content.to(self.device), None if coverage is None else coverage.to(self.device)
+        kept = self._device_inputs.get(view)
+        if kept is None or kept[0] is not content or kept[1] is not coverage:
+            kept = (content, coverage, content.to(self.device), None if coverage is None else coverage.to(self.device))
+            self._device_inputs[view] = kept
+        return kept[2], kept[3]
 
     def network_box(self, view: int | None, coverage: torch.Tensor | None, grow: int = 1) -> tuple[slice, slice] | None:
         """The view's scene box (fixed per view: the coverage is the ground truth's), None for the whole frame.

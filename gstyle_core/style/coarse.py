@@ -23,6 +23,14 @@ from .paintings import as_batch, checked_style_weights, style_list
 COARSE_LABEL = "coarse-VGG substitute (no CLIP weights)"
 
 
+def position_weights(grid: torch.Tensor) -> torch.Tensor:
+    """A feature grid's coverage weights [B, 1, h, w] as [B, 1, h*w] summing to 1 per image; an image without any
+    coverage weighs every position alike. Decided on the device: reading the sum would wait for a GPU's queue."""
+    flat = grid.flatten(2)
+    total = flat.sum(-1, keepdim=True)
+    return torch.where(total > 0, flat / total.clamp_min(torch.finfo(flat.dtype).tiny), 1.0 / flat.shape[-1])
+
+
 class CoarseStyleLoss(nn.Module):
     """Stand-in for the CLIP term: mean/std statistics of VGG relu3_x features at a coarse scale.
 
@@ -61,13 +69,15 @@ class CoarseStyleLoss(nn.Module):
         small = F.interpolate(img, size=size, mode="bilinear", align_corners=False, antialias=True)
         feats = self.vgg(small)
         out = {}
+        grids: dict[tuple[int, ...], torch.Tensor] = {}  # the relu3 layers share one grid: its weights made once
         for name, f in feats.items():
             flat = f.flatten(2)  # [B, C, h*w]
-            w = feature_weights(coverage, f.shape[-2:])
-            if w is None or float(w.sum()) <= 0.0:
+            if coverage is None:
                 out[name] = (flat.mean(-1), (flat.var(-1, unbiased=False) + 1e-8).sqrt())
                 continue
-            w = w.flatten(2) / w.flatten(2).sum(-1, keepdim=True)  # [B, 1, h*w], sums to 1
+            if tuple(f.shape[-2:]) not in grids:
+                grids[tuple(f.shape[-2:])] = position_weights(feature_weights(coverage, f.shape[-2:]))
+            w = grids[tuple(f.shape[-2:])]
             mean = (flat * w).sum(-1)
             var = (((flat - mean[..., None]) ** 2) * w).sum(-1)
             out[name] = (mean, (var + 1e-8).sqrt())

@@ -68,6 +68,32 @@ def normalise_vectors(x: torch.Tensor, dim: int) -> torch.Tensor:
     return x / ((x * x).sum(dim, keepdim=True) + _NORM_EPS).sqrt()
 
 
+def vector_norms(x: torch.Tensor) -> torch.Tensor:
+    """The lengths of the rows of ``x`` [N, C] as :func:`normalise_vectors` divides by them (its ε included): [N]."""
+    return ((x * x).sum(1) + _NORM_EPS).sqrt()
+
+
+class CosineDistance(torch.autograd.Function):
+    """1 − cos between the rows of ``vectors`` [N, C] and unit rows ``matched`` [N, C] (constant), given the rows'
+    ``norms`` [N] (:func:`vector_norms`): d = 1 − v·m / s. Its gradient in closed form,
+    ∂d/∂v = (v·m / s² · v − m) / s, is a handful of operators where autograd through the normalisation takes
+    seventeen (each one a kernel launch on a GPU) and as many temporaries the size of the features."""
+
+    @staticmethod
+    def forward(ctx, vectors: torch.Tensor, matched: torch.Tensor, norms: torch.Tensor) -> torch.Tensor:
+        dots = (vectors * matched).sum(1)
+        ctx.save_for_backward(vectors, matched, norms, dots)
+        return 1.0 - dots / norms
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None, None]:
+        vectors, matched, norms = ctx.saved_tensors[:3]
+        dots = ctx.saved_tensors[3]
+        scale = grad / norms  # [N]
+        along = dots / (norms * norms)  # [N]
+        return (vectors * along[:, None] - matched) * scale[:, None], None, None
+
+
 class StyleTarget:
     """Style image → unit-normalised VGG feature matrix [C, M] (computed once), optionally at several
     scales of the style image (features of all scales are pooled into one set of candidates)."""
@@ -187,13 +213,16 @@ def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chu
         raise ValueError("the style target has no feature vectors")
     if render_feats.numel() == 0:
         raise ValueError(f"the render has no feature vectors (features {tuple(render_feats.shape)})")
-    render_vectors = normalise_vectors(render_feats.float().permute(0, 2, 3, 1).flatten(0, 2), dim=1)  # [N, C]
+    vectors = render_feats.float().permute(0, 2, 3, 1).flatten(0, 2)  # [N, C]
     with torch.no_grad():
-        queries = render_vectors.detach().to(search_matrix.dtype)
-        nearest = torch.cat([nearest_indices(block @ search_matrix) for block in queries.split(max(1, chunk))])
-    matched = style_matrix.index_select(1, nearest).t().contiguous()  # [N, C], constant (a gather of whole columns:
-    # ~6× faster than indexing the transposed view's rows, the same values)
-    distances = 1.0 - (render_vectors * matched).sum(dim=1)
+        norms = vector_norms(vectors)
+        queries = (vectors / norms[:, None]).to(search_matrix.dtype)
+        blocks = queries.split(max(1, chunk))
+        nearest = (nearest_indices(blocks[0] @ search_matrix) if len(blocks) == 1
+                   else torch.cat([nearest_indices(block @ search_matrix) for block in blocks]))
+        matched = style_matrix.index_select(1, nearest).t().contiguous()  # [N, C], constant (a gather of whole
+        # columns: ~6× faster than indexing the transposed view's rows, the same values)
+    distances = CosineDistance.apply(vectors, matched, norms)
     if reduction == "none":
         b, _, h, w = render_feats.shape
         return distances.reshape(b, h, w)
@@ -217,6 +246,14 @@ def content_loss(render_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tenso
     return sum(weighted_mean((r - g.detach()) ** 2, weights) for r, g in pairs)
 
 
+def stacked_content_loss(render_stack: torch.Tensor, gt_stack: torch.Tensor,
+                         weights: torch.Tensor | None = None) -> torch.Tensor:
+    """:func:`content_loss` over the relu3 layers (the sum of each layer's mean) from their stacks along channels
+    ([B, 768, h, w], :func:`concat_features`): the three layers have the same channels and grid, so the sum is three
+    times the mean of the stack, one set of operators instead of three."""
+    return len(FEATURE_LAYERS) * weighted_mean((render_stack - gt_stack.detach()) ** 2, weights)
+
+
 def vgg_input_size(size: tuple[int, int] | torch.Size) -> tuple[int, int]:
     """``size`` (h, w) with each side raised to at least ``MIN_VGG_SIDE``."""
     return max(int(size[0]), MIN_VGG_SIDE), max(int(size[1]), MIN_VGG_SIDE)
@@ -237,6 +274,14 @@ def resize_to_width(img: torch.Tensor, width: int | None) -> torch.Tensor:
     height = max(1, round(img.shape[-2] * width / img.shape[-1]))
     return F.interpolate(img, size=(height, width), mode="bilinear", align_corners=False,
                          antialias=width < img.shape[-1])
+
+
+TERM_NAMES = ("clip", "nnfm", "content", "tv", "multiscale", "chroma_tv", "edges")  # StyleLoss's terms, in order
+
+
+def term_values(values: torch.Tensor) -> dict[str, float]:
+    """The terms' values of ``StyleLoss.evaluate`` ([len(TERM_NAMES)], any device) read in one transfer, by name."""
+    return dict(zip(TERM_NAMES, values.detach().cpu().tolist(), strict=True))
 
 
 class StyleLoss(nn.Module):
@@ -293,12 +338,25 @@ class StyleLoss(nn.Module):
         self._weights = value
 
     def forward(self, render: torch.Tensor, gt: torch.Tensor | None = None,
-                gt_feats: Mapping[str, torch.Tensor] | None = None,
+                gt_feats: Mapping[str, torch.Tensor] | torch.Tensor | None = None,
                 coverage: torch.Tensor | None = None,
                 clip_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
                 multiscale_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
                 ) -> tuple[torch.Tensor, dict[str, float]]:
-        """``coverage``: the scene's rendered alpha ([H,W] or [1,1,H,W], render resolution) for scenes on an empty
+        """The total and each term's value (``evaluate``'s, read); the arguments are ``evaluate``'s."""
+        total, values = self.evaluate(render, gt, gt_feats, coverage, clip_view, multiscale_view)
+        return total, term_values(values)
+
+    def evaluate(self, render: torch.Tensor, gt: torch.Tensor | None = None,
+                 gt_feats: Mapping[str, torch.Tensor] | torch.Tensor | None = None,
+                 coverage: torch.Tensor | None = None,
+                 clip_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
+                 multiscale_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
+                 ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The total and the terms' values as one tensor on the render's device, in ``TERM_NAMES`` order, unread
+        (on a GPU a read waits for the queue to drain: a step reads its views' values once, ``term_values``).
+        ``gt_feats``: the ground truth's relu3 features (``content_features``, or their stack; None: taken from
+        ``gt``). ``coverage``: the scene's rendered alpha ([H,W] or [1,1,H,W], render resolution) for scenes on an empty
         background; NNFM, content and the coarse substitute then average over the scene's feature positions
         (None: over the whole frame, as for photos). ``clip_view`` = (render, coverage) gives the CLIP term (or its
         substitute, whose context is a large part of the frame) another view of the same render than ``render``,
@@ -306,8 +364,7 @@ class StyleLoss(nn.Module):
         (a wider crop: its coarse levels need more context and a coarser pixel grid than NNFM's)."""
         w = self._weights
         zero = render.new_zeros(())
-        terms = {"clip": zero, "nnfm": zero, "content": zero, "tv": zero, "multiscale": zero, "chroma_tv": zero,
-                 "edges": zero}
+        terms = dict.fromkeys(TERM_NAMES, zero)
         small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip or w.multiscale) \
             else render
         if w.nnfm > 0 or w.content > 0:
@@ -320,7 +377,7 @@ class StyleLoss(nn.Module):
             if w.content > 0:
                 if gt_feats is None:
                     gt_feats = self.content_features(gt, small.shape[-2:])
-                terms["content"] = content_loss(feats, gt_feats, weights=grid)
+                terms["content"] = stacked_content_loss(stacked, concat_features(gt_feats), grid)
         if w.clip > 0:
             clip_in, clip_cov = (small, coverage) if clip_view is None else (
                 resize_to_width(clip_view[0], self.working_width), clip_view[1])
@@ -348,9 +405,7 @@ class StyleLoss(nn.Module):
             total = total + w.chroma_tv * terms["chroma_tv"]
         if w.edges > 0:
             total = total + w.edges * terms["edges"]
-        # the terms' values read in one transfer (on a GPU each read of a value waits for the queue to drain)
-        values = torch.stack([value.detach().float().reshape(()) for value in terms.values()]).cpu().tolist()
-        return total, dict(zip(terms, values, strict=True))
+        return total, torch.stack([terms[name].detach().float().reshape(()) for name in TERM_NAMES])
 
     @torch.no_grad()
     def content_features(self, gt: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> dict[str, torch.Tensor]:

@@ -120,24 +120,28 @@ class VGGFeatures(nn.Module):
         return self
 
     def preprocess(self, img: torch.Tensor) -> torch.Tensor:
-        """RGB [0,1] → the network's input convention (float32)."""
+        """RGB [0,1] → the network's input convention (float32): (img − shift) · scale as one operation."""
         if img.ndim != 4 or img.shape[1] != 3:
             raise ValueError(f"VGG input must be [B,3,H,W] RGB, got shape {tuple(img.shape)}")
-        x = (img.float() - self.input_shift) * self.input_scale
+        x = torch.addcmul(-self.input_shift * self.input_scale, img.float(), self.input_scale)
         if self.convention == CAFFE_BGR:
             x = x.flip(1)
         return x
 
     def forward(self, img: torch.Tensor) -> dict[str, torch.Tensor]:  # img: [B,3,H,W]
-        x = self.preprocess(img).to(self.compute_dtype)
-        if self.channels_last:
-            x = x.contiguous(memory_format=torch.channels_last)
+        """The relu3 features of ``img``, float32, in the memory layout the network ran in (channels last with
+        ``channels_last``): every operator here is a kernel launch on a GPU, so none is spent on layouts."""
+        layout = torch.channels_last if self.channels_last else torch.preserve_format
+        x = self.preprocess(img).to(dtype=self.compute_dtype, memory_format=layout)
         wanted = {index: name for name, index in _RELU_INDEX.items()}
         out: dict[str, torch.Tensor] = {}
         for index, layer in enumerate(self.features):
             x = layer(x)
             if index in wanted:
-                out[wanted[index]] = x.float().contiguous() * self.output_scale
+                features = x.float()
+                if self.output_scale != 1.0:  # a fresh float32 copy is scaled in place; the network's own is not
+                    features = features.mul_(self.output_scale) if features is not x else features * self.output_scale
+                out[wanted[index]] = features
         return out
 
     def load_weights(self, state_dict: dict[str, torch.Tensor]) -> None:

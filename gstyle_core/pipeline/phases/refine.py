@@ -30,6 +30,7 @@ import torch
 
 from ..colour_steps import ColourSteps
 from ..levels import MAX_LEVEL_VIEWS
+from ..step_losses import StepLosses
 from .base import Phase, StepReport
 from .colour_match import content_target, detail_sigma
 from .ground_truth import ground_truth_view
@@ -118,32 +119,32 @@ class Refine(Phase):
         fine = self.crop_step()
         pool = len(self.cameras) if fine else len(run.cameras)
         picks = torch.randperm(pool, generator=gen)[:per].tolist()
-        colours = self.colour_steps.begin(self.lr())
-        total, terms = 0.0, {}
+        self.colour_steps.begin(self.lr())
+        colours = self.colour_steps.seen_colours()
+        losses = StepLosses(len(picks))
         for k in picks:
-            loss, view_terms = self._fine_loss(k, colours, gen) if fine else self._coarse_loss(k, colours)
-            total += float(loss.detach()) / len(picks)  # before the backward: the loss's terms were just read
-            (loss / len(picks)).backward()
-            for name, v in view_terms.items():
-                terms[name] = terms.get(name, 0.0) + v / len(picks)
+            (self._fine_loss(k, colours, gen, losses) if fine else self._coarse_loss(k, colours, losses)).backward()
         self.colour_steps.finish()
         self.step_index += 1
         if self.step_index >= self.steps:
             self.colour_steps.stop()
         what = (f"{'crops' if self.mode == 'crops' else 'views'} at {self.width} px" if fine
                 else f"whole views at {run.settings.working_width} px")
-        return self.report(losses={"total": total, **terms}, colours_changed=True,
+        return self.report(losses=losses.read(), colours_changed=True,
                            message=f"level {self.width} px: {what} (views {', '.join(map(str, picks))})")
 
-    def _coarse_loss(self, view: int, colours: torch.Tensor) -> tuple[torch.Tensor, dict]:
-        """A whole training view at the working width with every term (the stylization's own step)."""
+    def _coarse_loss(self, view: int, colours: torch.Tensor, losses: StepLosses) -> torch.Tensor:
+        """A whole training view at the working width with every term (the stylization's own step): its share of
+        the step's loss, its values kept in ``losses``; ``colours``: the step's seen colours
+        (``ColourSteps.seen_colours``)."""
         run = self.run
-        image = run.render_seen(view, run.active.place_in_seen(run.c_s, colours))
-        return run.objective_fn()(image, run.content_images[view], view, coverage=run.objective_coverage(view))
+        image = run.render_seen(view, colours)
+        return losses.evaluate(run.objective_fn(), image, run.content_images[view], view,
+                               coverage=run.objective_coverage(view))
 
-    def _fine_loss(self, k: int, colours: torch.Tensor, gen: torch.Generator) -> tuple[torch.Tensor, dict]:
+    def _fine_loss(self, k: int, colours: torch.Tensor, gen: torch.Generator, losses: StepLosses) -> torch.Tensor:
         """Level view ``k`` at the level's width: a random crop the size of a working-width view (``crops``), or the
-        whole view (``whole``)."""
+        whole view (``whole``); its share of the step's loss, as ``_coarse_loss``'s."""
         run = self.run
         full = self.cameras[k]
         if self.mode == "crops":
@@ -153,7 +154,7 @@ class Refine(Phase):
         else:
             x0, y0, w, h = 0, 0, full.width, full.height
         cache = run.build_cache(full.cropped(x0, y0, w, h))
-        image = cache.render(run.active.place_in_seen(run.c_s, colours))
+        image = cache.render(colours)
         alpha = self.alpha[k][y0:y0 + h, x0:x0 + w]
         region = None
         if run.active.region:
@@ -162,7 +163,7 @@ class Refine(Phase):
         content = self._content(k, (x0, y0, w, h), region)
         coverage = region if region is not None else (None if run.photos is not None else alpha)
         terms = CROP_TERMS if self.mode == "crops" else None
-        return run.level_objective(self.width, terms)(image, content, None, coverage=coverage)
+        return losses.evaluate(run.level_objective(self.width, terms), image, content, None, coverage=coverage)
 
     def _content(self, k: int, window: tuple[int, int, int, int], region: torch.Tensor | None) -> torch.Tensor:
         """The content target of ``window`` (x0, y0, w, h) of level view ``k``: taken on the window grown by the

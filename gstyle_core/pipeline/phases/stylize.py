@@ -20,6 +20,7 @@ import torch
 
 from ..colour_steps import ColourSteps
 from ..notes import network_area_note
+from ..step_losses import StepLosses
 from .base import Phase, StepReport
 from .colour_split import ColourSplit
 from .refit import Refit
@@ -121,21 +122,17 @@ class Stylize(Phase):
     def _optimise(self) -> StepReport:
         run, steps = self.run, self.colour_steps
         views = self.views_of_step()
-        colours = steps.begin(self.lr())
-        total, terms = 0.0, {}
+        steps.begin(self.lr())
+        losses = StepLosses(len(views))
         for view in views:  # the mean loss over this step's views: gradients add up before one optimiser step
-            image = run.render_seen(view, run.active.place_in_seen(run.c_s, colours))
-            loss, view_terms = run.objective_fn()(image, run.content_images[view], view,
-                                                  coverage=run.objective_coverage(view))
-            total += float(loss.detach()) / len(views)  # before the backward: the loss's terms were just read
-            (loss / len(views)).backward()
-            for k, v in view_terms.items():
-                terms[k] = terms.get(k, 0.0) + v / len(views)
+            image = run.render_seen(view, steps.seen_colours())
+            losses.evaluate(run.objective_fn(), image, run.content_images[view], view,
+                            coverage=run.objective_coverage(view)).backward()
         steps.finish(accumulate=self.step_index >= self.accumulate_from)
         self.step_index += 1
         if self.step_index >= self.steps:
             steps.stop()
-        return self.report(losses={"total": total, **terms}, colours_changed=True,
+        return self.report(losses=losses.read(), colours_changed=True,
                            message=f"{STEP_MESSAGE}{'s' if len(views) > 1 else ''} {', '.join(map(str, views))}")
 
     def restore_chroma(self) -> None:

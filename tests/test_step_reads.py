@@ -1,0 +1,84 @@
+"""What a step reads back from the networks' device: the views' loss values once a step (``StepLosses``), a view's
+content and coverage sent once (``StyleObjective._view_inputs``), the coarse term's weights decided without a read."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+from fakes import engine_with_random_vgg
+
+from gstyle_core.pipeline.step_losses import StepLosses
+from gstyle_core.style.coarse import position_weights
+from gstyle_core.style.losses import TERM_NAMES, term_values
+
+
+@pytest.fixture()
+def engine(monkeypatch):
+    engine = engine_with_random_vgg(monkeypatch, views_per_step=3)
+    while engine.phase != "stylize":
+        engine.step()
+    return engine
+
+
+def _view_args(engine, view: int):
+    run = engine.run_state
+    image = run.render_seen(view, run.active.gather_seen(run.c_s).clone().requires_grad_(True))
+    return image, run.content_images[view], view, run.objective_coverage(view)
+
+
+def test_evaluate_gives_the_calls_values_unread(engine):
+    objective = engine.run_state.objective_fn()
+    image, content, view, coverage = _view_args(engine, 0)
+    loss, values = objective.evaluate(image, content, view, coverage)
+    called_loss, called = objective(image, content, view, coverage)
+    assert isinstance(values, torch.Tensor) and values.shape == (len(TERM_NAMES),)
+    assert term_values(values) == called and float(loss.detach()) == float(called_loss.detach())
+    assert called["nnfm"] > 0 and called["content"] > 0  # real terms, not zeros
+
+
+def test_a_steps_losses_are_the_mean_of_its_views(engine):
+    objective = engine.run_state.objective_fn()
+    per_view = [objective(*_view_args(engine, v)) for v in range(3)]
+    losses = StepLosses(3)
+    shares = [losses.evaluate(objective, *_view_args(engine, v)) for v in range(3)]
+    read = losses.read()
+    assert list(read) == ["total", *TERM_NAMES]
+    assert read["total"] == pytest.approx(sum(float(loss.detach()) for loss, _ in per_view) / 3, rel=1e-6)
+    for name in TERM_NAMES:
+        assert read[name] == pytest.approx(sum(terms[name] for _, terms in per_view) / 3, rel=1e-6, abs=1e-12)
+    for share, (loss, _) in zip(shares, per_view, strict=True):  # what each view backpropagates: its share
+        assert share.requires_grad and float(share.detach()) == pytest.approx(float(loss.detach()) / 3, rel=1e-6)
+
+
+def test_objectives_that_give_floats_are_added_up_as_floats():
+    def objective(value):
+        return torch.tensor(value), {"pull": value / 2}
+
+    losses = StepLosses(2)
+    for value in (1.0, 3.0):
+        losses.evaluate(objective, value)
+    assert losses.read() == {"total": 2.0, "pull": 1.0}
+
+
+def test_a_views_content_and_coverage_are_sent_once_while_they_are_the_same(engine):
+    objective = engine.run_state.objective_fn()
+    _, content, view, coverage = _view_args(engine, 1)
+    assert objective._view_inputs(view, content, coverage)[0] is content  # on the CPU: nothing to send or keep
+    objective.device = torch.device("meta")  # another device than the tensors': copies are made
+    sent = objective._view_inputs(view, content, coverage)
+    assert sent[0].device.type == "meta" and sent[1].device.type == "meta"
+    assert objective._view_inputs(view, content, coverage)[0] is sent[0]  # kept
+    assert objective._view_inputs(view, content.clone(), coverage)[0] is not sent[0]  # a new content target
+    assert objective._view_inputs(None, content, coverage)[0] is not sent[0]  # a one-off crop: never kept
+    objective.clear_content_cache()
+    assert objective._device_inputs == {}
+
+
+def test_the_coarse_terms_weights_sum_to_one_or_weigh_all_alike():
+    grid = torch.zeros(2, 1, 3, 4)
+    grid[0, 0, 1, 2], grid[0, 0, 0, 0] = 3.0, 1.0
+    w = position_weights(grid)
+    assert w.shape == (2, 1, 12)
+    torch.testing.assert_close(w.sum(-1), torch.ones(2, 1))
+    assert float(w[0, 0, 6]) == 0.75 and float(w[0, 0, 0]) == 0.25
+    torch.testing.assert_close(w[1], torch.full((1, 12), 1 / 12))  # no coverage: the whole frame
