@@ -16,7 +16,8 @@
 #    CUDA, `gstyle fit` on CUDA (a copy of the LLFF fern in .gpu/fern), biker.spz's final tier, then the demo's
 #    preview on CUDA and on the CPU side by side.
 # "studio": after 1-3, only the studio's worker streaming on CUDA (1 and 4 torch threads), the engine's own rate at
-# 512 px and a profile of the stylize steps there (bench/studio_rate.py, device_stylize.py, device_profile.py).
+# 512 px and a profile of the stylize steps there, with the operators a step dispatches and its waits for the GPU
+# (bench/studio_rate.py, device_stylize.py, device_profile.py).
 # Every figure is printed and kept in $OUT/gpu_check.log (OUT defaults to out/gpu_check).
 set -uo pipefail
 cd "$(dirname "$0")/.."
