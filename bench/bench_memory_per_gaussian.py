@@ -27,15 +27,15 @@ def child(copies: int, width: int) -> dict:
     sys.path.insert(0, str(ROOT))
     sys.path.insert(0, str(ROOT / "tests"))
     import numpy as np
-    import torch
     from fakes import MeanColourPull
 
+    from gstyle_core.machine import set_torch_threads
     from gstyle_core.pipeline.settings import resolve_settings
     from gstyle_core.pipeline.stylizer import Stylizer
     from gstyle_core.render_cli import load_scene_and_cameras
     from gstyle_core.scene import GaussianScene
 
-    torch.set_num_threads(1)
+    set_torch_threads(1)
     scene, _report, cams = load_scene_and_cameras(None, None)
     rng = np.random.default_rng(0)
     parts = []

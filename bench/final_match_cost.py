@@ -21,10 +21,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from gstyle_core.machine import set_torch_threads  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
 from gstyle_core.pipeline.levels import level_widths  # noqa: E402
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--detail-px", default="0,4,16", help="the final match's detail widths to try (working px)")
     args = p.parse_args(argv)
     if args.threads:
-        torch.set_num_threads(args.threads)
+        set_torch_threads(args.threads)
     engine, scene_in, _, _, style = build_stylizer(build_request(args))
     s = engine.settings
     if not s.colour_match_after:

@@ -81,12 +81,12 @@ def main() -> None:
     p.add_argument("--out-dir", default="out")
     p.add_argument("--threads", type=int, default=None)
     args = p.parse_args()
-    import torch
 
+    from gstyle_core.machine import set_torch_threads
     from gstyle_core.render_cli import save_png
 
     if args.threads:
-        torch.set_num_threads(args.threads)
+        set_torch_threads(args.threads)
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = []

@@ -31,7 +31,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gstyle_core.machine import cpu_description  # noqa: E402
+from gstyle_core.machine import cpu_description, set_torch_threads  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 STYLE = DATA / "styles" / "starry_night_vangogh.jpg"
@@ -151,7 +151,7 @@ def main() -> None:
     import torch
 
     if args.threads:
-        torch.set_num_threads(args.threads)
+        set_torch_threads(args.threads)
     print(f"cpu: {cpu_description()}; torch {torch.__version__}, {torch.get_num_threads()} threads; {load()}")
     print_floor(floor_ms(args.floor_repeats))
     if args.floor_only:

@@ -41,6 +41,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from gstyle_core.machine import set_torch_threads  # noqa: E402
 from gstyle_core.pipeline import colour_field  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer, style_paths  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
@@ -246,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
              "no_crop", "seed")
     extra = argparse.Namespace(**{n: getattr(args, n) for n in names})
     if args.threads:
-        torch.set_num_threads(args.threads)
+        set_torch_threads(args.threads)
     run(args, extra)
     return 0
 

@@ -34,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from gstyle_core.io import validate_and_repair  # noqa: E402
+from gstyle_core.machine import set_torch_threads  # noqa: E402
 from gstyle_core.pipeline.settings import resolve_settings  # noqa: E402
 from gstyle_core.pipeline.stylizer import Stylizer  # noqa: E402
 from tests.fuzzcases import (  # noqa: E402
@@ -196,7 +197,7 @@ def main() -> None:
     if unknown:
         p.error(f"unknown format(s) {unknown}")
     signal.signal(signal.SIGALRM, _alarm)
-    torch.set_num_threads(1)
+    set_torch_threads(1)
     with tempfile.TemporaryDirectory(prefix="gstyle-soak-") as tmp:
         if args.case is not None:
             for fmt in formats:

@@ -30,7 +30,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gstyle_core.machine import cpu_description  # noqa: E402
+from gstyle_core.machine import cpu_description, set_torch_threads  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
@@ -238,7 +238,7 @@ def main() -> None:
     args = p.parse_args()
     print(f"cpu: {cpu_description()}")
     if args.threads:
-        torch.set_num_threads(args.threads)
+        set_torch_threads(args.threads)
     request = build_request(args)
     request.overrides["crop_to_scene"] = not args.whole_frames
     engine, scene, _, cams, _ = build_stylizer(request)

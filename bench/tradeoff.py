@@ -50,6 +50,7 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from gstyle_core.machine import set_torch_threads  # noqa: E402
 from gstyle_core.pipeline.build import BuildRequest, build_stylizer  # noqa: E402
 from gstyle_core.pipeline.consistency import nearby_camera, view_consistency  # noqa: E402
 from gstyle_core.pipeline.stylizer import choose_views  # noqa: E402
@@ -352,7 +353,7 @@ def main() -> None:
         with Path(args.out).with_suffix(".csv").open(newline="") as fh:
             print("\n".join(markdown_rows(list(csv.DictReader(fh)))))
         return
-    torch.set_num_threads(args.threads)
+    set_torch_threads(args.threads)
     scenes = dict(SCENES)
     if Path(args.fern).is_file():
         scenes["fern"] = (args.fern, str(FERN_CAMERAS))

@@ -83,3 +83,15 @@ def cpu_description(cpuinfo: Path | str = CPUINFO) -> str:
 
 if __name__ == "__main__":
     print(cpu_description())
+
+
+def set_torch_threads(count: int) -> None:
+    """Set torch's intra-op threads so that the count holds for the whole run. numba's parallel pool is launched first:
+    its launch sets the OpenMP thread count of the calling thread, which torch reads, so a pool launched later (the
+    first render of a process) silently changed ``--threads 1`` to numba's count (measured: a resumed run's first
+    step turned torch's 1 thread into 2, and its sums over more than 32,768 values then came out differently)."""
+    import numba
+    import torch
+
+    numba.get_num_threads()  # launches numba's threading layer now, not in the middle of a run
+    torch.set_num_threads(count)

@@ -74,3 +74,24 @@ def test_usable_cores_and_the_module_entry_point():
     assert "torch" not in subprocess.run(
         [sys.executable, "-c", "import sys, gstyle_core.machine; print(sorted(sys.modules))"],
         cwd=ROOT, capture_output=True, text=True, timeout=60).stdout  # torch-free
+
+
+THREADS_AFTER_NUMBAS_LAUNCH = """
+import sys
+sys.path.insert(0, {root!r})
+import torch  # first, as the engine does: numba then finds its OpenMP runtime loaded
+import numba
+from gstyle_core.machine import set_torch_threads
+{set_threads}
+torch.ones(100_000).sum()  # torch computes first, in parallel (its OpenMP runtime starts here), as a run does
+numba.get_num_threads()  # launches numba's threading layer, as its first cached parallel kernel does mid-run
+print(torch.get_num_threads())
+"""
+
+
+def test_the_torch_thread_count_holds_past_numbas_launch():
+    # with torch.set_num_threads(1) alone, numba's OpenMP layer turned the count into its own (2 on the 2-core VM):
+    # a run resumed from a checkpoint then summed its losses on 2 threads where the uninterrupted run used 1
+    code = THREADS_AFTER_NUMBAS_LAUNCH.format(root=str(ROOT), set_threads="set_torch_threads(1)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
+    assert out.stdout.split()[-1] == "1", out.stdout + out.stderr

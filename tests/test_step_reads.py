@@ -7,7 +7,7 @@ import pytest
 import torch
 from fakes import engine_with_random_vgg
 
-from gstyle_core.pipeline.step_losses import StepLosses
+from gstyle_core.pipeline.step_losses import StepLosses, backward_views
 from gstyle_core.style.coarse import position_weights
 from gstyle_core.style.losses import TERM_NAMES, term_values
 
@@ -82,3 +82,50 @@ def test_the_coarse_terms_weights_sum_to_one_or_weigh_all_alike():
     torch.testing.assert_close(w.sum(-1), torch.ones(2, 1))
     assert float(w[0, 0, 6]) == 0.75 and float(w[0, 0, 0]) == 0.25
     torch.testing.assert_close(w[1], torch.full((1, 12), 1 / 12))  # no coverage: the whole frame
+
+
+def test_a_steps_views_backpropagate_as_each_alone_with_the_broad_strokes_together(engine):
+    from dataclasses import replace
+
+    run = engine.run_state
+    objective = run.objective_fn()
+    objective.set_weights(replace(run.settings.weights, multiscale=50.0))
+    seen = run.active.gather_seen(run.c_s).clone()
+
+    def inputs(leaf):
+        return [(run.render_seen(v, leaf), run.content_images[v], v, run.objective_coverage(v)) for v in range(3)]
+
+    with torch.no_grad():  # the views' content features cached first: both paths below run the same networks
+        for render, content, view, coverage in inputs(seen):
+            objective.evaluate(render, content, view, coverage)
+    alone = seen.clone().requires_grad_(True)
+    expected = StepLosses(3)
+    calls = objective.calls["vgg"]
+    for render, content, view, coverage in inputs(alone):
+        expected.evaluate(objective, render, content, view, coverage=coverage).backward()
+    calls_alone, calls = objective.calls["vgg"] - calls, objective.calls["vgg"]
+    together = seen.clone().requires_grad_(True)
+    losses = StepLosses(3)
+    backward_views(objective, [lambda view=view: view for view in inputs(together)], losses)
+    assert objective.calls["vgg"] - calls == calls_alone - 2 * len(objective.loss.multiscale_term.factors)
+    torch.testing.assert_close(together.grad, alone.grad, rtol=1e-4, atol=1e-7)
+    read, want = losses.read(), expected.read()
+    assert read["multiscale"] > 0 and list(read) == list(want)
+    for name in want:
+        assert read[name] == pytest.approx(want[name], rel=1e-5, abs=1e-9)
+
+
+def test_without_a_term_to_take_together_the_views_go_one_after_another(engine):
+    objective = engine.run_state.objective_fn()
+    assert objective.loss.weights.multiscale == 0 and not objective.takes_views_together(3)
+    made, run = [], engine.run_state
+    leaf = run.active.gather_seen(run.c_s).clone().requires_grad_(True)
+
+    def view_input(view):
+        assert (leaf.grad is not None) == (view > 0)  # the view before was backpropagated before this one is made
+        made.append(view)
+        return run.render_seen(view, leaf), run.content_images[view], view, run.objective_coverage(view)
+
+    losses = StepLosses(3)
+    backward_views(objective, [lambda view=view: view_input(view) for view in range(3)], losses)
+    assert made == [0, 1, 2] and leaf.grad is not None and losses.read()["total"] > 0

@@ -105,3 +105,16 @@ def test_the_combined_loss_adds_it_only_when_weighted(vgg):
     assert float((total_on - total_off).detach()) == pytest.approx(7.0 * terms_on["multiscale"], rel=1e-4)
     with pytest.raises(ValueError, match="broad-strokes"):
         StyleLoss(vgg, target, None, weights=StyleWeights(clip=0.0, multiscale=1.0))
+
+
+@pytest.mark.parametrize("mixed", [False, True], ids=["one painting", "a mix"])
+@pytest.mark.parametrize("covered", [False, True], ids=["whole frames", "coverage"])
+def test_a_batch_gives_each_render_the_value_it_has_alone(vgg, mixed, covered):
+    paintings = [_painting(seed=1), _painting(48, 64, seed=2)] if mixed else _painting(seed=1)
+    term = MultiScaleStyleLoss(vgg, paintings, style_weights=(0.3, 0.7) if mixed else None)
+    gen = torch.Generator().manual_seed(5)
+    renders = torch.rand(3, 3, 40, 56, generator=gen)
+    coverage = torch.rand(3, 40, 56, generator=gen) if covered else None
+    coverage = None if coverage is None else coverage * (coverage > 0.3)
+    alone = torch.stack([term(renders[i:i + 1], None if coverage is None else coverage[i]) for i in range(3)])
+    torch.testing.assert_close(term.per_image(renders, coverage), alone, rtol=1e-5, atol=1e-6)

@@ -8,7 +8,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from ..assets import DEMO_SCENE
 from ..device import DEVICES
@@ -96,13 +95,14 @@ def region_summary(engine) -> dict | None:
 
 def stylize_command(args: argparse.Namespace) -> int:
     """Run ``gstyle stylize``."""
+    from ..machine import set_torch_threads
     from .checkpoint import RunCheckpointer, deferred_interrupts, engine_fingerprint, stylize_checkpoint_path
 
     out, every = _checked_output(args)
     ckpt_path = stylize_checkpoint_path(out)
     saved = _read_resume_checkpoint(ckpt_path) if getattr(args, "resume", False) else None
     if args.threads:
-        torch.set_num_threads(args.threads)
+        set_torch_threads(args.threads)
     t0 = time.perf_counter()
     request = build_request(args)
     built = build_stylizer(request)

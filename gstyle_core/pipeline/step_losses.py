@@ -1,4 +1,5 @@
-"""The mean loss and terms over an optimiser step's views, added up where the losses are and read once a step.
+"""The mean loss and terms over an optimiser step's views, added up where the losses are and read once a step, and
+the backward pass of a step's views (``backward_views``).
 
 On a GPU every read of a value on the CPU waits for the GPU's queue to drain: read after each view, the CPU could not
 queue the next view's work while the GPU computes this one's. ``StepLosses`` keeps the views' values on the device
@@ -8,6 +9,7 @@ and reads them in one transfer when the step reports them. Objectives with an ``
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import torch
@@ -50,3 +52,30 @@ class StepLosses:
                 out[name] = out.get(name, 0.0) + value
         total = out.pop("total", 0.0)
         return {"total": total / self.views, **{name: value / self.views for name, value in out.items()}}
+
+
+ViewInput = tuple[torch.Tensor, torch.Tensor, "int | None", "torch.Tensor | None"]  # (render, content, view, coverage)
+
+
+def backward_views(objective: Any, views: Sequence[Callable[[], ViewInput]], losses: StepLosses) -> None:
+    """Backpropagate the mean loss of a step's views into their renders, keeping the values in ``losses``. ``views``
+    make each view's input when called: its render, content target, training view (None for a crop) and coverage.
+    Where the objective takes views together (``StyleObjective.takes_views_together``: a term it computes for all
+    of them in one pass, the broad strokes) all views are rendered first and go to its ``backward_views`` as copies
+    of the renders that stop the gradient; each render then passes its gradient on once, in view order. Otherwise
+    one view is rendered, evaluated and backpropagated after the other (one view's graph held at a time)."""
+    together = getattr(objective, "takes_views_together", None)
+    if together is None or not together(len(views)):
+        for make in views:
+            render, content, view, coverage = make()
+            losses.evaluate(objective, render, content, view, coverage=coverage).backward()
+        return
+    inputs = [make() for make in views]
+    renders = [render for render, _, _, _ in inputs]
+    leaves = [render.detach().requires_grad_(True) for render in renders]
+    total, values = objective.backward_views(leaves, [c for _, c, _, _ in inputs], [v for _, _, v, _ in inputs],
+                                             [cov for _, _, _, cov in inputs], scale=1.0 / losses.views)
+    losses.add(total, values)
+    for render, leaf in zip(renders, leaves, strict=True):
+        if leaf.grad is not None:
+            render.backward(leaf.grad)

@@ -163,6 +163,23 @@ def style_nnfm(render_feats: torch.Tensor, style: StyleTarget | WeightedTargets 
     return torch.stack(terms).sum() if terms else render_feats.new_zeros(())
 
 
+def style_nnfm_per_image(render_feats: torch.Tensor, style: StyleTarget | WeightedTargets, chunk: int = 4096,
+                         weights: torch.Tensor | None = None) -> torch.Tensor:
+    """:func:`style_nnfm` of each image of a batch of features [B, C, h, w] on its own: [B], each image's mean over
+    its own feature positions (weighted by its ``weights`` [B, 1, h, w]), as :func:`style_nnfm` gives for that image
+    alone. The searches of the batch run together."""
+    pairs = ([(style, 1.0)] if not isinstance(style, WeightedTargets)
+             else [(t, w) for t, w in zip(style.targets, style.weights, strict=True) if w > 0])
+    if not pairs:
+        return render_feats.new_zeros(render_feats.shape[0])
+    maps = [w * nnfm_loss(render_feats, t, chunk, reduction="none") for t, w in pairs]  # [B, h, w] each
+    distances = maps[0] if len(maps) == 1 else torch.stack(maps).sum(0)
+    if weights is None:
+        return distances.flatten(1).mean(1)
+    w = weights.flatten(1)
+    return (distances.flatten(1) * w).sum(1) / w.sum(1).clamp_min(_NORM_EPS)
+
+
 def feature_weights(coverage: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> torch.Tensor | None:
     """The scene's coverage (rendered alpha, [H,W], [1,H,W] or [B,1,H,W] in [0, 1]) averaged over each cell of a
     feature grid of ``size`` (h, w) → [B,1,h,w] weights; None stays None (every feature vector counts fully)."""
@@ -352,6 +369,7 @@ class StyleLoss(nn.Module):
                  coverage: torch.Tensor | None = None,
                  clip_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
                  multiscale_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
+                 multiscale_sink: list[tuple[torch.Tensor, torch.Tensor | None]] | None = None,
                  ) -> tuple[torch.Tensor, torch.Tensor]:
         """The total and the terms' values as one tensor on the render's device, in ``TERM_NAMES`` order, unread
         (on a GPU a read waits for the queue to drain: a step reads its views' values once, ``term_values``).
@@ -361,7 +379,10 @@ class StyleLoss(nn.Module):
         (None: over the whole frame, as for photos). ``clip_view`` = (render, coverage) gives the CLIP term (or its
         substitute, whose context is a large part of the frame) another view of the same render than ``render``,
         e.g. the whole frame when ``render`` is a crop of it; ``multiscale_view`` likewise for the broad-strokes term
-        (a wider crop: its coarse levels need more context and a coarser pixel grid than NNFM's)."""
+        (a wider crop: its coarse levels need more context and a coarser pixel grid than NNFM's). With
+        ``multiscale_sink`` (a list) the broad-strokes term is not computed: its input (render, coverage) is appended
+        there, for ``multiscale_per_view`` to take with other views', and the total and the term's value leave it
+        out."""
         w = self._weights
         zero = render.new_zeros(())
         terms = dict.fromkeys(TERM_NAMES, zero)
@@ -387,8 +408,11 @@ class StyleLoss(nn.Module):
         if w.multiscale > 0:
             ms_in, ms_cov = (small, coverage) if multiscale_view is None else (
                 resize_to_width(multiscale_view[0], self.working_width), multiscale_view[1])
-            terms["multiscale"] = self.multiscale_term(ms_in, ms_cov)
-            self.calls["vgg"] += len(self.multiscale_term.factors)
+            if multiscale_sink is not None:  # the caller computes it with other views' (multiscale_per_view)
+                multiscale_sink.append((ms_in, ms_cov))
+            else:
+                terms["multiscale"] = self.multiscale_term(ms_in, ms_cov)
+                self.calls["vgg"] += len(self.multiscale_term.factors)
         if w.tv > 0:
             terms["tv"] = tv_loss(render)
         if w.chroma_tv > 0:  # only the colour variation beyond the painting's own
@@ -399,13 +423,32 @@ class StyleLoss(nn.Module):
             terms["edges"] = edges_loss(render, gt, coverage)
         total = (w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"]
                  + w.tv * terms["tv"])
-        if w.multiscale > 0:  # added last: with the term off the total is the same sum, bit for bit
+        if w.multiscale > 0 and multiscale_sink is None:  # added last: with the term off, the same sum to the bit
             total = total + w.multiscale * terms["multiscale"]
         if w.chroma_tv > 0:
             total = total + w.chroma_tv * terms["chroma_tv"]
         if w.edges > 0:
             total = total + w.edges * terms["edges"]
         return total, torch.stack([terms[name].detach().float().reshape(()) for name in TERM_NAMES])
+
+    def multiscale_per_view(self, inputs: Sequence[tuple[torch.Tensor, torch.Tensor | None]]) -> torch.Tensor:
+        """The broad-strokes term of each of a step's views from the inputs ``evaluate`` put in its
+        ``multiscale_sink``: [len(inputs)], in their order; the views of one size go through the network together."""
+        groups: dict[tuple, list[int]] = {}
+        for i, (render, coverage) in enumerate(inputs):
+            groups.setdefault((tuple(render.shape), None if coverage is None else tuple(coverage.shape[-2:])),
+                              []).append(i)
+        values: list[torch.Tensor | None] = [None] * len(inputs)
+        for members in groups.values():
+            renders = torch.cat([inputs[i][0] for i in members])
+            coverage = None if inputs[members[0]][1] is None else torch.stack(
+                [torch.as_tensor(inputs[i][1], dtype=torch.float32).reshape(inputs[i][1].shape[-2:])
+                 for i in members])
+            per_image = self.multiscale_term.per_image(renders, coverage)
+            self.calls["vgg"] += len(self.multiscale_term.factors)
+            for k, i in enumerate(members):
+                values[i] = per_image[k]
+        return torch.stack(values)
 
     @torch.no_grad()
     def content_features(self, gt: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> dict[str, torch.Tensor]:

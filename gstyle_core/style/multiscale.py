@@ -32,6 +32,7 @@ from .losses import (
     concat_features,
     feature_weights,
     style_nnfm,
+    style_nnfm_per_image,
     upsample_for_vgg,
     vgg_input_size,
 )
@@ -111,3 +112,22 @@ class MultiScaleStyleLoss(nn.Module):
             self.last_levels[factor] = d.detach()  # a tensor: reading it here would wait for the GPU
             terms.append(d)
         return torch.stack(terms).mean()
+
+    def per_image(self, renders: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
+        """The term of each of a batch of renders of one size, [B] (what ``forward`` gives for each alone), every
+        level through the network once for the whole batch (on a GPU: a quarter of the kernel launches for four
+        views). ``coverage``: [B, H, W] or [B, 1, H, W], or None."""
+        if renders.ndim != 4 or renders.shape[1] != 3:
+            raise ValueError(f"renders must be [B, 3, H, W], got {tuple(renders.shape)}")
+        if coverage is not None and coverage.ndim == 3:
+            coverage = coverage[:, None]
+        levels = []
+        for factor, target in zip(self.factors, self.targets, strict=True):
+            small = downsample(renders, factor)
+            if tuple(small.shape[-2:]) != vgg_input_size(small.shape[-2:]):
+                small = upsample_for_vgg(small)
+            feats = concat_features(self.vgg(small))
+            d = style_nnfm_per_image(feats, target, self.chunk, weights=feature_weights(coverage, feats.shape[-2:]))
+            self.last_levels[factor] = d.detach().mean()
+            levels.append(d)
+        return torch.stack(levels).mean(0)

@@ -23,6 +23,7 @@ or resized photos), so checkpoints do not carry them.
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -30,7 +31,7 @@ import torch
 
 from ..colour_steps import ColourSteps
 from ..levels import MAX_LEVEL_VIEWS
-from ..step_losses import StepLosses
+from ..step_losses import StepLosses, ViewInput, backward_views
 from .base import Phase, StepReport
 from .colour_match import content_target, detail_sigma
 from .ground_truth import ground_truth_view
@@ -122,8 +123,12 @@ class Refine(Phase):
         self.colour_steps.begin(self.lr())
         colours = self.colour_steps.seen_colours()
         losses = StepLosses(len(picks))
-        for k in picks:
-            (self._fine_loss(k, colours, gen, losses) if fine else self._coarse_loss(k, colours, losses)).backward()
+        if fine:
+            terms = CROP_TERMS if self.mode == "crops" else None
+            backward_views(run.level_objective(self.width, terms),
+                           [partial(self._fine_view, k, colours, gen) for k in picks], losses)
+        else:
+            backward_views(run.objective_fn(), [partial(self._coarse_view, k, colours) for k in picks], losses)
         self.colour_steps.finish()
         self.step_index += 1
         if self.step_index >= self.steps:
@@ -133,18 +138,15 @@ class Refine(Phase):
         return self.report(losses=losses.read(), colours_changed=True,
                            message=f"level {self.width} px: {what} (views {', '.join(map(str, picks))})")
 
-    def _coarse_loss(self, view: int, colours: torch.Tensor, losses: StepLosses) -> torch.Tensor:
-        """A whole training view at the working width with every term (the stylization's own step): its share of
-        the step's loss, its values kept in ``losses``; ``colours``: the step's seen colours
-        (``ColourSteps.seen_colours``)."""
+    def _coarse_view(self, view: int, colours: torch.Tensor) -> ViewInput:
+        """A whole training view at the working width, for every term (the stylization's own step): its render of
+        ``colours`` (the step's seen colours, ``ColourSteps.seen_colours``), content target and coverage."""
         run = self.run
-        image = run.render_seen(view, colours)
-        return losses.evaluate(run.objective_fn(), image, run.content_images[view], view,
-                               coverage=run.objective_coverage(view))
+        return run.render_seen(view, colours), run.content_images[view], view, run.objective_coverage(view)
 
-    def _fine_loss(self, k: int, colours: torch.Tensor, gen: torch.Generator, losses: StepLosses) -> torch.Tensor:
+    def _fine_view(self, k: int, colours: torch.Tensor, gen: torch.Generator) -> ViewInput:
         """Level view ``k`` at the level's width: a random crop the size of a working-width view (``crops``), or the
-        whole view (``whole``); its share of the step's loss, as ``_coarse_loss``'s."""
+        whole view (``whole``), as ``_coarse_view`` gives it (no training view: nothing of it is cached)."""
         run = self.run
         full = self.cameras[k]
         if self.mode == "crops":
@@ -162,8 +164,7 @@ class Refine(Phase):
             region = cache.render(run.active.gather_seen(indicator).contiguous())[..., 0].clamp(0.0, 1.0)
         content = self._content(k, (x0, y0, w, h), region)
         coverage = region if region is not None else (None if run.photos is not None else alpha)
-        terms = CROP_TERMS if self.mode == "crops" else None
-        return losses.evaluate(run.level_objective(self.width, terms), image, content, None, coverage=coverage)
+        return image, content, None, coverage
 
     def _content(self, k: int, window: tuple[int, int, int, int], region: torch.Tensor | None) -> torch.Tensor:
         """The content target of ``window`` (x0, y0, w, h) of level view ``k``: taken on the window grown by the

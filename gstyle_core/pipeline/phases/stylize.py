@@ -14,13 +14,14 @@ c_s takes the chroma of c_gt back.
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import Any
 
 import torch
 
 from ..colour_steps import ColourSteps
 from ..notes import network_area_note
-from ..step_losses import StepLosses
+from ..step_losses import StepLosses, ViewInput, backward_views
 from .base import Phase, StepReport
 from .colour_split import ColourSplit
 from .refit import Refit
@@ -124,16 +125,20 @@ class Stylize(Phase):
         views = self.views_of_step()
         steps.begin(self.lr())
         losses = StepLosses(len(views))
-        for view in views:  # the mean loss over this step's views: gradients add up before one optimiser step
-            image = run.render_seen(view, steps.seen_colours())
-            losses.evaluate(run.objective_fn(), image, run.content_images[view], view,
-                            coverage=run.objective_coverage(view)).backward()
+        # the mean loss over this step's views: gradients add up before one optimiser step
+        backward_views(run.objective_fn(), [partial(self._view_input, view) for view in views], losses)
         steps.finish(accumulate=self.step_index >= self.accumulate_from)
         self.step_index += 1
         if self.step_index >= self.steps:
             steps.stop()
         return self.report(losses=losses.read(), colours_changed=True,
                            message=f"{STEP_MESSAGE}{'s' if len(views) > 1 else ''} {', '.join(map(str, views))}")
+
+    def _view_input(self, view: int) -> ViewInput:
+        """A training view's render of the step's colours, its content target and coverage."""
+        run = self.run
+        return (run.render_seen(view, self.colour_steps.seen_colours()), run.content_images[view], view,
+                run.objective_coverage(view))
 
     def restore_chroma(self) -> None:
         """Keep colours: c_s (and the optimised copy) take the chroma of c_gt back."""
