@@ -98,15 +98,19 @@ class MultiScaleStyleLoss(nn.Module):
             if isinstance(target, WeightedTargets):
                 target.weights = self._style_weights
 
+    def _level_features(self, renders: torch.Tensor, factor: float) -> torch.Tensor:
+        """The stacked relu3 features of ``renders`` downsampled by ``factor`` (stretched to VGG's minimum size)."""
+        small = downsample(renders, factor)
+        if tuple(small.shape[-2:]) != vgg_input_size(small.shape[-2:]):
+            small = upsample_for_vgg(small)
+        return concat_features(self.vgg(small))
+
     def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
         if render.ndim != 4 or render.shape[1] != 3:
             raise ValueError(f"render must be [B, 3, H, W], got {tuple(render.shape)}")
         terms = []
         for factor, target in zip(self.factors, self.targets, strict=True):
-            small = downsample(render, factor)
-            if tuple(small.shape[-2:]) != vgg_input_size(small.shape[-2:]):
-                small = upsample_for_vgg(small)
-            feats = concat_features(self.vgg(small))
+            feats = self._level_features(render, factor)
             grid = feature_weights(coverage, feats.shape[-2:])
             d = style_nnfm(feats, target, self.chunk, weights=grid)
             self.last_levels[factor] = d.detach()  # a tensor: reading it here would wait for the GPU
@@ -123,10 +127,7 @@ class MultiScaleStyleLoss(nn.Module):
             coverage = coverage[:, None]
         levels = []
         for factor, target in zip(self.factors, self.targets, strict=True):
-            small = downsample(renders, factor)
-            if tuple(small.shape[-2:]) != vgg_input_size(small.shape[-2:]):
-                small = upsample_for_vgg(small)
-            feats = concat_features(self.vgg(small))
+            feats = self._level_features(renders, factor)
             d = style_nnfm_per_image(feats, target, self.chunk, weights=feature_weights(coverage, feats.shape[-2:]))
             self.last_levels[factor] = d.detach().mean()
             levels.append(d)
