@@ -81,10 +81,6 @@ def cpu_description(cpuinfo: Path | str = CPUINFO) -> str:
     return cpu_info(cpuinfo).describe()
 
 
-if __name__ == "__main__":
-    print(cpu_description())
-
-
 def set_torch_threads(count: int) -> None:
     """Set torch's intra-op threads so that the count holds for the whole run. numba's parallel pool is launched first:
     its launch sets the OpenMP thread count of the calling thread, which torch reads, so a pool launched later (the
@@ -95,3 +91,8 @@ def set_torch_threads(count: int) -> None:
 
     numba.get_num_threads()  # launches numba's threading layer now, not in the middle of a run
     torch.set_num_threads(count)
+
+
+if __name__ == "__main__":
+    print(cpu_description())
+

@@ -11,7 +11,7 @@ import torch
 
 from ..cameras.images import resize_image
 from ..style.clip import CLIP_OFF
-from ..style.losses import concat_features, term_values
+from ..style.losses import TERM_NAMES, concat_features, term_values
 from .scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, scene_box
 from .settings import StylizeSettings
 
@@ -267,8 +267,6 @@ class StyleObjective:
         ``scale`` into ``images``: each view's own terms one view at a time, the broad-strokes term of all of them
         together (views of one size through the network at once: ``StyleLoss.multiscale_per_view``). Returns the sum
         of the views' losses and of their terms' values (``TERM_NAMES`` order), unread."""
-        from ..style.losses import TERM_NAMES
-
         sink: list | None = [] if self.takes_views_together(len(images)) else None
         total = values = None
         for image, content, view, coverage in zip(images, contents, views, coverages, strict=True):

@@ -103,6 +103,8 @@ class VGGFeatures(nn.Module):
         self.output_scale = 1.0 if convention == TORCHVISION_RGB else CAFFE_FEATURE_SCALE
         self.register_buffer("input_shift", shift.view(1, 3, 1, 1), persistent=False)
         self.register_buffer("input_scale", scale.view(1, 3, 1, 1), persistent=False)
+        # (img − shift) · scale = img · scale + bias: made once here, not on every forward pass
+        self.register_buffer("input_bias", -shift.view(1, 3, 1, 1) * scale.view(1, 3, 1, 1), persistent=False)
         self.requires_grad_(False)
         self.eval()
         self._apply_compute_mode()
@@ -123,7 +125,7 @@ class VGGFeatures(nn.Module):
         """RGB [0,1] → the network's input convention (float32): (img − shift) · scale as one operation."""
         if img.ndim != 4 or img.shape[1] != 3:
             raise ValueError(f"VGG input must be [B,3,H,W] RGB, got shape {tuple(img.shape)}")
-        x = torch.addcmul(-self.input_shift * self.input_scale, img.float(), self.input_scale)
+        x = torch.addcmul(self.input_bias, img.float(), self.input_scale)
         if self.convention == CAFFE_BGR:
             x = x.flip(1)
         return x
