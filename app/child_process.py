@@ -10,6 +10,8 @@ import sys
 import threading
 from collections.abc import Iterator
 
+from gstyle_core.machine import set_torch_threads
+
 WORKER_NICE = 10  # default niceness increment of a helper process (env GSTYLE_WORKER_NICE overrides it)
 
 
@@ -64,6 +66,8 @@ def single_compute_thread(in_thread: bool = False) -> None:
     numba = sys.modules.get("numba")
     if numba is None and not in_thread:
         os.environ["NUMBA_NUM_THREADS"] = "1"  # numba reads it at import (the engine imports it lazily)
+        if torch is not None:  # numba's pool launched now: launched later it would reset torch's count to its 1
+            set_torch_threads(worker_torch_threads())
         return
     if numba is None:
         import numba

@@ -304,3 +304,29 @@ def test_a_restart_keeps_the_run_befores_step_times_for_the_new_runs_eta():
         assert b.state.step_times.counts == {}  # the new run counts its own
     finally:
         b.quit(timeout=5)
+
+
+SPAWNED_HELPER_THREADS = """
+import sys
+sys.path.insert(0, {root!r})
+import torch
+from app.child_process import single_compute_thread
+single_compute_thread()
+torch.ones(100_000).sum()
+import numba
+numba.get_num_threads()  # the engine's first parallel kernel launches numba's pool (1 thread in a helper)
+print(torch.get_num_threads(), numba.get_num_threads())
+"""
+
+
+def test_a_spawned_helpers_torch_threads_hold_past_numbas_launch():
+    # numba's OpenMP pool of 1, launched after torch's count was set, used to reset torch's count to 1
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"} | {"GSTYLE_WORKER_THREADS": "2"}
+    code = SPAWNED_HELPER_THREADS.format(root=str(Path(__file__).resolve().parents[1]))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env,
+                         check=True)
+    assert out.stdout.split()[-2:] == ["2", "1"], out.stdout + out.stderr
