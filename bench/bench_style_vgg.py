@@ -14,7 +14,8 @@ import time
 import torch
 
 from gstyle_core.machine import cpu_description
-from gstyle_core.style.losses import StyleTarget, concat_features, nnfm_loss
+from gstyle_core.style.features import concat_features
+from gstyle_core.style.nnfm import StyleTarget, nnfm_loss
 from gstyle_core.style.vgg import load_vgg
 
 MODES = {"fp32": (torch.float32, False), "fp32_cl": (torch.float32, True), "bf16_cl": (torch.bfloat16, True)}

@@ -49,7 +49,8 @@ def floor_ms(repeats: int) -> dict[str, dict[str, float]]:
 
     from gstyle_core.images import load_style_image
     from gstyle_core.pipeline.objective import resize_long_side, to_bchw
-    from gstyle_core.style.losses import StyleTarget, concat_features, nearest_indices, normalise_vectors
+    from gstyle_core.style.features import concat_features, normalise_vectors
+    from gstyle_core.style.nnfm import StyleTarget, nearest_indices
     from gstyle_core.style.vgg import load_vgg
 
     nets = {p: load_vgg(dtype=d, channels_last=p == "bf16")

@@ -35,8 +35,9 @@ from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.raster import colour_cache  # noqa: E402
-from gstyle_core.style import losses  # noqa: E402
-from gstyle_core.style.losses import StyleTarget, WeightedTargets, concat_features, style_nnfm  # noqa: E402
+from gstyle_core.style import losses, nnfm  # noqa: E402
+from gstyle_core.style.features import concat_features  # noqa: E402
+from gstyle_core.style.nnfm import StyleTarget, WeightedTargets, style_nnfm  # noqa: E402
 from gstyle_core.style.precision import torch_dtype  # noqa: E402
 from gstyle_core.style.vgg import load_vgg  # noqa: E402
 
@@ -105,8 +106,8 @@ def instrument(engine) -> PartTimer:
     timer.wrap(colour_cache._SparseLinear, "backward", "colour cache: backward")
     timer.wrap(objective.loss.vgg, "forward", "VGG forward")
     timer.wrap(objective.loss, "content_features", "content features (once per view)")
-    timer.wrap(losses, "nnfm_loss", "NNFM forward")
-    timer.wrap(losses, "content_loss", "content term forward")
+    timer.wrap(nnfm, "nnfm_loss", "NNFM forward")
+    timer.wrap(losses, "stacked_content_loss", "content term forward")
     timer.wrap(losses, "tv_loss", "TV forward")
     if objective.loss.clip_term is not None:
         timer.wrap(objective.loss.clip_term, "forward", "CLIP / coarse substitute forward")
@@ -123,7 +124,7 @@ def floor_time(objective, height: int, width: int, repeats: int = 7,
     levels, taken from a ``coarse`` (h, w) view (the grown box it sees; default the same size); ``content_forward``:
     also VGG forward on the content target (a level's random crop has no cached content features). ``objective``:
     anything with ``vgg`` and ``target`` (and optionally ``loss``), e.g. the run's objective."""
-    from gstyle_core.style.losses import upsample_for_vgg, vgg_input_size
+    from gstyle_core.style.features import upsample_for_vgg, vgg_input_size
     from gstyle_core.style.multiscale import downsample
 
     term = getattr(getattr(objective, "loss", None), "multiscale_term", None)

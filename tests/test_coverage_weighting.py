@@ -9,14 +9,9 @@ import torch
 from gstyle_core.pipeline.settings import resolve_settings
 from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.style.clip import CoarseStyleLoss
-from gstyle_core.style.losses import (
-    StyleLoss,
-    StyleTarget,
-    content_loss,
-    feature_weights,
-    nnfm_loss,
-    weighted_mean,
-)
+from gstyle_core.style.features import feature_weights, weighted_mean
+from gstyle_core.style.losses import StyleLoss, content_loss
+from gstyle_core.style.nnfm import StyleTarget, nnfm_loss
 from tests.fakes import MeanColourPull
 from tests.synthetic import blob_scene, ring_cameras
 

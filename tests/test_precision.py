@@ -11,7 +11,8 @@ import torch
 
 from gstyle_core.machine import CpuInfo
 from gstyle_core.style import precision
-from gstyle_core.style.losses import StyleTarget, nnfm_loss, normalise_vectors
+from gstyle_core.style.features import normalise_vectors
+from gstyle_core.style.nnfm import StyleTarget, nnfm_loss
 from gstyle_core.style.precision import (
     CACHE_FILE,
     CACHE_FORMAT,
@@ -173,7 +174,7 @@ def test_a_bf16_search_finds_a_neighbour_as_near_as_fp32s():
 
 
 def test_the_bf16_search_takes_the_first_of_equal_scores_as_fp32s_does():
-    from gstyle_core.style.losses import nearest_indices
+    from gstyle_core.style.nnfm import nearest_indices
 
     scores = torch.tensor([[0.5, 0.75, 0.75, 0.1], [0.2, 0.2, 0.2, 0.2], [0.9, 0.3, 0.9, 0.0]])
     assert nearest_indices(scores).tolist() == [1, 0, 0] == nearest_indices(scores.bfloat16()).tolist()

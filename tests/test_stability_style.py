@@ -31,7 +31,8 @@ from gstyle_core.style.colour_match import (
     colour_transfer_matrix,
     match_colours,
 )
-from gstyle_core.style.losses import StyleLoss, StyleTarget, StyleWeights, content_loss, nnfm_loss
+from gstyle_core.style.losses import StyleLoss, StyleWeights, content_loss
+from gstyle_core.style.nnfm import StyleTarget, nnfm_loss
 from gstyle_core.style.pixel_terms import tv_loss
 from gstyle_core.style.vgg import VGGFeatures, load_vgg
 from tests.synthetic import blob_scene, ring_cameras

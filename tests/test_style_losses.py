@@ -6,19 +6,10 @@ import pytest
 import torch
 
 from gstyle_core.style.clip import ClipStyleLoss, ClipVisionEncoder, CoarseStyleLoss
-from gstyle_core.style.losses import (
-    CosineDistance,
-    StyleLoss,
-    StyleTarget,
-    StyleWeights,
-    concat_features,
-    content_loss,
-    nnfm_loss,
-    normalise_vectors,
-    stacked_content_loss,
-    tv_loss,
-    vector_norms,
-)
+from gstyle_core.style.features import concat_features, normalise_vectors, vector_norms
+from gstyle_core.style.losses import StyleLoss, StyleWeights, content_loss, stacked_content_loss
+from gstyle_core.style.nnfm import CosineDistance, StyleTarget, nnfm_loss
+from gstyle_core.style.pixel_terms import tv_loss
 from gstyle_core.style.vgg import VGGFeatures
 
 

@@ -18,12 +18,13 @@ from gstyle_core.errors import GStyleError
 from gstyle_core.pipeline.phases.colour_match import surface_pixels
 from gstyle_core.pipeline.settings import resolve_settings, ui_params
 from gstyle_core.pipeline.stylizer import Stylizer
-from gstyle_core.style import losses as losses_module
+from gstyle_core.style import nnfm as nnfm_module
 from gstyle_core.style.clip import CoarseStyleLoss
 from gstyle_core.style.colour_match import Palette, apply_colour_transform, colour_transfer_matrix
 from gstyle_core.style.keep_colours import luminance, luminance_transfer_matrix
-from gstyle_core.style.losses import StyleLoss, StyleTarget, WeightedTargets
+from gstyle_core.style.losses import StyleLoss
 from gstyle_core.style.mix import normalise_style_weights, parse_style_weights, weights_with_mix
+from gstyle_core.style.nnfm import StyleTarget, WeightedTargets
 
 
 def painting(colour: tuple[float, float, float], seed: int, size: int = 48) -> np.ndarray:
@@ -96,8 +97,8 @@ def test_nnfm_of_a_mix_is_the_weighted_sum_and_skips_weight_zero(vgg, monkeypatc
     mixed = StyleLoss(vgg, mix, weights={"clip": 0, "content": 0, "tv": 0})
     assert mixed(render)[1]["nnfm"] == pytest.approx(0.7 * single[0] + 0.3 * single[1], rel=1e-5)
     calls = []
-    original = losses_module.nnfm_loss
-    monkeypatch.setattr(losses_module, "nnfm_loss", lambda *a, **k: calls.append(1) or original(*a, **k))
+    original = nnfm_module.nnfm_loss
+    monkeypatch.setattr(nnfm_module, "nnfm_loss", lambda *a, **k: calls.append(1) or original(*a, **k))
     mix.weights = (1.0, 0.0)
     assert mixed(render)[1]["nnfm"] == pytest.approx(single[0], rel=1e-5)
     assert len(calls) == 1  # the painting of weight 0 is not searched

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from gstyle_core.style.losses import StyleTarget, concat_features, nnfm_loss
+from gstyle_core.style.features import concat_features
 from gstyle_core.style.multiscale import MultiScaleStyleLoss, downsample
+from gstyle_core.style.nnfm import StyleTarget, nnfm_loss
 from gstyle_core.style.texture_scale import band_shares
 
 
@@ -89,7 +90,8 @@ def test_small_renders_mixes_and_bad_arguments(vgg):
 def test_the_combined_loss_adds_it_only_when_weighted(vgg):
     """In ``StyleLoss`` the term is λ_MS × the term on the same render, counted as one VGG run per level; at weight 0
     it never runs and the total is the four-term sum; a weight without the term is refused."""
-    from gstyle_core.style.losses import StyleLoss, StyleTarget, StyleWeights
+    from gstyle_core.style.losses import StyleLoss, StyleWeights
+    from gstyle_core.style.nnfm import StyleTarget
 
     painting = _painting()
     term = MultiScaleStyleLoss(vgg, painting)

@@ -71,8 +71,8 @@ class Evaluator:
                  weights: Sequence[float] | None = None, max_vectors: int | None = None) -> None:
         """``max_vectors``: at most this many of each painting's feature vectors (a random subset drawn from seed 0;
         None: all), to bound the search at large widths."""
-        from ..style.losses import StyleTarget
         from ..style.mix import normalise_style_weights
+        from ..style.nnfm import StyleTarget
 
         self.vgg = vgg
         self.width = width
@@ -97,7 +97,9 @@ class Evaluator:
         ``whole_frame=False`` (with ``coverage``): only the covered feature vectors are searched (the same ``nnfm``;
         no ``nnfm_full``), for large widths.
         """
-        from ..style.losses import concat_features, content_loss, feature_weights, nnfm_loss, weighted_mean
+        from ..style.features import concat_features, feature_weights, weighted_mean
+        from ..style.losses import content_loss
+        from ..style.nnfm import nnfm_loss
 
         per_style = np.zeros((len(self.targets), len(renders)))  # coverage-weighted NNFM per painting and view
         per_style_full = np.zeros_like(per_style)

@@ -11,7 +11,8 @@ import torch
 
 from ..cameras.images import resize_image
 from ..style.clip import CLIP_OFF
-from ..style.losses import TERM_NAMES, concat_features, term_values
+from ..style.features import concat_features
+from ..style.losses import TERM_NAMES, term_values
 from .scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, scene_box
 from .settings import StylizeSettings
 
@@ -117,7 +118,7 @@ class StyleObjective:
 
     def _build_style_target(self) -> None:
         """Resize the painting for the current stroke size and extract its VGG features (the NNFM candidates)."""
-        from ..style.losses import StyleTarget, WeightedTargets
+        from ..style.nnfm import StyleTarget, WeightedTargets
 
         s = self._settings
         side, clamped = style_side(self.width or s.working_width, s.style_scale)
@@ -168,7 +169,7 @@ class StyleObjective:
 
     def set_style_weights(self) -> None:
         """Apply the settings' ``style_weights`` to the NNFM targets and the CLIP term (nothing is re-extracted)."""
-        from ..style.losses import WeightedTargets
+        from ..style.nnfm import WeightedTargets
 
         weights = self._style_weights()
         if weights is None:

@@ -62,7 +62,7 @@ class CoarseStyleLoss(nn.Module):
 
     def _statistics(self, img: torch.Tensor, coverage: torch.Tensor | None = None
                     ) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
-        from .losses import feature_weights
+        from .features import feature_weights
 
         height, width = img.shape[-2:]
         size = (max(16, height // self.downsample), max(16, width // self.downsample))

@@ -1,14 +1,12 @@
 """The G-Style stylization loss: λ_CLIP·L_CLIP + λ_NNFM·L_NNFM + λ_C·L_content + λ_TV·L_TV.
 
-* NNFM (ARF): render and style VGG features relu3_1, relu3_2, relu3_3 concatenated (768 channels); every
-  render feature vector is compared with its nearest style vector by cosine distance; the loss is the
-  mean of those distances. The nearest-neighbour search runs without gradients in chunks; the gradient
-  flows through the render side only (the style side is a constant).
+* NNFM (ARF): every render feature vector (VGG relu3_1|relu3_2|relu3_3, 768 channels) against its nearest painting
+  vector by cosine distance, averaged (:mod:`gstyle_core.style.nnfm`).
 * Content: mean squared difference of the same VGG features of the render and of the colour-matched
   ground-truth view, computed per layer and summed over the three layers (as the reference code does).
 * TV: total variation of the full-resolution render, **summed** squared differences of vertical and
   horizontal neighbours. This follows the G-Style reference code (``calculate_total_variation_loss``: sum
-  of squared differences), which its λ_TV = 1e-4 is paired with; ``kind="abs"`` gives the L1 variant.
+  of squared differences), which its λ_TV = 1e-4 is paired with (:mod:`gstyle_core.style.pixel_terms`).
 * CLIP: see :mod:`gstyle_core.style.clip` (or its coarse-VGG substitute).
 * Broad strokes (``multiscale``): NNFM with the render and the painting both downsampled ×2, ×4 and ×8
   (:mod:`gstyle_core.style.multiscale`): the painting's larger patterns, for when CLIP cannot run.
@@ -19,18 +17,24 @@ A term whose weight is 0 is not computed at all; when λ_NNFM, λ_C and λ_broad
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .features import (
+    FEATURE_LAYERS,
+    concat_features,
+    feature_weights,
+    resize_to_width,
+    upsample_for_vgg,
+    vgg_input_size,
+    weighted_mean,
+)
+from .nnfm import StyleTarget, WeightedTargets, style_nnfm
 from .pixel_terms import chroma_tv_loss, edges_loss, tv_loss
-
-FEATURE_LAYERS = ("relu3_1", "relu3_2", "relu3_3")
-_NORM_EPS = 1e-8
-MIN_VGG_SIDE = 4  # relu3_x follow two 2x poolings: a smaller input has no feature vector (VGG raises)
 
 
 @dataclass(frozen=True)
@@ -54,201 +58,6 @@ class StyleWeights:
         return cls() if kind == "forward" else cls(nnfm=10.0)
 
 
-def concat_features(feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor) -> torch.Tensor:
-    """relu3_1|relu3_2|relu3_3 concatenated along channels → [B, 768, h, w]. A tensor is returned as is."""
-    if isinstance(feats, torch.Tensor):
-        return feats
-    if isinstance(feats, Mapping):
-        feats = [feats[name] for name in FEATURE_LAYERS]
-    return torch.cat(list(feats), dim=1)
-
-
-def normalise_vectors(x: torch.Tensor, dim: int) -> torch.Tensor:
-    """Unit vectors along ``dim``; zero vectors stay (finite) zero vectors."""
-    return x / ((x * x).sum(dim, keepdim=True) + _NORM_EPS).sqrt()
-
-
-def vector_norms(x: torch.Tensor) -> torch.Tensor:
-    """The lengths of the rows of ``x`` [N, C] as :func:`normalise_vectors` divides by them (its ε included): [N]."""
-    return ((x * x).sum(1) + _NORM_EPS).sqrt()
-
-
-class CosineDistance(torch.autograd.Function):
-    """1 − cos between the rows of ``vectors`` [N, C] and unit rows ``matched`` [N, C] (constant), given the rows'
-    ``norms`` [N] (:func:`vector_norms`): d = 1 − v·m / s. Its gradient in closed form,
-    ∂d/∂v = (v·m / s² · v − m) / s, is a handful of operators where autograd through the normalisation takes
-    seventeen (each one a kernel launch on a GPU) and as many temporaries the size of the features."""
-
-    @staticmethod
-    def forward(ctx, vectors: torch.Tensor, matched: torch.Tensor, norms: torch.Tensor) -> torch.Tensor:
-        dots = (vectors * matched).sum(1)
-        ctx.save_for_backward(vectors, matched, norms, dots)
-        return 1.0 - dots / norms
-
-    @staticmethod
-    def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None, None]:
-        vectors, matched, norms = ctx.saved_tensors[:3]
-        dots = ctx.saved_tensors[3]
-        scale = grad / norms  # [N]
-        along = dots / (norms * norms)  # [N]
-        return (vectors * along[:, None] - matched) * scale[:, None], None, None
-
-
-class StyleTarget:
-    """Style image → unit-normalised VGG feature matrix [C, M] (computed once), optionally at several
-    scales of the style image (features of all scales are pooled into one set of candidates)."""
-
-    def __init__(self, matrix: torch.Tensor, scales: tuple[float, ...] = (1.0,),
-                 search_dtype: torch.dtype = torch.float32) -> None:
-        if matrix.ndim != 2:
-            raise ValueError(f"style feature matrix must be [C, M], got {tuple(matrix.shape)}")
-        self.matrix = matrix.detach()
-        self.scales = scales
-        self.search_matrix = self.matrix.to(search_dtype)  # what the NNFM search multiplies (style/precision.py)
-
-    @classmethod
-    def from_image(cls, vgg: nn.Module, style_image: torch.Tensor, scales: Iterable[float] = (1.0,),
-                   max_vectors: int | None = None, generator: torch.Generator | None = None) -> StyleTarget:
-        """Run ``vgg`` on ``style_image`` [1,3,H,W] (RGB [0,1]) at each scale; ``max_vectors`` keeps a random
-        subset of the candidates to bound memory (None keeps all)."""
-        scales = tuple(scales)
-        columns = []
-        with torch.no_grad():
-            for scale in scales:
-                img = style_image
-                if scale != 1.0:
-                    size = (max(8, round(img.shape[-2] * scale)), max(8, round(img.shape[-1] * scale)))
-                    img = F.interpolate(img, size=size, mode="bilinear", align_corners=False, antialias=scale < 1)
-                feats = concat_features(vgg(img))
-                columns.append(feats.permute(1, 0, 2, 3).flatten(1))  # [C, B*h*w]
-        matrix = torch.cat(columns, dim=1)
-        if max_vectors is not None and matrix.shape[1] > max_vectors:
-            keep = torch.randperm(matrix.shape[1], generator=generator)[:max_vectors]
-            matrix = matrix[:, keep]
-        return cls(normalise_vectors(matrix.float(), dim=0), scales,
-                   search_dtype=getattr(vgg, "compute_dtype", torch.float32))  # a bf16 network: a bf16 search
-
-    @classmethod
-    def from_features(cls, style_feats: torch.Tensor) -> StyleTarget:
-        """From raw features [C, hs, ws] or [1, C, hs, ws]."""
-        if style_feats.ndim == 4:
-            style_feats = style_feats.permute(1, 0, 2, 3)
-        return cls(normalise_vectors(style_feats.detach().flatten(1).float(), dim=0))
-
-
-class WeightedTargets:
-    """The style targets of several paintings with weights that sum to 1 (``style/mix.py``): NNFM against them is
-    Σ w_i · NNFM_i over one set of render features; a painting of weight 0 is skipped."""
-
-    def __init__(self, targets: Sequence[StyleTarget], weights: Sequence[float]) -> None:
-        if len(targets) != len(weights) or not targets:
-            raise ValueError(f"{len(weights)} weight(s) for {len(targets)} style target(s)")
-        self.targets = list(targets)
-        self.weights = tuple(float(w) for w in weights)
-
-    @property
-    def vector_count(self) -> int:
-        """Candidate feature vectors over all paintings."""
-        return sum(t.matrix.shape[1] for t in self.targets)
-
-
-def style_nnfm(render_feats: torch.Tensor, style: StyleTarget | WeightedTargets | torch.Tensor, chunk: int = 4096,
-               weights: torch.Tensor | None = None) -> torch.Tensor:
-    """NNFM against one painting (:func:`nnfm_loss`) or a mix of them (Σ w_i · NNFM_i, weight-0 paintings
-    skipped); ``weights`` are the feature positions' weights, as for :func:`nnfm_loss`."""
-    if not isinstance(style, WeightedTargets):
-        return nnfm_loss(render_feats, style, chunk, weights=weights)
-    terms = [w * nnfm_loss(render_feats, t, chunk, weights=weights)
-             for t, w in zip(style.targets, style.weights, strict=True) if w > 0]
-    return torch.stack(terms).sum() if terms else render_feats.new_zeros(())
-
-
-def style_nnfm_per_image(render_feats: torch.Tensor, style: StyleTarget | WeightedTargets, chunk: int = 4096,
-                         weights: torch.Tensor | None = None) -> torch.Tensor:
-    """:func:`style_nnfm` of each image of a batch of features [B, C, h, w] on its own: [B], each image's mean over
-    its own feature positions (weighted by its ``weights`` [B, 1, h, w]), as :func:`style_nnfm` gives for that image
-    alone. The searches of the batch run together."""
-    pairs = ([(style, 1.0)] if not isinstance(style, WeightedTargets)
-             else [(t, w) for t, w in zip(style.targets, style.weights, strict=True) if w > 0])
-    if not pairs:
-        return render_feats.new_zeros(render_feats.shape[0])
-    maps = [w * nnfm_loss(render_feats, t, chunk, reduction="none") for t, w in pairs]  # [B, h, w] each
-    distances = maps[0] if len(maps) == 1 else torch.stack(maps).sum(0)
-    if weights is None:
-        return distances.flatten(1).mean(1)
-    w = weights.flatten(1)
-    return (distances.flatten(1) * w).sum(1) / w.sum(1).clamp_min(_NORM_EPS)
-
-
-def feature_weights(coverage: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> torch.Tensor | None:
-    """The scene's coverage (rendered alpha, [H,W], [1,H,W] or [B,1,H,W] in [0, 1]) averaged over each cell of a
-    feature grid of ``size`` (h, w) → [B,1,h,w] weights; None stays None (every feature vector counts fully)."""
-    if coverage is None:
-        return None
-    c = torch.as_tensor(coverage, dtype=torch.float32)
-    c = c.reshape((1, 1) + tuple(c.shape[-2:])) if c.ndim < 4 else c
-    return F.adaptive_avg_pool2d(c, tuple(size)).clamp(0.0, 1.0)
-
-
-def weighted_mean(values: torch.Tensor, weights: torch.Tensor | None) -> torch.Tensor:
-    """Mean of ``values`` [B,...,h,w] weighted per feature position by ``weights`` [B,1,h,w] (None: plain mean).
-    All-zero weights give 0 (nothing of the scene in view: nothing to match)."""
-    if weights is None:
-        return values.mean()
-    w = weights.reshape(weights.shape[0], *([1] * (values.ndim - 3)), *weights.shape[-2:]).expand_as(values)
-    return (values * w).sum() / w.sum().clamp_min(_NORM_EPS)
-
-
-def _style_matrix(style: StyleTarget | torch.Tensor) -> torch.Tensor:
-    if isinstance(style, StyleTarget):
-        return style.matrix
-    if style.ndim == 2:  # already a normalised [C, M] matrix
-        return style.detach()
-    return StyleTarget.from_features(style).matrix
-
-
-def nearest_indices(scores: torch.Tensor) -> torch.Tensor:
-    """Each row's index of its largest score (the first of equal ones); bf16 through ``max``, as fast as fp32's
-    ``argmax`` where bf16's ``argmax`` is ~5× slower on CPUs."""
-    return scores.argmax(dim=1) if scores.dtype == torch.float32 else scores.max(dim=1).indices
-
-
-def nnfm_loss(render_feats: torch.Tensor, style: StyleTarget | torch.Tensor, chunk: int = 4096,
-              reduction: str = "mean", weights: torch.Tensor | None = None) -> torch.Tensor:
-    """Mean over render vectors of min over style vectors of (1 − cos). ``render_feats`` [B,C,h,w];
-    ``style`` a :class:`StyleTarget`, raw features [C,hs,ws] or a normalised matrix [C,M]. The
-    nearest-neighbour search runs in chunks of ``chunk`` render vectors, without gradients.
-    ``weights`` [B,1,h,w] (:func:`feature_weights`) make it a weighted mean over the scene's feature vectors.
-    ``reduction="none"`` returns the distance of every render vector, [B, h, w]. The search runs in the dtype of
-    a :class:`StyleTarget`'s ``search_matrix`` (bf16 for a target taken with a bf16 network); distances are fp32."""
-    style_matrix = _style_matrix(style).to(render_feats.device)
-    search_matrix = style.search_matrix.to(render_feats.device) if isinstance(style, StyleTarget) else style_matrix
-    if render_feats.ndim != 4 or render_feats.shape[1] != style_matrix.shape[0]:
-        raise ValueError(f"render features {tuple(render_feats.shape)} do not match style channels "
-                         f"{style_matrix.shape[0]}")
-    if style_matrix.shape[1] == 0:
-        raise ValueError("the style target has no feature vectors")
-    if render_feats.numel() == 0:
-        raise ValueError(f"the render has no feature vectors (features {tuple(render_feats.shape)})")
-    vectors = render_feats.float().permute(0, 2, 3, 1).flatten(0, 2)  # [N, C]
-    with torch.no_grad():
-        norms = vector_norms(vectors)
-        queries = (vectors / norms[:, None]).to(search_matrix.dtype)
-        blocks = queries.split(max(1, chunk))
-        nearest = (nearest_indices(blocks[0] @ search_matrix) if len(blocks) == 1
-                   else torch.cat([nearest_indices(block @ search_matrix) for block in blocks]))
-        matched = style_matrix.index_select(1, nearest).t().contiguous()  # [N, C], constant (a gather of whole
-        # columns: ~6× faster than indexing the transposed view's rows, the same values)
-    distances = CosineDistance.apply(vectors, matched, norms)
-    if reduction == "none":
-        b, _, h, w = render_feats.shape
-        return distances.reshape(b, h, w)
-    if weights is not None:
-        b, _, h, w = render_feats.shape
-        return weighted_mean(distances.reshape(b, 1, h, w), weights)
-    return distances.mean()
-
-
 def content_loss(render_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor,
                  gt_feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] | torch.Tensor,
                  weights: torch.Tensor | None = None) -> torch.Tensor:
@@ -269,28 +78,6 @@ def stacked_content_loss(render_stack: torch.Tensor, gt_stack: torch.Tensor,
     ([B, 768, h, w], :func:`concat_features`): the three layers have the same channels and grid, so the sum is three
     times the mean of the stack, one set of operators instead of three."""
     return len(FEATURE_LAYERS) * weighted_mean((render_stack - gt_stack.detach()) ** 2, weights)
-
-
-def vgg_input_size(size: tuple[int, int] | torch.Size) -> tuple[int, int]:
-    """``size`` (h, w) with each side raised to at least ``MIN_VGG_SIDE``."""
-    return max(int(size[0]), MIN_VGG_SIDE), max(int(size[1]), MIN_VGG_SIDE)
-
-
-def upsample_for_vgg(img: torch.Tensor) -> torch.Tensor:
-    """A render with a side below ``MIN_VGG_SIDE`` px stretched (bilinear) to that size; others as they are."""
-    size = vgg_input_size(img.shape[-2:])
-    if size == tuple(img.shape[-2:]):
-        return img
-    return F.interpolate(img, size=size, mode="bilinear", align_corners=False)
-
-
-def resize_to_width(img: torch.Tensor, width: int | None) -> torch.Tensor:
-    """Bilinear (antialiased) resize so the width is ``width`` px, keeping the aspect ratio (None: as is)."""
-    if width is None or img.shape[-1] == width:
-        return img
-    height = max(1, round(img.shape[-2] * width / img.shape[-1]))
-    return F.interpolate(img, size=(height, width), mode="bilinear", align_corners=False,
-                         antialias=width < img.shape[-1])
 
 
 TERM_NAMES = ("clip", "nnfm", "content", "tv", "multiscale", "chroma_tv", "edges")  # StyleLoss's terms, in order

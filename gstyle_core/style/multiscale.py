@@ -1,6 +1,6 @@
 """A multi-scale style term for when CLIP cannot run: the painting's patterns matched at coarser scales.
 
-The NNFM term compares VGG relu3_x features of the render with the painting's (``losses.py``). A relu3 feature sees
+The NNFM term compares VGG relu3_x features of the render with the painting's (``nnfm.py``). A relu3 feature sees
 about 40 px, so at the working width it matches brush marks a few pixels wide, and its gradient reaches the pixels
 through the full-resolution convolutions: the colour updates it asks for are fine-grained. This term runs the same
 network on the render and on the painting both **downsampled** by each factor of ``factors`` (default ×2, ×4 and
@@ -15,7 +15,7 @@ points of NNFM drop: each level weighs a third instead of a half, so the ×2 lev
 
 Loss: the mean over levels of the NNFM distance (mean over the render's feature vectors of 1 − cos to the nearest
 painting vector, coverage-weighted like the NNFM term), so its λ is on the NNFM term's scale. Several paintings:
-Σ w_i · NNFM_i at each level (``losses.WeightedTargets``).
+Σ w_i · NNFM_i at each level (``nnfm.WeightedTargets``).
 """
 
 from __future__ import annotations
@@ -26,16 +26,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from .losses import (
-    StyleTarget,
-    WeightedTargets,
-    concat_features,
-    feature_weights,
-    style_nnfm,
-    style_nnfm_per_image,
-    upsample_for_vgg,
-    vgg_input_size,
-)
+from .features import concat_features, feature_weights, upsample_for_vgg, vgg_input_size
+from .nnfm import StyleTarget, WeightedTargets, style_nnfm, style_nnfm_per_image
 
 DEFAULT_FACTORS = (2, 4, 8)  # read when a term is built without factors (benches may set it)
 

@@ -1,7 +1,7 @@
 """Which precision the style networks run in (``--precision auto|fp32|bf16``), and why (``decisions.precision``).
 
 bf16 covers VGG-16 (its convolutions in bfloat16, channels_last, forward and backward) and the NNFM
-nearest-neighbour search (``losses.nnfm_loss``: the search runs in the precision of the network its style target was
+nearest-neighbour search (``nnfm.nnfm_loss``: the search runs in the precision of the network its style target was
 taken with), the broad-strokes term's levels included (they run on the same network). The scene's colours, the
 coherent-strokes field, the content targets, the loss values, the NNFM distances and the optimisers stay float32.
 On a CPU with native bf16 dot products (AVX512-BF16, AMX) bf16 is about twice as fast; without them it is emulated
@@ -125,7 +125,8 @@ class ProbeTimer:
     def __call__(self, precision: str, size: tuple[int, int]) -> float:
         import torch
 
-        from .losses import concat_features, nearest_indices, normalise_vectors
+        from .features import concat_features, normalise_vectors
+        from .nnfm import nearest_indices
         from .vgg import VGGFeatures
 
         dtype = torch_dtype(precision)
