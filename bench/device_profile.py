@@ -9,7 +9,7 @@ dispatches that compute (views of tensors left out: on a GPU each of the others 
 count does not depend on the device, so the CPU measures it too) and, on CUDA, the times a step makes the CPU wait
 for the GPU (reads of values, copies from or to the CPU's pageable memory: torch's sync debug mode).
 
-    python bench/device_profile.py [--device cuda] [--working-width 512] [--steps 8]
+    python bench/device_profile.py [--device cuda] [--working-width 512] [--steps 8] [--scene-kind forward]
 """
 
 from __future__ import annotations
@@ -115,6 +115,8 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--device", default="cuda")
     p.add_argument("--preset", default="preview")
+    p.add_argument("--scene-kind", default="auto", choices=["auto", "forward", "360"],
+                   help="the demo as a 360° scene (auto) or as a forward-facing one: that kind's terms and weights")
     p.add_argument("--working-width", type=int, default=512)
     p.add_argument("--skip", type=int, default=5)
     p.add_argument("--steps", type=int, default=8)
@@ -122,7 +124,7 @@ def main() -> int:
     args = p.parse_args()
     values = {name: None for name in SETTING_OPTIONS}
     values.update(device=args.device, working_width=args.working_width)
-    engine = build_stylizer(BuildRequest(preset=args.preset, overrides=values)).engine
+    engine = build_stylizer(BuildRequest(preset=args.preset, scene_kind=args.scene_kind, overrides=values)).engine
     cuda = args.device == "cuda"
     for _ in range(args.skip):
         next_optimiser_step(engine)
@@ -131,7 +133,8 @@ def main() -> int:
     device_us = sum(row[1] for row in totals.values())
     launches = sum(totals.get(k, [0, 0, 0])[2] for k in ("cudaLaunchKernel", "cuLaunchKernel", "cudaLaunchKernelExC"))
     aten_calls = sum(row[2] for name, row in totals.items() if name.startswith("aten::"))
-    print(f"{args.device}, {args.working_width} px, preset {args.preset}: {1e3 * per_step:.1f} ms an optimiser step "
+    print(f"{args.device}, {args.working_width} px, preset {args.preset}, scene kind {args.scene_kind}: "
+          f"{1e3 * per_step:.1f} ms an optimiser step "
           f"(wall, profiler on), device busy {device_us / 1e3 / n:.1f} ms, {launches / n:.0f} kernel launches, "
           f"{aten_calls / n:.0f} aten calls a step")
     print(top_rows(totals, 0, args.top, n))

@@ -10,6 +10,7 @@ from fakes import engine_with_random_vgg
 from gstyle_core.pipeline.step_losses import StepLosses, backward_views
 from gstyle_core.style.coarse import position_weights
 from gstyle_core.style.losses import TERM_NAMES, term_values
+from gstyle_core.style.multiscale import DEFAULT_FACTORS
 
 
 @pytest.fixture()
@@ -84,12 +85,16 @@ def test_the_coarse_terms_weights_sum_to_one_or_weigh_all_alike():
     torch.testing.assert_close(w[1], torch.full((1, 12), 1 / 12))  # no coverage: the whole frame
 
 
-def test_a_steps_views_backpropagate_as_each_alone_with_the_broad_strokes_together(engine):
+@pytest.mark.parametrize("terms", [("multiscale",), ("clip",), ("clip", "multiscale")],
+                         ids=["broad strokes", "coarse substitute", "both"])
+def test_a_steps_views_backpropagate_as_each_alone_with_terms_taken_together(engine, terms):
     from dataclasses import replace
 
     run = engine.run_state
     objective = run.objective_fn()
-    objective.set_weights(replace(run.settings.weights, multiscale=50.0))
+    objective.set_weights(replace(run.settings.weights, clip=10.0 if "clip" in terms else 0.0,
+                                  multiscale=50.0 if "multiscale" in terms else 0.0))
+    assert objective.takes_views_together(3) and objective.loss.clip_term.label.startswith("coarse")
     seen = run.active.gather_seen(run.c_s).clone()
 
     def inputs(leaf):
@@ -107,17 +112,21 @@ def test_a_steps_views_backpropagate_as_each_alone_with_the_broad_strokes_togeth
     together = seen.clone().requires_grad_(True)
     losses = StepLosses(3)
     backward_views(objective, [lambda view=view: view for view in inputs(together)], losses)
-    assert objective.calls["vgg"] - calls == calls_alone - 2 * len(objective.loss.multiscale_term.factors)
+    passes = {"clip": 1, "multiscale": len(DEFAULT_FACTORS)}  # the coarse substitute: one; broad strokes: a level
+    assert objective.calls["vgg"] - calls == calls_alone - 2 * sum(passes[t] for t in terms)  # 3 views in 1 pass
     torch.testing.assert_close(together.grad, alone.grad, rtol=1e-4, atol=1e-7)
     read, want = losses.read(), expected.read()
-    assert read["multiscale"] > 0 and list(read) == list(want)
+    assert all(read[t] > 0 for t in terms) and list(read) == list(want)
     for name in want:
         assert read[name] == pytest.approx(want[name], rel=1e-5, abs=1e-9)
 
 
 def test_without_a_term_to_take_together_the_views_go_one_after_another(engine):
+    from dataclasses import replace
+
     objective = engine.run_state.objective_fn()
-    assert objective.loss.weights.multiscale == 0 and not objective.takes_views_together(3)
+    objective.set_weights(replace(engine.run_state.settings.weights, clip=0.0, multiscale=0.0))
+    assert not objective.takes_views_together(3)
     made, run = [], engine.run_state
     leaf = run.active.gather_seen(run.c_s).clone().requires_grad_(True)
 

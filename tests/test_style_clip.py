@@ -153,3 +153,23 @@ def test_coarse_substitute_is_finite_and_differentiable():
     loss.backward()
     assert torch.isfinite(loss) and torch.isfinite(render.grad).all()
     assert coarse(style).item() < 1e-8  # the style image matches its own statistics
+
+
+@pytest.mark.parametrize("mixed", [False, True], ids=["one painting", "a mix"])
+@pytest.mark.parametrize("covered", [False, True], ids=["whole frames", "coverage"])
+def test_the_coarse_substitute_gives_each_render_of_a_batch_its_value_alone(mixed, covered):
+    torch.manual_seed(0)
+    vgg = VGGFeatures()
+    gen = torch.Generator().manual_seed(3)
+    styles = [torch.rand(1, 3, 64, 96, generator=gen), torch.rand(1, 3, 80, 64, generator=gen)]
+    coarse = CoarseStyleLoss(vgg, styles if mixed else styles[0], style_weights=(0.3, 0.7) if mixed else None)
+    renders = torch.rand(3, 3, 72, 100, generator=gen)
+    coverage = (torch.rand(3, 72, 100, generator=gen) > 0.4).float() if covered else None
+    if covered:
+        coverage[1] = 0.0  # a view without the scene: every position weighs alike, as alone
+    alone = torch.stack([coarse(renders[i:i + 1], None if coverage is None else coverage[i]) for i in range(3)])
+    per_image = coarse.per_image(renders, coverage)
+    assert per_image.shape == (3,) and len(set(per_image.tolist())) == 3
+    torch.testing.assert_close(per_image, alone, rtol=1e-5, atol=1e-7)
+    torch.testing.assert_close(coarse(renders, None if coverage is None else coverage[:, None]), alone.mean(),
+                               rtol=1e-5, atol=1e-7)

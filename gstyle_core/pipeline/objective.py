@@ -12,7 +12,7 @@ import torch
 from ..cameras.images import resize_image
 from ..style.clip import CLIP_OFF
 from ..style.features import concat_features
-from ..style.losses import TERM_NAMES, term_values
+from ..style.losses import TERM_NAMES, TOGETHER_TERMS, TermInputs, term_values
 from .scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, scene_box
 from .settings import StylizeSettings
 
@@ -257,35 +257,39 @@ class StyleObjective:
         return loss, term_values(values)
 
     def takes_views_together(self, count: int) -> bool:
-        """Whether ``count`` views gain from going through ``backward_views`` together: the broad-strokes term is on
-        (its levels take the views of one size in one pass each) and there is more than one view."""
-        return count > 1 and self.loss.weights.multiscale > 0
+        """Whether ``count`` views gain from going through ``backward_views`` together: a term whose network takes
+        several views in one pass is on (the broad strokes, the coarse CLIP substitute: ``StyleLoss.takes_together``)
+        and there is more than one view."""
+        return count > 1 and any(self.loss.takes_together(name) for name in TOGETHER_TERMS)
 
     def backward_views(self, images: Sequence[torch.Tensor], contents: Sequence[torch.Tensor],
                        views: Sequence[int | None], coverages: Sequence[torch.Tensor | None], scale: float
                        ) -> tuple[torch.Tensor, torch.Tensor]:
         """Evaluate a step's views (``evaluate``'s arguments, one entry per view) and backpropagate their losses times
-        ``scale`` into ``images``: each view's own terms one view at a time, the broad-strokes term of all of them
-        together (views of one size through the network at once: ``StyleLoss.multiscale_per_view``). Returns the sum
-        of the views' losses and of their terms' values (``TERM_NAMES`` order), unread."""
-        sink: list | None = [] if self.takes_views_together(len(images)) else None
+        ``scale`` into ``images``: each view's own terms one view at a time, the terms that take views together for
+        all of them at once (views of one size through the network in one pass: ``StyleLoss.terms_together``).
+        Returns the sum of the views' losses and of their terms' values (``TERM_NAMES`` order), unread."""
+        together: TermInputs | None = {} if self.takes_views_together(len(images)) else None
         total = values = None
         for image, content, view, coverage in zip(images, contents, views, coverages, strict=True):
-            loss, view_values = self.evaluate(image, content, view, coverage, multiscale_sink=sink)
+            loss, view_values = self.evaluate(image, content, view, coverage, together=together)
             (loss * scale).backward()
             total = loss.detach() if total is None else total + loss.detach()
             values = view_values if values is None else values + view_values
-        if sink:
-            per_view = self.loss.multiscale_per_view(sink).sum()
-            weighted = self.loss.weights.multiscale * per_view
+        if together:
+            values = values.clone()
+            weighted = None
+            for name, per_view in self.loss.terms_together(together).items():
+                value = per_view.sum()
+                term = getattr(self.loss.weights, name) * value
+                weighted = term if weighted is None else weighted + term
+                values[TERM_NAMES.index(name)] += value.detach()
             (weighted * scale).backward()
             total = total + weighted.detach()
-            values = values.clone()
-            values[TERM_NAMES.index("multiscale")] += per_view.detach()
         return total, values
 
     def evaluate(self, image: torch.Tensor, content: torch.Tensor, view: int | None,
-                 coverage: torch.Tensor | None = None, multiscale_sink: list | None = None
+                 coverage: torch.Tensor | None = None, together: TermInputs | None = None
                  ) -> tuple[torch.Tensor, torch.Tensor]:
         """Loss of a render [H,W,3] of training view ``view``, and its terms' values unread (``StyleLoss.evaluate``);
         ``content`` is its colour-matched ground truth and ``coverage`` [H,W] the scene's alpha there (None for
@@ -293,7 +297,7 @@ class StyleObjective:
         (``pipeline/scene_box.py``); with ``keep_colours`` the networks see the luminance of both. ``view`` None: a
         one-off image (a crop): nothing of it is cached. Inputs on another device than the networks' are moved there
         (the render inside the autograd graph; a view's content and coverage once, while they are the same).
-        ``multiscale_sink``: ``StyleLoss.evaluate``'s (the broad-strokes term left to the caller)."""
+        ``together``: ``StyleLoss.evaluate``'s (the terms that take views together left to the caller)."""
         image = image.to(self.device)
         coverage = None if coverage is None else torch.as_tensor(coverage)
         # the scene's box is found on the CPU's copy of the coverage: on a GPU its reads would wait for the queue
@@ -323,7 +327,7 @@ class StyleObjective:
                     self._content_cache[view] = gt_feats
         gt = content.permute(2, 0, 1)[None] if self.loss.weights.edges > 0 else None  # at the render's size
         return self.loss.evaluate(render, gt=gt, gt_feats=gt_feats, coverage=coverage, clip_view=clip_view,
-                                  multiscale_view=multiscale_view, multiscale_sink=multiscale_sink)
+                                  multiscale_view=multiscale_view, together=together)
 
     def _view_inputs(self, view: int | None, content: torch.Tensor, coverage: torch.Tensor | None
                      ) -> tuple[torch.Tensor, torch.Tensor | None]:

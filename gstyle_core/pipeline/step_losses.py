@@ -60,10 +60,11 @@ ViewInput = tuple[torch.Tensor, torch.Tensor, "int | None", "torch.Tensor | None
 def backward_views(objective: Any, views: Sequence[Callable[[], ViewInput]], losses: StepLosses) -> None:
     """Backpropagate the mean loss of a step's views into their renders, keeping the values in ``losses``. ``views``
     make each view's input when called: its render, content target, training view (None for a crop) and coverage.
-    Where the objective takes views together (``StyleObjective.takes_views_together``: a term it computes for all
-    of them in one pass, the broad strokes) all views are rendered first and go to its ``backward_views`` as copies
-    of the renders that stop the gradient; each render then passes its gradient on once, in view order. Otherwise
-    one view is rendered, evaluated and backpropagated after the other (one view's graph held at a time)."""
+    Where the objective takes views together (``StyleObjective.takes_views_together``: terms it computes for all
+    of them in one pass, the broad strokes and the coarse CLIP substitute) all views are rendered first and go to
+    its ``backward_views`` as copies of the renders that stop the gradient; each render then passes its gradient on
+    once, in view order. Otherwise one view is rendered, evaluated and backpropagated after the other (one view's
+    graph held at a time)."""
     together = getattr(objective, "takes_views_together", None)
     if together is None or not together(len(views)):
         for make in views:

@@ -40,6 +40,7 @@ class CoarseStyleLoss(nn.Module):
     statistics), so λ_CLIP can be kept."""
 
     network = "vgg"
+    passes = 1  # network passes a call takes
     takes_coverage = True
     label = COARSE_LABEL
 
@@ -85,8 +86,16 @@ class CoarseStyleLoss(nn.Module):
 
     def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
         """Relative error of the render's feature statistics (over the scene: ``coverage`` [H,W] or [B,1,H,W]
-        weights each position; None: the whole frame) against the style image's (several: weighted sum)."""
-        render_stats = self._statistics(as_batch(render), coverage)
+        weights each position; None: the whole frame) against the style image's (several: weighted sum); a batch:
+        the mean of its renders' errors."""
+        return self.per_image(as_batch(render), coverage).mean()
+
+    def per_image(self, renders: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
+        """The error of each of a batch of renders [B, 3, H, W], [B] (what ``forward`` gives for each alone), the
+        batch through the network in one pass. ``coverage``: [H, W] (all alike), [B, H, W] or [B, 1, H, W], or None."""
+        if coverage is not None and coverage.ndim == 3:
+            coverage = coverage[:, None]
+        render_stats = self._statistics(renders, coverage)
         per_style = []
         for weight, style_stats in zip(self.style_weights, self.styles_stats, strict=True):
             if weight <= 0:
@@ -96,6 +105,6 @@ class CoarseStyleLoss(nn.Module):
                 style_mean, style_std = style_stats[name]
                 error = ((mean - style_mean) ** 2).sum(-1) + ((std - style_std) ** 2).sum(-1)  # [B]
                 scale = (style_mean**2).sum(-1) + (style_std**2).sum(-1) + 1e-8
-                terms.append((error / scale).mean())
-            per_style.append(weight * torch.stack(terms).mean())
-        return torch.stack(per_style).sum()
+                terms.append(error / scale)
+            per_style.append(weight * torch.stack(terms).mean(0))
+        return torch.stack(per_style).sum(0)

@@ -8,7 +8,8 @@ from collections.abc import Mapping, Sequence
 import torch
 import torch.nn.functional as F
 
-FEATURE_LAYERS = ("relu3_1", "relu3_2", "relu3_3")
+from .vgg import FEATURE_LAYERS
+
 NORM_EPS = 1e-8
 MIN_VGG_SIDE = 4  # relu3_x follow two 2x poolings: a smaller input has no feature vector (VGG raises)
 
@@ -20,6 +21,13 @@ def concat_features(feats: Mapping[str, torch.Tensor] | Sequence[torch.Tensor] |
     if isinstance(feats, Mapping):
         feats = [feats[name] for name in FEATURE_LAYERS]
     return torch.cat(list(feats), dim=1)
+
+
+def stacked_features(vgg, img: torch.Tensor) -> torch.Tensor:
+    """``vgg``'s relu3 features of ``img`` stacked along channels ([B, 768, h, w], :func:`concat_features`): the
+    network's own ``stacked`` where it has one (one cast for the stack), else the stack of its features."""
+    stacked = getattr(vgg, "stacked", None)
+    return stacked(img) if stacked is not None else concat_features(vgg(img))
 
 
 def normalise_vectors(x: torch.Tensor, dim: int) -> torch.Tensor:

@@ -29,6 +29,7 @@ from .features import (
     concat_features,
     feature_weights,
     resize_to_width,
+    stacked_features,
     upsample_for_vgg,
     vgg_input_size,
     weighted_mean,
@@ -81,6 +82,28 @@ def stacked_content_loss(render_stack: torch.Tensor, gt_stack: torch.Tensor,
 
 
 TERM_NAMES = ("clip", "nnfm", "content", "tv", "multiscale", "chroma_tv", "edges")  # StyleLoss's terms, in order
+TOGETHER_TERMS = ("clip", "multiscale")  # the terms whose network may take several views in one pass
+TermInputs = dict[str, list[tuple[torch.Tensor, "torch.Tensor | None"]]]  # term → the views' (render, coverage)
+
+
+def per_view_values(term: nn.Module, inputs: Sequence[tuple[torch.Tensor, torch.Tensor | None]]
+                    ) -> tuple[torch.Tensor, int]:
+    """``term`` (a module with ``per_image`` and ``passes``) of each (render [1,3,H,W], coverage) of ``inputs``:
+    [len(inputs)] in their order, the renders of one size (and coverage) taken in one batch; and the network passes
+    that took (``passes`` per batch)."""
+    groups: dict[tuple, list[int]] = {}
+    for i, (render, coverage) in enumerate(inputs):
+        groups.setdefault((tuple(render.shape), None if coverage is None else tuple(coverage.shape[-2:])),
+                          []).append(i)
+    values: list[torch.Tensor | None] = [None] * len(inputs)
+    for members in groups.values():
+        renders = torch.cat([inputs[i][0] for i in members])
+        coverage = None if inputs[members[0]][1] is None else torch.stack(
+            [torch.as_tensor(inputs[i][1], dtype=torch.float32).reshape(inputs[i][1].shape[-2:]) for i in members])
+        per_image = term.per_image(renders, coverage)
+        for k, i in enumerate(members):
+            values[i] = per_image[k]
+    return torch.stack(values), len(groups) * term.passes
 
 
 def term_values(values: torch.Tensor) -> dict[str, float]:
@@ -156,7 +179,7 @@ class StyleLoss(nn.Module):
                  coverage: torch.Tensor | None = None,
                  clip_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
                  multiscale_view: tuple[torch.Tensor, torch.Tensor | None] | None = None,
-                 multiscale_sink: list[tuple[torch.Tensor, torch.Tensor | None]] | None = None,
+                 together: TermInputs | None = None,
                  ) -> tuple[torch.Tensor, torch.Tensor]:
         """The total and the terms' values as one tensor on the render's device, in ``TERM_NAMES`` order, unread
         (on a GPU a read waits for the queue to drain: a step reads its views' values once, ``term_values``).
@@ -166,19 +189,18 @@ class StyleLoss(nn.Module):
         (None: over the whole frame, as for photos). ``clip_view`` = (render, coverage) gives the CLIP term (or its
         substitute, whose context is a large part of the frame) another view of the same render than ``render``,
         e.g. the whole frame when ``render`` is a crop of it; ``multiscale_view`` likewise for the broad-strokes term
-        (a wider crop: its coarse levels need more context and a coarser pixel grid than NNFM's). With
-        ``multiscale_sink`` (a list) the broad-strokes term is not computed: its input (render, coverage) is appended
-        there, for ``multiscale_per_view`` to take with other views', and the total and the term's value leave it
-        out."""
+        (a wider crop: its coarse levels need more context and a coarser pixel grid than NNFM's). With ``together``
+        (a dict) the terms that can take several views in one pass (``takes_together``: the broad strokes, the coarse
+        CLIP substitute) are not computed: their inputs (render, coverage) are appended to ``together[term]``, for
+        ``terms_together`` to take with other views', and the total and the terms' values leave them out."""
         w = self._weights
         zero = render.new_zeros(())
         terms = dict.fromkeys(TERM_NAMES, zero)
         small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip or w.multiscale) \
             else render
         if w.nnfm > 0 or w.content > 0:
-            feats = self.vgg(upsample_for_vgg(small))
+            stacked = stacked_features(self.vgg, upsample_for_vgg(small))
             self.calls["vgg"] += 1
-            stacked = concat_features(feats)
             grid = feature_weights(coverage, stacked.shape[-2:])
             if w.nnfm > 0:
                 terms["nnfm"] = style_nnfm(stacked, self.style_target, self.nnfm_chunk, weights=grid)
@@ -189,17 +211,20 @@ class StyleLoss(nn.Module):
         if w.clip > 0:
             clip_in, clip_cov = (small, coverage) if clip_view is None else (
                 resize_to_width(clip_view[0], self.working_width), clip_view[1])
-            takes_coverage = getattr(self.clip_term, "takes_coverage", False)
-            terms["clip"] = self.clip_term(clip_in, clip_cov) if takes_coverage else self.clip_term(clip_in)
-            self.calls[getattr(self.clip_term, "network", "clip")] += 1
+            if together is not None and self.takes_together("clip"):  # the caller's, with other views' inputs
+                together.setdefault("clip", []).append((clip_in, clip_cov))
+            else:
+                takes_coverage = getattr(self.clip_term, "takes_coverage", False)
+                terms["clip"] = self.clip_term(clip_in, clip_cov) if takes_coverage else self.clip_term(clip_in)
+                self.calls[getattr(self.clip_term, "network", "clip")] += 1
         if w.multiscale > 0:
             ms_in, ms_cov = (small, coverage) if multiscale_view is None else (
                 resize_to_width(multiscale_view[0], self.working_width), multiscale_view[1])
-            if multiscale_sink is not None:  # the caller computes it with other views' (multiscale_per_view)
-                multiscale_sink.append((ms_in, ms_cov))
+            if together is not None and self.takes_together("multiscale"):
+                together.setdefault("multiscale", []).append((ms_in, ms_cov))
             else:
                 terms["multiscale"] = self.multiscale_term(ms_in, ms_cov)
-                self.calls["vgg"] += len(self.multiscale_term.factors)
+                self.calls["vgg"] += self.multiscale_term.passes
         if w.tv > 0:
             terms["tv"] = tv_loss(render)
         if w.chroma_tv > 0:  # only the colour variation beyond the painting's own
@@ -208,34 +233,30 @@ class StyleLoss(nn.Module):
             if gt is None:
                 raise ValueError("the edges term needs the content target (gt) at the render's size")
             terms["edges"] = edges_loss(render, gt, coverage)
-        total = (w.clip * terms["clip"] + w.nnfm * terms["nnfm"] + w.content * terms["content"]
-                 + w.tv * terms["tv"])
-        if w.multiscale > 0 and multiscale_sink is None:  # added last: with the term off, the same sum to the bit
-            total = total + w.multiscale * terms["multiscale"]
-        if w.chroma_tv > 0:
-            total = total + w.chroma_tv * terms["chroma_tv"]
-        if w.edges > 0:
-            total = total + w.edges * terms["edges"]
+        # the terms on and computed here, in TERM_NAMES order: a term off would add w · 0 = +0 (the same sum to the
+        # bit, two operators more on each view)
+        left = together or {}
+        total = zero
+        for i, name in enumerate(name for name in TERM_NAMES if getattr(w, name) > 0 and name not in left):
+            weighted = getattr(w, name) * terms[name]
+            total = weighted if i == 0 else total + weighted
         return total, torch.stack([terms[name].detach().float().reshape(()) for name in TERM_NAMES])
 
-    def multiscale_per_view(self, inputs: Sequence[tuple[torch.Tensor, torch.Tensor | None]]) -> torch.Tensor:
-        """The broad-strokes term of each of a step's views from the inputs ``evaluate`` put in its
-        ``multiscale_sink``: [len(inputs)], in their order; the views of one size go through the network together."""
-        groups: dict[tuple, list[int]] = {}
-        for i, (render, coverage) in enumerate(inputs):
-            groups.setdefault((tuple(render.shape), None if coverage is None else tuple(coverage.shape[-2:])),
-                              []).append(i)
-        values: list[torch.Tensor | None] = [None] * len(inputs)
-        for members in groups.values():
-            renders = torch.cat([inputs[i][0] for i in members])
-            coverage = None if inputs[members[0]][1] is None else torch.stack(
-                [torch.as_tensor(inputs[i][1], dtype=torch.float32).reshape(inputs[i][1].shape[-2:])
-                 for i in members])
-            per_image = self.multiscale_term.per_image(renders, coverage)
-            self.calls["vgg"] += len(self.multiscale_term.factors)
-            for k, i in enumerate(members):
-                values[i] = per_image[k]
-        return torch.stack(values)
+    def takes_together(self, name: str) -> bool:
+        """Whether the term ``name`` (one of ``TOGETHER_TERMS``) is on and can take several views in one pass (its
+        module has ``per_image``: the broad strokes, the coarse CLIP substitute; CLIP itself cannot)."""
+        term = {"clip": self.clip_term, "multiscale": self.multiscale_term}[name]
+        return getattr(self._weights, name) > 0 and hasattr(term, "per_image")
+
+    def terms_together(self, together: TermInputs) -> dict[str, torch.Tensor]:
+        """The terms ``evaluate`` left in ``together``, each view's value: {term: [views]}, in the order the views
+        were evaluated; the views of one size go through the network together (``per_image``)."""
+        terms = {"clip": self.clip_term, "multiscale": self.multiscale_term}
+        out = {}
+        for name, inputs in together.items():
+            out[name], passes = per_view_values(terms[name], inputs)
+            self.calls[terms[name].network] += passes
+        return out
 
     @torch.no_grad()
     def content_features(self, gt: torch.Tensor | None, size: tuple[int, int] | torch.Size) -> dict[str, torch.Tensor]:

@@ -26,7 +26,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from .features import concat_features, feature_weights, upsample_for_vgg, vgg_input_size
+from .features import feature_weights, stacked_features, upsample_for_vgg, vgg_input_size
 from .nnfm import StyleTarget, WeightedTargets, style_nnfm, style_nnfm_per_image
 
 DEFAULT_FACTORS = (2, 4, 8)  # read when a term is built without factors (benches may set it)
@@ -78,6 +78,11 @@ class MultiScaleStyleLoss(nn.Module):
                                 else WeightedTargets(per_painting, style_weights))
         self.last_levels: dict[float, torch.Tensor] = {}
 
+    @property
+    def passes(self) -> int:
+        """Network passes a call takes (one a level)."""
+        return len(self.factors)
+
     def with_factors(self, factors: Sequence[float]) -> MultiScaleStyleLoss:
         """The same term (network, paintings, mix weights) at other downsampling ``factors``."""
         return MultiScaleStyleLoss(self.vgg, self._paintings, factors=factors, style_weights=self._style_weights,
@@ -95,7 +100,7 @@ class MultiScaleStyleLoss(nn.Module):
         small = downsample(renders, factor)
         if tuple(small.shape[-2:]) != vgg_input_size(small.shape[-2:]):
             small = upsample_for_vgg(small)
-        return concat_features(self.vgg(small))
+        return stacked_features(self.vgg, small)
 
     def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
         if render.ndim != 4 or render.shape[1] != 3:

@@ -11,7 +11,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from .features import NORM_EPS, concat_features, normalise_vectors, vector_norms, weighted_mean
+from .features import NORM_EPS, normalise_vectors, stacked_features, vector_norms, weighted_mean
 
 
 class CosineDistance(torch.autograd.Function):
@@ -60,7 +60,7 @@ class StyleTarget:
                 if scale != 1.0:
                     size = (max(8, round(img.shape[-2] * scale)), max(8, round(img.shape[-1] * scale)))
                     img = F.interpolate(img, size=size, mode="bilinear", align_corners=False, antialias=scale < 1)
-                feats = concat_features(vgg(img))
+                feats = stacked_features(vgg, img)
                 columns.append(feats.permute(1, 0, 2, 3).flatten(1))  # [C, B*h*w]
         matrix = torch.cat(columns, dim=1)
         if max_vectors is not None and matrix.shape[1] > max_vectors:

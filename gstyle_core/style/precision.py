@@ -125,7 +125,7 @@ class ProbeTimer:
     def __call__(self, precision: str, size: tuple[int, int]) -> float:
         import torch
 
-        from .features import concat_features, normalise_vectors
+        from .features import normalise_vectors
         from .nnfm import nearest_indices
         from .vgg import VGGFeatures
 
@@ -139,7 +139,7 @@ class ProbeTimer:
             self._matrices[size] = normalise_vectors(torch.randn(768, count, generator=gen), dim=0)
         image = torch.rand(1, 3, *size, generator=gen).requires_grad_(True)
         start = time.perf_counter()
-        feats = concat_features(self._nets[precision](image))
+        feats = self._nets[precision].stacked(image)  # as the loss runs it
         feats.square().mean().backward()
         with torch.no_grad():
             vectors = feats.detach().permute(0, 2, 3, 1).flatten(0, 2).to(dtype)

@@ -12,7 +12,9 @@ Two weight sources are understood, each with its own input convention:
 Caffe-convention features are multiplied by ``CAFFE_FEATURE_SCALE`` = 1/(255·0.226): the Caffe input is
 about 57.6x the unit-std torchvision input, and this brings feature magnitudes to the torchvision scale the
 reference's λ_C (0.05, content MSE) was chosen for. It is an approximation (two different trainings of
-VGG-16); NNFM (cosine) is unaffected by it.
+VGG-16); NNFM (cosine) is unaffected by it. A Caffe-convention module's relu3 convolutions carry the factor
+(``weights_with_output_scale``: its weights, random or loaded, and so its ``state_dict``), so no pass spends an
+operator on it; raw Caffe weights go in through ``load_weights``.
 Nothing is ever downloaded: see :func:`load_vgg` for the search order.
 """
 
@@ -35,7 +37,7 @@ TORCHVISION_RGB = "torchvision_rgb"
 CAFFE_BGR = "caffe_bgr"
 CONVENTIONS = (TORCHVISION_RGB, CAFFE_BGR)
 
-FEATURE_LAYERS = ("relu3_1", "relu3_2", "relu3_3")
+FEATURE_LAYERS = ("relu3_1", "relu3_2", "relu3_3")  # the order of the stack
 # Index in the torchvision ``features`` Sequential of every ReLU we may return.
 _RELU_INDEX = {"relu3_1": 11, "relu3_2": 13, "relu3_3": 15}
 # (torchvision features index, Keras layer name) of the nine convolutions up to conv3_3.
@@ -77,6 +79,21 @@ def _build_features() -> nn.Sequential:
     return nn.Sequential(*layers)
 
 
+def weights_with_output_scale(state: dict[str, torch.Tensor], scale: float) -> dict[str, torch.Tensor]:
+    """The relu3 convolutions' weights of ``state`` (float32) that make the relu3 features ``scale`` (> 0) times
+    theirs: conv3_1's weight and bias times ``scale``, conv3_2's and conv3_3's biases times ``scale`` (their inputs
+    are relu3 features, already scaled; relu(s·z) = s·relu(z)). No operator a pass applies the scale then: on a GPU
+    each is a kernel launch, forward and backward, for each of the three layers."""
+    if not scale > 0:
+        raise ValueError(f"the features' scale must be > 0, got {scale}")
+    first = _RELU_INDEX["relu3_1"] - 1
+    out = {f"features.{first}.weight": state[f"features.{first}.weight"] * scale}
+    for name in FEATURE_LAYERS:
+        key = f"features.{_RELU_INDEX[name] - 1}.bias"
+        out[key] = state[key] * scale
+    return out
+
+
 class VGGFeatures(nn.Module):
     """Frozen VGG-16 up to relu3_3. ``forward(img [B,3,H,W] RGB in [0,1])`` returns a dict of float32
     features for ``relu3_1``, ``relu3_2``, ``relu3_3`` (times ``output_scale``, see the module docstring).
@@ -101,6 +118,9 @@ class VGGFeatures(nn.Module):
             shift = torch.tensor(_CAFFE_MEAN_BGR[::-1]) / 255.0  # RGB order, in [0,1] units
             scale = torch.full((3,), 255.0)
         self.output_scale = 1.0 if convention == TORCHVISION_RGB else CAFFE_FEATURE_SCALE
+        if self.output_scale != 1.0:  # the random weights carry it too: every state of the module is alike
+            state = {key: value.detach() for key, value in self.features.state_dict(prefix="features.").items()}
+            self.load_state_dict({**state, **weights_with_output_scale(state, self.output_scale)}, strict=False)
         self.register_buffer("input_shift", shift.view(1, 3, 1, 1), persistent=False)
         self.register_buffer("input_scale", scale.view(1, 3, 1, 1), persistent=False)
         # (img − shift) · scale = img · scale + bias: made once here, not on every forward pass
@@ -133,21 +153,31 @@ class VGGFeatures(nn.Module):
     def forward(self, img: torch.Tensor) -> dict[str, torch.Tensor]:  # img: [B,3,H,W]
         """The relu3 features of ``img``, float32, in the memory layout the network ran in (channels last with
         ``channels_last``): every operator here is a kernel launch on a GPU, so none is spent on layouts."""
+        return {name: x.float() for name, x in zip(FEATURE_LAYERS, self._relu3(img), strict=True)}
+
+    def stacked(self, img: torch.Tensor) -> torch.Tensor:
+        """The relu3 features of ``img`` stacked along channels, [B, 768, h, w] float32: ``concat_features`` of
+        ``forward``'s, to the bit, stacked in the network's precision and cast once (one operator where a cast of
+        each layer and the stack took four, forward and backward)."""
+        return torch.cat(self._relu3(img), dim=1).float()
+
+    def _relu3(self, img: torch.Tensor) -> list[torch.Tensor]:
+        """relu3_1, relu3_2, relu3_3 of ``img`` as the network computed them (its dtype and layout)."""
         layout = torch.channels_last if self.channels_last else torch.preserve_format
         x = self.preprocess(img).to(dtype=self.compute_dtype, memory_format=layout)
-        wanted = {index: name for name, index in _RELU_INDEX.items()}
-        out: dict[str, torch.Tensor] = {}
+        wanted = {_RELU_INDEX[name] for name in FEATURE_LAYERS}
+        out = []
         for index, layer in enumerate(self.features):
             x = layer(x)
             if index in wanted:
-                features = x.float()
-                if self.output_scale != 1.0:  # a fresh float32 copy is scaled in place; the network's own is not
-                    features = features.mul_(self.output_scale) if features is not x else features * self.output_scale
-                out[wanted[index]] = features
+                out.append(x)
         return out
 
     def load_weights(self, state_dict: dict[str, torch.Tensor]) -> None:
-        """Load torchvision-style keys ``features.<i>.weight|bias`` (other keys are ignored)."""
+        """Load torchvision-style keys ``features.<i>.weight|bias`` (other keys are ignored): raw weights
+        of the module's convention. The features' ``output_scale`` goes into the relu3 convolutions
+        (``weights_with_output_scale``): the module's ``state_dict`` holds them scaled, as every Caffe-convention
+        module's does (another such module takes it with ``load_state_dict``)."""
         own = {}
         for index, _ in CONV_LAYERS:
             for kind in ("weight", "bias"):
@@ -160,6 +190,8 @@ class VGGFeatures(nn.Module):
             if tuple(tensor.shape) != tuple(expected[key]):
                 raise WeightsUnavailableError(
                     f"VGG-16 weight {key} has shape {tuple(tensor.shape)}, expected {tuple(expected[key])}")
+        if self.output_scale != 1.0:
+            own.update(weights_with_output_scale(own, self.output_scale))
         self.load_state_dict(own, strict=True)
         self._apply_compute_mode()
 
