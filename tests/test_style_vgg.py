@@ -204,7 +204,8 @@ def test_caffe_weights_carry_the_feature_scale(dtype):
     loaded = VGGFeatures(convention=CAFFE_BGR, **mode)
     loaded.load_weights(raw)
     unscaled = VGGFeatures(convention=CAFFE_BGR, **mode)
-    unscaled.load_state_dict(raw)  # the raw weights as they are: features without the scale
+    unscaled.load_state_dict({**raw, "features.0.weight": raw["features.0.weight"].flip(1)})  # the raw weights
+    # taking RGB: the features without the scale
     img = _painting_like(64, 80)
     with torch.no_grad():
         got, plain = loaded(img), unscaled(img)
@@ -212,8 +213,8 @@ def test_caffe_weights_carry_the_feature_scale(dtype):
     for name in FEATURE_LAYERS:
         torch.testing.assert_close(got[name], plain[name] * CAFFE_FEATURE_SCALE, **tol)
     torchvision_net = VGGFeatures(**mode)
-    # the flip to BGR is all a Caffe pass adds: no multiply a layer
-    assert _computing_ops(lambda: loaded(img)) == _computing_ops(lambda: torchvision_net(img)) + 1
+    # a Caffe pass adds nothing: no flip to BGR, no multiply a layer
+    assert _computing_ops(lambda: loaded(img)) == _computing_ops(lambda: torchvision_net(img))
     copy = VGGFeatures(convention=CAFFE_BGR, **mode)
     copy.load_state_dict(loaded.state_dict())  # another module's state: taken as it is, not scaled again
     with torch.no_grad():

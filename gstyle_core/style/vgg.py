@@ -12,9 +12,9 @@ Two weight sources are understood, each with its own input convention:
 Caffe-convention features are multiplied by ``CAFFE_FEATURE_SCALE`` = 1/(255·0.226): the Caffe input is
 about 57.6x the unit-std torchvision input, and this brings feature magnitudes to the torchvision scale the
 reference's λ_C (0.05, content MSE) was chosen for. It is an approximation (two different trainings of
-VGG-16); NNFM (cosine) is unaffected by it. A Caffe-convention module's relu3 convolutions carry the factor
-(``weights_with_output_scale``: its weights, random or loaded, and so its ``state_dict``), so no pass spends an
-operator on it; raw Caffe weights go in through ``load_weights``.
+VGG-16); NNFM (cosine) is unaffected by it. A Caffe-convention module holds its weights so that no pass spends an
+operator on the convention (``caffe_weights_held``: conv1_1 takes RGB, the relu3 convolutions carry the factor),
+random or loaded, and so in its ``state_dict``; raw Caffe weights go in through ``load_weights``.
 Nothing is ever downloaded: see :func:`load_vgg` for the search order.
 """
 
@@ -94,6 +94,15 @@ def weights_with_output_scale(state: dict[str, torch.Tensor], scale: float) -> d
     return out
 
 
+def caffe_weights_held(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """The entries of raw Caffe-convention weights ``state`` (float32) that a module holds otherwise: conv1_1 takes
+    RGB (its input channels reversed, so no pass flips the image to BGR) and the relu3 convolutions carry
+    ``CAFFE_FEATURE_SCALE`` (``weights_with_output_scale``). Two operators fewer a pass, forward and backward."""
+    out = weights_with_output_scale(state, CAFFE_FEATURE_SCALE)
+    out["features.0.weight"] = state["features.0.weight"].flip(1)
+    return out
+
+
 class VGGFeatures(nn.Module):
     """Frozen VGG-16 up to relu3_3. ``forward(img [B,3,H,W] RGB in [0,1])`` returns a dict of float32
     features for ``relu3_1``, ``relu3_2``, ``relu3_3`` (times ``output_scale``, see the module docstring).
@@ -118,9 +127,9 @@ class VGGFeatures(nn.Module):
             shift = torch.tensor(_CAFFE_MEAN_BGR[::-1]) / 255.0  # RGB order, in [0,1] units
             scale = torch.full((3,), 255.0)
         self.output_scale = 1.0 if convention == TORCHVISION_RGB else CAFFE_FEATURE_SCALE
-        if self.output_scale != 1.0:  # the random weights carry it too: every state of the module is alike
+        if convention == CAFFE_BGR:  # random weights are held as loaded ones are: every state of the module alike
             state = {key: value.detach() for key, value in self.features.state_dict(prefix="features.").items()}
-            self.load_state_dict({**state, **weights_with_output_scale(state, self.output_scale)}, strict=False)
+            self.load_state_dict({**state, **caffe_weights_held(state)}, strict=False)
         self.register_buffer("input_shift", shift.view(1, 3, 1, 1), persistent=False)
         self.register_buffer("input_scale", scale.view(1, 3, 1, 1), persistent=False)
         # (img − shift) · scale = img · scale + bias: made once here, not on every forward pass
@@ -142,13 +151,11 @@ class VGGFeatures(nn.Module):
         return self
 
     def preprocess(self, img: torch.Tensor) -> torch.Tensor:
-        """RGB [0,1] → the network's input convention (float32): (img − shift) · scale as one operation."""
+        """RGB [0,1] → the network's input convention (float32): (img − shift) · scale as one operation, in RGB
+        order (a Caffe network's conv1_1 takes RGB: ``caffe_weights_held``)."""
         if img.ndim != 4 or img.shape[1] != 3:
             raise ValueError(f"VGG input must be [B,3,H,W] RGB, got shape {tuple(img.shape)}")
-        x = torch.addcmul(self.input_bias, img.float(), self.input_scale)
-        if self.convention == CAFFE_BGR:
-            x = x.flip(1)
-        return x
+        return torch.addcmul(self.input_bias, img.float(), self.input_scale)
 
     def forward(self, img: torch.Tensor) -> dict[str, torch.Tensor]:  # img: [B,3,H,W]
         """The relu3 features of ``img``, float32, in the memory layout the network ran in (channels last with
@@ -176,8 +183,9 @@ class VGGFeatures(nn.Module):
     def load_weights(self, state_dict: dict[str, torch.Tensor]) -> None:
         """Load torchvision-style keys ``features.<i>.weight|bias`` (other keys are ignored): raw weights
         of the module's convention. The features' ``output_scale`` goes into the relu3 convolutions
-        (``weights_with_output_scale``): the module's ``state_dict`` holds them scaled, as every Caffe-convention
-        module's does (another such module takes it with ``load_state_dict``)."""
+        (``weights_with_output_scale``) and a Caffe conv1_1 takes RGB (``caffe_weights_held``): the module's
+        ``state_dict`` holds them so, as every Caffe-convention module's does (another such module takes it with
+        ``load_state_dict``)."""
         own = {}
         for index, _ in CONV_LAYERS:
             for kind in ("weight", "bias"):
@@ -190,8 +198,8 @@ class VGGFeatures(nn.Module):
             if tuple(tensor.shape) != tuple(expected[key]):
                 raise WeightsUnavailableError(
                     f"VGG-16 weight {key} has shape {tuple(tensor.shape)}, expected {tuple(expected[key])}")
-        if self.output_scale != 1.0:
-            own.update(weights_with_output_scale(own, self.output_scale))
+        if self.convention == CAFFE_BGR:
+            own.update(caffe_weights_held(own))
         self.load_state_dict(own, strict=True)
         self._apply_compute_mode()
 
