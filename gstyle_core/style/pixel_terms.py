@@ -31,7 +31,7 @@ def adjoint_differences(gx: torch.Tensor, gy: torch.Tensor) -> torch.Tensor:
 
 
 class SquaredVariation(torch.autograd.Function):
-    """Σ (Δ_x)² + Σ (Δ_y)² of ``img`` with its gradient in closed form, 2·(Dₓᵀ·Δ_x + Dᵧᵀ·Δ_y): eleven operators,
+    """Σ (Δ_x)² + Σ (Δ_y)² of ``img`` with its gradient in closed form, 2·(Dₓᵀ·Δ_x + Dᵧᵀ·Δ_y): twelve operators,
     forward and backward, where autograd through the slices takes twenty-three (on a GPU each is a kernel launch,
     for each view of a step)."""
 
