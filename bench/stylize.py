@@ -62,8 +62,8 @@ class PartTimer:
             finally:
                 self.seconds[part] += time.perf_counter() - t0
 
+        self._undo.append((owner, name, original, name in vars(owner)))  # whether ``owner`` held it itself
         setattr(owner, name, timed)
-        self._undo.append((owner, name, original, name in vars(owner)))
 
     def restore(self) -> None:
         for owner, name, original, own in reversed(self._undo):
@@ -105,12 +105,16 @@ def instrument(engine) -> PartTimer:
     timer.wrap(colour_cache.ColourCache, "render", "colour cache: render")
     timer.wrap(colour_cache._SparseLinear, "backward", "colour cache: backward")
     timer.wrap(objective.loss.vgg, "forward", "VGG forward")
+    if hasattr(objective.loss.vgg, "stacked"):  # the loss terms' passes give the layers' stack
+        timer.wrap(objective.loss.vgg, "stacked", "VGG forward")
     timer.wrap(objective.loss, "content_features", "content features (once per view)")
     timer.wrap(nnfm, "nnfm_loss", "NNFM forward")
     timer.wrap(losses, "stacked_content_loss", "content term forward")
     timer.wrap(losses, "tv_loss", "TV forward")
     if objective.loss.clip_term is not None:
-        timer.wrap(objective.loss.clip_term, "forward", "CLIP / coarse substitute forward")
+        # the coarse substitute's forward goes through per_image, which takes a step's views in one pass too
+        method = "per_image" if hasattr(objective.loss.clip_term, "per_image") else "forward"
+        timer.wrap(objective.loss.clip_term, method, "CLIP / coarse substitute forward")
     timer.wrap(torch.Tensor, "backward", "backward (all terms)")
     timer.wrap(VisibleAdam, "step", "Adam step")
     timer.wrap(torch.optim.Adam, "step", "Adam step")
