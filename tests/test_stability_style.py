@@ -356,13 +356,14 @@ class _RecordingObjective(StyleObjective):
 
     def __init__(self, style, settings) -> None:
         super().__init__(style, settings, vgg=_MiniVGG())
-        self.render_min, self.render_max, self.render_finite = math.inf, -math.inf, True
+        self.render_min, self.render_max, self.render_finite, self.renders = math.inf, -math.inf, True, 0
 
-    def __call__(self, image, content, view, coverage=None):
+    def evaluate(self, image, content, view, coverage=None, together=None):  # what the engine's steps call
+        self.renders += 1
         self.render_finite &= bool(torch.isfinite(image).all())
         self.render_min = min(self.render_min, float(image.detach().min()))
         self.render_max = max(self.render_max, float(image.detach().max()))
-        return super().__call__(image, content, view)
+        return super().evaluate(image, content, view, coverage, together=together)
 
 
 @pytest.mark.slow
@@ -385,6 +386,7 @@ def test_long_stylization_run_stays_in_range_and_does_not_diverge():
                 assert torch.isfinite(colours).all() and colours.min() >= 0 and colours.max() <= 1
     assert len(totals) >= steps - 1
     objective = engine.objective
+    assert objective.renders >= steps - 1  # every step's render was seen
     assert objective.render_finite and objective.render_min >= 0.0 and objective.render_max <= 1.0 + 1e-5
     final = engine.c_s
     assert torch.isfinite(final).all() and final.min() >= 0 and final.max() <= 1
