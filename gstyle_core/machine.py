@@ -95,4 +95,3 @@ def set_torch_threads(count: int) -> None:
 
 if __name__ == "__main__":
     print(cpu_description())
-

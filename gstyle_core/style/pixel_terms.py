@@ -121,8 +121,9 @@ def _on_device(matrix: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
     return _DEVICE_COPIES[key]
 
 
-_OPPONENT = torch.tensor([[1.0, -1.0, 0.0], [0.5, 0.5, -1.0]])  # opponent_chroma's channels as a matrix
-_LUMINANCE = torch.tensor([[0.299, 0.587, 0.114]])  # luminance's weights
+_BASIS = torch.eye(3)[:, :, None, None]  # the three unit colours as a batch of 1-pixel images
+_OPPONENT = opponent_chroma(_BASIS)[:, :, 0, 0].t().contiguous()  # [2, 3]: opponent_chroma as a matrix
+_LUMINANCE = luminance(_BASIS)[:, 0, 0][None]  # [1, 3]: luminance's weights
 
 
 def chroma_tv_loss(img: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
