@@ -18,7 +18,7 @@ import argparse
 import sys
 import time
 import warnings
-from collections import defaultdict
+from collections import Counter, defaultdict
 from pathlib import Path
 
 import torch
@@ -66,15 +66,20 @@ def profiled_optimiser_steps(engine, steps: int, cuda: bool) -> tuple[dict[str, 
 
 
 class DispatchCount(TorchDispatchMode):
-    """Counts the operators dispatched that compute (views, aliases and detaches left out)."""
+    """Counts the operators dispatched that compute (views, aliases and detaches left out), by name."""
 
     def __init__(self) -> None:
         super().__init__()
-        self.count = 0
+        self.names: Counter[str] = Counter()
+
+    @property
+    def count(self) -> int:
+        """The computing operators dispatched so far."""
+        return sum(self.names.values())
 
     def __torch_dispatch__(self, func, types, args=(), kwargs=None):
         if not (func.is_view or func.__name__.split(".")[0] in ("detach", "lift_fresh", "_unsafe_view")):
-            self.count += 1
+            self.names[func.__name__] += 1
         return func(*args, **(kwargs or {}))
 
 

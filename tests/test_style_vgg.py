@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from bench_cli import load_bench
 
 from gstyle_core.errors import WeightsUnavailableError
 from gstyle_core.style import vgg as vgg_mod
@@ -180,20 +181,10 @@ def test_gradients_reach_the_image_not_the_weights():
 
 
 def _computing_ops(fn) -> int:
-    """The operators ``fn()`` dispatches that compute (views and detaches left out)."""
-    from torch.utils._python_dispatch import TorchDispatchMode
-
-    class Count(TorchDispatchMode):
-        count = 0
-
-        def __torch_dispatch__(self, func, types, args=(), kwargs=None):
-            if not (func.is_view or func.__name__.split(".")[0] in ("detach", "_unsafe_view")):
-                Count.count += 1
-            return func(*args, **(kwargs or {}))
-
-    with Count():
+    """The operators ``fn()`` dispatches that compute, as ``bench/device_profile.py`` counts them."""
+    with load_bench("device_profile").DispatchCount() as counted:
         fn()
-    return Count.count
+    return counted.count
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.bfloat16], ids=["fp32", "bf16"])
