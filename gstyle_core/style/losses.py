@@ -242,20 +242,23 @@ class StyleLoss(nn.Module):
             total = weighted if i == 0 else total + weighted
         return total, torch.stack([terms[name].detach().float().reshape(()) for name in TERM_NAMES])
 
+    def _together_term(self, name: str) -> nn.Module | None:
+        """The module of ``name``, one of ``TOGETHER_TERMS``."""
+        return {"clip": self.clip_term, "multiscale": self.multiscale_term}[name]
+
     def takes_together(self, name: str) -> bool:
         """Whether the term ``name`` (one of ``TOGETHER_TERMS``) is on and can take several views in one pass (its
         module has ``per_image``: the broad strokes, the coarse CLIP substitute; CLIP itself cannot)."""
-        term = {"clip": self.clip_term, "multiscale": self.multiscale_term}[name]
-        return getattr(self._weights, name) > 0 and hasattr(term, "per_image")
+        return getattr(self._weights, name) > 0 and hasattr(self._together_term(name), "per_image")
 
     def terms_together(self, together: TermInputs) -> dict[str, torch.Tensor]:
         """The terms ``evaluate`` left in ``together``, each view's value: {term: [views]}, in the order the views
         were evaluated; the views of one size go through the network together (``per_image``)."""
-        terms = {"clip": self.clip_term, "multiscale": self.multiscale_term}
         out = {}
         for name, inputs in together.items():
-            out[name], passes = per_view_values(terms[name], inputs)
-            self.calls[terms[name].network] += passes
+            term = self._together_term(name)
+            out[name], passes = per_view_values(term, inputs)
+            self.calls[term.network] += passes
         return out
 
     @torch.no_grad()
