@@ -64,6 +64,7 @@ class EngineHost:
         self.params: dict[str, float] = {}
         self.build_params: dict[str, float] = {}  # the params the engine was built with (its fingerprint's settings)
         self.sent_decisions: dict[str, Any] | None = None
+        self.sent_setup_note = ""
         self.in_thread = False  # a worker thread of the UI process (ThreadWorkerBridge), not a spawned process
 
     def send(self, kind: str, payload: Any = None) -> None:
@@ -86,6 +87,7 @@ class EngineHost:
         self.engine, self.done, self.failed = None, False, False
         self.sent_geometry_version = object()
         self.sent_decisions = None
+        self.sent_setup_note = ""
         saved = self.read_saved(resume_from) if resume_from else None
         if saved is not None:
             self.adopt_saved_inputs(saved[1])
@@ -115,6 +117,7 @@ class EngineHost:
         self.flush_snapshot()
 
     def step(self) -> None:
+        self.send_setup_note()  # before a step that builds gsplat's module (minutes): the UI says so meanwhile
         try:
             report = report_to_dict(self.engine.step())
         except Exception as exc:  # noqa: BLE001
@@ -123,11 +126,22 @@ class EngineHost:
         self.last_report = report
         self.done = bool(report.get("done"))
         self.send("report", report)
+        self.send_setup_note()
         self.send_decisions()
         self.snapshot_pending = True
         self.flush_snapshot()
         if self.done:
             self.send_summary()
+
+    def send_setup_note(self) -> None:
+        """The engine's ``setup_note`` (a one-off setup about to take minutes, or what it took), when it changed."""
+        try:
+            note = str(getattr(self.engine, "setup_note", "") or "")
+        except Exception as exc:  # noqa: BLE001 - a note that cannot be worded is no reason to stop the run
+            note = f"rasterizer setup: {one_line_error(exc)}"
+        if note != self.sent_setup_note:
+            self.sent_setup_note = note
+            self.send("setup_note", note)
 
     def send_plans(self) -> None:
         """Every preset's steps on this scene (the panel prices them at the measured step times), if the engine

@@ -111,6 +111,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.screenshot_requests: list[tuple[Path, bool]] = []  # (where, scene view only), saved by the frame loop
         self.video_job: VideoJob | None = None
         self._exports_seen: tuple[int, int] = (0, 0)
+        self._setup_note_seen = ""
         self._export_failures_seen: tuple[int, int] = (0, 0)  # the same for failed exports (their one line)
         self.init_region_state()
         self._view_size: tuple[int, int] = (1, 1)

@@ -92,6 +92,7 @@ class StudioSync:
             what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
                 else "the saved result's run"
             p.status = f"resumed {what} at step {st.resumed.get('step')}"
+        self._sync_setup_note(st)
         self._sync_exports(st)
         self._show_takes_error()
 
@@ -128,6 +129,14 @@ class StudioSync:
         p.width = int(rep.get("width") or (p.levels[0] if p.levels else 0))
         p.refine_note = st.refine_note
         p.summary_line = str((st.summary or {}).get("line", ""))
+
+    def _sync_setup_note(self, st) -> None:
+        """The engine's one-off setup note to the status when it changes (the build of gsplat's CUDA module on a
+        card's first run, then how long it took): the steps' progress stays still meanwhile."""
+        if st.setup_note != self._setup_note_seen:
+            self._setup_note_seen = st.setup_note
+            if st.setup_note:
+                self.panel.status = st.setup_note
 
     def _sync_exports(self, st) -> None:
         """New exports become takes (status: the last one); a failed export's one line goes to the status (no take

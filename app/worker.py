@@ -58,6 +58,7 @@ class WorkerState:
     prior_times: StepTimes | None = None  # the run before a restart's step times (the new run's ETA from its start)
     summary: dict[str, Any] | None = None  # the finished run's summary (its speckle at a display's size)
     refine_note: str = ""  # why Refine was refused, or the level it started
+    setup_note: str = ""  # the engine's one-off setup: a build under way (minutes) or how long it took
 
 
 # ====================================================================== the UI side
@@ -278,6 +279,8 @@ class WorkerBridge:
             st.refine_note = f"refining at {payload} px"
         elif kind == "refine_refused":
             st.refine_note = str(payload)
+        elif kind == "setup_note":
+            st.setup_note = str(payload)
 
     def wait_until(self, predicate: Callable[[WorkerState], bool], timeout: float = 30.0) -> bool:
         """Poll until ``predicate(state)`` holds (True) or ``timeout`` seconds pass (False). For tests and CLI."""

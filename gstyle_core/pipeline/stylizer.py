@@ -30,6 +30,7 @@ import torch
 
 from ..cameras.camera import Camera
 from ..fit.model import scene_from_params
+from ..raster.gsplat_module import RasterizerSetup
 from ..scene import GaussianScene, rgb_to_sh_dc
 from ..style.clip import clip_term_name
 from ..style.mix import normalise_style_weights
@@ -107,6 +108,7 @@ class Stylizer:
             run.max_gaussians, how = default_max_gaussians(settings.working_width)
         run.decisions["max_gaussians"] = f"at most {run.max_gaussians:,} Gaussians ({how})"
         self.phase_step = 0  # steps since the run entered the current phase
+        self.rasterizer_setup = RasterizerSetup(run.raster_device)  # gsplat's module on CUDA, before the first step
         self.live = LiveControls(self)
         self._settle()
 
@@ -200,6 +202,13 @@ class Stylizer:
         return "done" if current is None else current.current
 
     @property
+    def setup_note(self) -> str:
+        """A line for a UI to show about the rasterizer's one-off setup (``RasterizerSetup.note``): before the step
+        that builds gsplat's CUDA module (the first run on a card: minutes), that it will; after it, how long it
+        took; "" otherwise (the CPU, or a module kept from an earlier run)."""
+        return self.rasterizer_setup.note
+
+    @property
     def done(self) -> bool:
         """True once every phase has run."""
         return self.current_phase() is None
@@ -214,6 +223,10 @@ class Stylizer:
         if current is None:
             return StepReport("done", run.global_step, self.total_steps(), gaussians=self.gaussian_count, done=True,
                               width=self.current_width)
+        built = self.rasterizer_setup.prepare()  # once, before the first render: not part of any step's time
+        if built:
+            run.timings["gpu_rasterizer_build"] = built
+            run.decisions["rasterizer"] = self.rasterizer_setup.outcome
         t0 = time.perf_counter()
         phase, width = current.current, self.current_width
         rep = current.step()

@@ -9,6 +9,8 @@ minutes. Here it is made explicit:
 - ``ensure_gsplat(log)`` loads that file when it is there (it registers it as ``gsplat.csrc``, the name gsplat
   imports first), else builds for this card's architecture only (``TORCH_CUDA_ARCH_LIST``), telling the user once
   that the first run builds it, and copies the result to the cache for every later run.
+- ``RasterizerSetup`` does that once per run, before its first render and outside any step's own time, and words
+  it for a UI beforehand (``note``): a studio shows "building ..." while the build runs, not a frozen first step.
 
 Nothing here falls back to the CPU: a failed build raises :class:`GsplatUnavailable` with the reason.
 """
@@ -28,6 +30,8 @@ from ..errors import GStyleError
 from ..paths import cache_dir
 
 MODULE_NAME = "gsplat_cuda"
+BUILD_NOTE = ("building gsplat's CUDA rasterizer for this GPU: the first run on a card takes a few minutes; later runs "
+              "load it")
 
 
 class GsplatUnavailable(GStyleError, RuntimeError):
@@ -126,3 +130,50 @@ def ensure_gsplat(log: Callable[[str], None] = print) -> object:
 
         module = _backend._C
     return module
+
+
+def build_pending() -> bool:
+    """Whether making gsplat usable now would build its CUDA module: torch sees CUDA, no module is loaded in this
+    process and none is kept for this torch, CUDA, gsplat and card. False where gsplat cannot be used at all
+    (``ensure_gsplat`` then raises the reason)."""
+    import torch
+
+    if sys.modules.get("gsplat.csrc") is not None or not torch.cuda.is_available():
+        return False
+    try:
+        return not built_module_path().is_file()
+    except GsplatUnavailable:
+        return False
+
+
+class RasterizerSetup:
+    """A run's one-off setup of its rasterizer on ``device``, before its first render: on CUDA, gsplat's module
+    loaded or built (``ensure_gsplat``); elsewhere nothing. ``note`` words it for a UI: before a build, what is
+    about to take minutes (``BUILD_NOTE``); after one, how long it took; otherwise ""."""
+
+    def __init__(self, device, log: Callable[[str], None] = print) -> None:
+        self.done = getattr(device, "type", str(device)) != "cuda"
+        self.log = log
+        self.outcome = ""  # what ``prepare`` did, worded (a build; a quick load says nothing)
+
+    @property
+    def note(self) -> str:
+        """What the next ``prepare`` will spend minutes on, or what it did; "" when there is nothing to say."""
+        if self.done:
+            return self.outcome
+        return BUILD_NOTE if build_pending() else ""
+
+    def prepare(self) -> float:
+        """Load or build gsplat's module the first time (raises ``GsplatUnavailable`` with the reason); returns the
+        seconds a build took (0 otherwise: nothing to do, or a module kept before was loaded)."""
+        if self.done:
+            return 0.0
+        building = build_pending()
+        started = time.perf_counter()
+        ensure_gsplat(self.log)
+        self.done = True
+        if not building:
+            return 0.0
+        seconds = time.perf_counter() - started
+        self.outcome = f"built gsplat's CUDA rasterizer for this GPU in {seconds:.0f} s (later runs load it)"
+        return seconds

@@ -137,6 +137,7 @@ class StyleLoss(nn.Module):
         self.nnfm_chunk = nnfm_chunk
         self.chroma_floor = 0.0  # the colour-smoothness term counts only chroma variation above this (the painting's)
         self.calls = {"vgg": 0, "clip": 0}
+        self._weight_vectors: dict[tuple, torch.Tensor] = {}  # ``_weight_vector``'s
         self._weights = StyleWeights()
         self.weights = weights if weights is not None else StyleWeights()
 
@@ -233,14 +234,24 @@ class StyleLoss(nn.Module):
             if gt is None:
                 raise ValueError("the edges term needs the content target (gt) at the render's size")
             terms["edges"] = edges_loss(render, gt, coverage)
-        # the terms on and computed here, in TERM_NAMES order: a term off would add w · 0 = +0 (the same sum to the
-        # bit, two operators more on each view)
-        left = together or {}
-        total = zero
-        for i, name in enumerate(name for name in TERM_NAMES if getattr(w, name) > 0 and name not in left):
-            weighted = getattr(w, name) * terms[name]
-            total = weighted if i == 0 else total + weighted
-        return total, torch.stack([terms[name].detach().float().reshape(()) for name in TERM_NAMES])
+        # the total as one dot product of the terms with their weights (0 for the terms left to the caller): two
+        # operators, and one in the backward pass, where a sum of weighted terms takes two a term and one a term
+        values = torch.stack([terms[name].float().reshape(()) for name in TERM_NAMES])
+        return values @ self._weight_vector(frozenset(together or ()), values.device), values.detach()
+
+    def _weight_vector(self, left: frozenset[str], device: torch.device) -> torch.Tensor:
+        """The weights in ``TERM_NAMES`` order as a float32 vector on ``device``, 0 for the terms in ``left``;
+        made once for each weights, terms left out and device (on a GPU a copy from the CPU's memory would wait for
+        the queue to drain on every view)."""
+        key = (self._weights, left, device)
+        vector = self._weight_vectors.get(key)
+        if vector is None:
+            if len(self._weight_vectors) > 64:  # sliders make new weights: keep the recent ones only
+                self._weight_vectors.clear()
+            vector = torch.tensor([0.0 if name in left else float(getattr(self._weights, name))
+                                   for name in TERM_NAMES], dtype=torch.float32, device=device)
+            self._weight_vectors[key] = vector
+        return vector
 
     def _together_term(self, name: str) -> nn.Module | None:
         """The module of ``name``, one of ``TOGETHER_TERMS``."""

@@ -84,7 +84,8 @@ class LinearPairsMean(torch.autograd.Function):
             w = torch.as_tensor(coverage, dtype=dx.dtype, device=dx.device).reshape(dx.shape[-2], dy.shape[-1])
             wx, wy = w[:, 1:] * w[:, :-1], w[1:, :] * w[:-1, :]
             eps, batch = 1e-8, dx.shape[0]
-            wdx, wdy, nx, ny = dx * wx, dy * wy, wx.sum() * batch + eps, wy.sum() * batch + eps
+            nx, ny = (wx.sum(), wy.sum()) if batch == 1 else (wx.sum() * batch, wy.sum() * batch)
+            wdx, wdy, nx, ny = dx * wx, dy * wy, nx + eps, ny + eps
         ctx.save_for_backward(weights, wdx, wdy)
         ctx.norms = (nx, ny)  # intermediates, not inputs or outputs: kept as they are
         return _dot(wdx, dx) / nx + _dot(wdy, dy) / ny
