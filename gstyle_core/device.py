@@ -92,3 +92,31 @@ def resolve_device(requested: str = "auto") -> DeviceChoice:
 def describe(choice: DeviceChoice) -> str:
     """One line for OUT.json's ``decisions.device`` and the logs."""
     return f"{choice.kind} ({choice.name}): {choice.reason}"
+
+
+class DeviceMemoryError(GStyleError, RuntimeError):
+    """A GPU ran out of memory in a step; shown as one line that says what to lower (``out_of_memory``)."""
+
+
+STYLIZE_LIGHTER = ("take a lighter preset, a smaller working width or a lower cap on Gaussians (--working-width, "
+                   "--max-gaussians)")
+
+
+def out_of_memory(choice: DeviceChoice, doing: str, lighter: str = STYLIZE_LIGHTER) -> DeviceMemoryError:
+    """The error for an out-of-memory ``torch.OutOfMemoryError`` raised on ``choice``'s device while ``doing``
+    (e.g. "stylize with 3,210,455 Gaussians at 512 px"): the card, what it holds, and what to lower (``lighter``),
+    or the CPU. The allocator's cached blocks are released first, so the card is free for a restart."""
+    import torch
+
+    held = ""
+    if choice.kind == "cuda":
+        try:
+            torch.cuda.empty_cache()
+            free, total = torch.cuda.mem_get_info(choice.device)
+            held = f"; {free / 2**30:.1f} of {total / 2**30:.1f} GiB free now"
+        except RuntimeError:  # the card cannot even be asked: the line goes without it
+            pass
+    elif choice.kind == "mps":
+        torch.mps.empty_cache()
+    return DeviceMemoryError(
+        f"{choice.name} ran out of memory in {doing}{held}: {lighter}, or compute on the CPU (--device cpu)")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from gstyle_core.fit import ops
@@ -115,3 +116,41 @@ def test_separable_ssim_equals_the_2d_window_formula():
     s1, s2, s12 = blur(a * a) - mu1**2, blur(b * b) - mu2**2, blur(a * b) - mu1 * mu2
     ref = ((2 * mu1 * mu2 + 1e-4) * (2 * s12 + 9e-4) / ((mu1**2 + mu2**2 + 1e-4) * (s1 + s2 + 9e-4))).mean()
     assert abs(float(ssim(a, b)) - float(ref)) < 1e-10
+
+
+def test_a_gpu_out_of_memory_in_fit_is_one_line_that_says_what_to_lower(monkeypatch):
+    """``gstyle fit``'s training loop turns torch's out-of-memory error into a ``DeviceMemoryError`` (one line: the
+    card, the iteration, the Gaussians, what to lower). The card is a double: no GPU is needed."""
+    from types import SimpleNamespace
+
+    from gstyle_core.cameras.cameraset import CameraSet
+    from gstyle_core.device import DeviceChoice, DeviceMemoryError
+    from gstyle_core.fit import cli as fit_cli
+
+    cams = ring_cameras(2)
+    images = [np.full((c.height, c.width, 3), 0.5, np.float32) for c in cams]
+    train = CameraSet(cams, kind="forward", source="test")
+    views = fit_cli._Views(train, train, None, images, [])
+    args = SimpleNamespace(iterations=5, sh_degree=0, backend="fast", seed=0, max_gaussians=1000)
+
+    def on_a_card(a):
+        a.device_choice = DeviceChoice(torch.device("mps"), "Apple GPU (MPS)", "asked for")
+        return "cpu"
+
+    calls = []
+
+    def step(self):
+        calls.append(1)
+        if len(calls) == 3:
+            raise torch.OutOfMemoryError("MPS backend out of memory\nlong advice")
+        return real_step(self)
+
+    real_step = Trainer.step
+    monkeypatch.setattr(fit_cli, "fit_device", on_a_card)
+    monkeypatch.setattr(Trainer, "step", step)
+    monkeypatch.setattr(torch.mps, "empty_cache", lambda: None)
+    with pytest.raises(DeviceMemoryError) as caught:
+        fit_cli._train(params_from_scene(blob_scene(40, seed=3)), views, args)
+    line = str(caught.value)
+    assert line == ("Apple GPU (MPS) ran out of memory in fit iteration 3 with 40 Gaussians: set a lower "
+                    "--max-gaussians, or compute on the CPU (--device cpu)")

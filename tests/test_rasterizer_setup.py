@@ -69,7 +69,7 @@ def test_a_failed_build_raises_its_reason_and_is_tried_again(monkeypatch):
     fake = FakeGsplat(monkeypatch, kept=False, fails=True)
     setup = RasterizerSetup(torch.device("cuda"))
     for calls in (1, 2):
-        with pytest.raises(GsplatUnavailable, match="nvcc: not found"):
+        with pytest.raises(GsplatUnavailable, match=r"nvcc: not found; or compute on the CPU \(--device cpu\)$"):
             setup.prepare()
         assert fake.calls == calls and setup.note == BUILD_NOTE
 
@@ -146,3 +146,39 @@ def test_the_studio_shows_a_new_setup_note_and_leaves_later_news_alone():
     state.setup_note = "built gsplat's CUDA rasterizer for this GPU in 184 s (later runs load it)"
     studio._sync_setup_note(state)
     assert studio.panel.status == state.setup_note
+
+
+CARDS = {"cuda": ("NVIDIA GeForce RTX 3060 (12 GiB, CUDA 13.0)", "; 0.4 of 12.0 GiB free now"),
+         "mps": ("Apple GPU (MPS)", "")}
+
+
+@pytest.mark.parametrize("kind", sorted(CARDS))
+def test_a_gpu_out_of_memory_in_a_step_is_one_line_that_says_what_to_lower(monkeypatch, kind):
+    """torch's out-of-memory error in a step becomes a ``DeviceMemoryError`` (shown as one line by the CLI and the
+    studio) naming the card (on CUDA with what it holds, its cache released first), the phase, the Gaussians and
+    the width, and what to lower. The card's calls are doubles here: no GPU is needed."""
+    from gstyle_core.device import DeviceChoice, DeviceMemoryError
+    from gstyle_core.errors import GStyleError
+
+    name, held = CARDS[kind]
+    released = []
+    engine = make_small_stylizer()
+    monkeypatch.setattr(engine.run_state, "device_choice", DeviceChoice(torch.device(kind), name, "asked for"))
+    monkeypatch.setattr(torch.mps, "empty_cache", lambda: released.append("mps"))
+    monkeypatch.setattr(torch.cuda, "empty_cache", lambda: released.append("cuda"))
+    monkeypatch.setattr(torch.cuda, "mem_get_info", lambda device: (0.4 * 2**30, 12 * 2**30))
+    engine.step()  # a ground-truth step goes through
+
+    def too_big():
+        raise torch.OutOfMemoryError("MPS backend out of memory (MPS allocated: 7.9 GB ...)\nlong advice")
+
+    monkeypatch.setattr(engine.current_phase(), "step", too_big)
+    with pytest.raises(DeviceMemoryError) as caught:
+        engine.step()
+    error = caught.value
+    assert isinstance(error, GStyleError) and isinstance(error.__cause__, torch.OutOfMemoryError)
+    line = str(error)
+    assert "\n" not in line and line.startswith(f"{name} ran out of memory in ground_truth")
+    assert f"with {engine.gaussian_count:,} Gaussians at {engine.current_width} px{held}: " in line
+    assert released == [kind]
+    assert "--working-width, --max-gaussians" in line and line.endswith("or compute on the CPU (--device cpu)")

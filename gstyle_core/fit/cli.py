@@ -120,15 +120,17 @@ def fit_device(args: argparse.Namespace) -> str:
     from ..device import describe, resolve_device
 
     choice = resolve_device(getattr(args, "device", "auto"))
-    args.device_note = describe(choice)
+    args.device_choice, args.device_note = choice, describe(choice)
     print(f"device: {args.device_note}")
     return str(choice.raster_device)
 
 
 def _train(params: torch.nn.ParameterDict, views: _Views, args: argparse.Namespace) -> tuple[Trainer, float]:
     """``--iterations`` steps of 3DGS training with densification, behind a progress bar: (trainer, seconds)."""
+    import torch
     from tqdm import tqdm
 
+    from ..device import out_of_memory
     from .strategy import DefaultStrategy
     from .trainer import FitConfig, Trainer, scene_scale
 
@@ -141,8 +143,12 @@ def _train(params: torch.nn.ParameterDict, views: _Views, args: argparse.Namespa
     trainer = Trainer(params, views.train.cameras, views.train_images, cfg, strategy, extent=extent)
     t0 = time.perf_counter()
     with tqdm(total=args.iterations, desc="fit", unit="it", dynamic_ncols=True) as bar:
-        for _ in range(args.iterations):
-            rep = trainer.step()
+        for i in range(args.iterations):
+            try:
+                rep = trainer.step()
+            except torch.OutOfMemoryError as error:  # a GPU's: one line that says what to lower
+                raise out_of_memory(args.device_choice, f"fit iteration {i + 1} with {len(trainer.params['means']):,} "
+                                    "Gaussians", lighter="set a lower --max-gaussians") from error
             if rep.step % 10 == 0:
                 bar.set_postfix(loss=f"{rep.loss:.4f}", gaussians=rep.gaussians)
             bar.update(1)

@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from ..cameras.camera import Camera
+from ..device import out_of_memory
 from ..fit.model import scene_from_params
 from ..raster.gsplat_module import RasterizerSetup
 from ..scene import GaussianScene, rgb_to_sh_dc
@@ -223,13 +224,17 @@ class Stylizer:
         if current is None:
             return StepReport("done", run.global_step, self.total_steps(), gaussians=self.gaussian_count, done=True,
                               width=self.current_width)
-        built = self.rasterizer_setup.prepare()  # once, before the first render: not part of any step's time
-        if built:
-            run.timings["gpu_rasterizer_build"] = built
-            run.decisions["rasterizer"] = self.rasterizer_setup.outcome
-        t0 = time.perf_counter()
         phase, width = current.current, self.current_width
-        rep = current.step()
+        try:
+            built = self.rasterizer_setup.prepare()  # once, before the first render: not part of any step's time
+            if built:
+                run.timings["gpu_rasterizer_build"] = built
+                run.decisions["rasterizer"] = self.rasterizer_setup.outcome
+            t0 = time.perf_counter()
+            rep = current.step()
+        except torch.OutOfMemoryError as error:  # a GPU's: one line that says what to lower, not torch's page
+            raise out_of_memory(run.device_choice, f"{phase} with {self.gaussian_count:,} Gaussians at {width} px"
+                                ) from error
         rep.width = width
         rep.seconds = time.perf_counter() - t0
         run.timings[phase] = run.timings.get(phase, 0.0) + rep.seconds

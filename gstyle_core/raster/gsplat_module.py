@@ -164,13 +164,17 @@ class RasterizerSetup:
         return BUILD_NOTE if build_pending() else ""
 
     def prepare(self) -> float:
-        """Load or build gsplat's module the first time (raises ``GsplatUnavailable`` with the reason); returns the
-        seconds a build took (0 otherwise: nothing to do, or a module kept before was loaded)."""
+        """Load or build gsplat's module the first time (raises ``GsplatUnavailable`` with the reason and the way
+        round it, the CPU); returns the seconds a build took (0 otherwise: nothing to do, or a module kept before
+        was loaded)."""
         if self.done:
             return 0.0
         building = build_pending()
         started = time.perf_counter()
-        ensure_gsplat(self.log)
+        try:
+            ensure_gsplat(self.log)
+        except GsplatUnavailable as error:  # the run stops here: say how to go on without the GPU's rasterizer
+            raise GsplatUnavailable(f"{error}; or compute on the CPU (--device cpu)") from error
         self.done = True
         if not building:
             return 0.0
