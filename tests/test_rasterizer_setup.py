@@ -52,7 +52,7 @@ def test_a_build_is_announced_before_and_timed_after_and_done_once(monkeypatch):
     assert setup.note == BUILD_NOTE  # what a UI shows while the build runs
     seconds = setup.prepare()
     assert seconds >= 0.05 and fake.calls == 1
-    assert setup.note.startswith("built gsplat's CUDA rasterizer for this GPU in ")
+    assert setup.note.startswith("built gsplat's rasterizer for this GPU in ")
     assert setup.note.endswith("s (later runs load it)")
     assert setup.prepare() == 0.0 and fake.calls == 1  # once a run
     assert setup.note == setup.outcome
@@ -97,7 +97,7 @@ def test_the_engine_builds_before_its_first_step_outside_the_steps_time(monkeypa
     assert first.seconds < BUILD_SECONDS  # the build is not a ground-truth step's cost (the ETA prices those)
     assert engine.timings["ground_truth"] == pytest.approx(first.seconds)
     assert engine.decisions["rasterizer"] == engine.setup_note
-    assert engine.setup_note.startswith("built gsplat's CUDA rasterizer")
+    assert engine.setup_note.startswith("built gsplat's rasterizer")
     engine.step()
     assert fake.calls == 1
 
@@ -114,7 +114,7 @@ def test_the_worker_tells_the_studio_before_the_build_and_after_it(monkeypatch):
         host.step()
     sent = [(kind, payload) for kind, payload in list(events.queue) if kind in ("setup_note", "report")]
     assert [kind for kind, _ in sent] == ["setup_note", "report", "setup_note", "report", "report"]
-    assert sent[0][1] == BUILD_NOTE and sent[2][1].startswith("built gsplat's CUDA rasterizer")
+    assert sent[0][1] == BUILD_NOTE and sent[2][1].startswith("built gsplat's rasterizer")
 
     bridge = WorkerBridge(lambda: None)
     for kind, payload in sent[:1]:
@@ -143,7 +143,7 @@ def test_the_studio_shows_a_new_setup_note_and_leaves_later_news_alone():
     studio.panel.status = "exported take.ply"  # news after the note is not overwritten by the same note
     studio._sync_setup_note(state)
     assert studio.panel.status == "exported take.ply"
-    state.setup_note = "built gsplat's CUDA rasterizer for this GPU in 184 s (later runs load it)"
+    state.setup_note = "built gsplat's rasterizer for this GPU in 184 s (later runs load it)"
     studio._sync_setup_note(state)
     assert studio.panel.status == state.setup_note
 

@@ -30,8 +30,7 @@ from ..errors import GStyleError
 from ..paths import cache_dir
 
 MODULE_NAME = "gsplat_cuda"
-BUILD_NOTE = ("building gsplat's CUDA rasterizer for this GPU: the first run on a card takes a few minutes; later runs "
-              "load it")
+BUILD_NOTE = "building gsplat's rasterizer for this GPU: a few minutes, the first run only"  # the status's 2 lines
 
 
 class GsplatUnavailable(GStyleError, RuntimeError):
@@ -179,5 +178,5 @@ class RasterizerSetup:
         if not building:
             return 0.0
         seconds = time.perf_counter() - started
-        self.outcome = f"built gsplat's CUDA rasterizer for this GPU in {seconds:.0f} s (later runs load it)"
+        self.outcome = f"built gsplat's rasterizer for this GPU in {seconds:.0f} s (later runs load it)"
         return seconds
