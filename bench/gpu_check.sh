@@ -17,7 +17,8 @@
 #    preview on CUDA and on the CPU side by side.
 # "studio": after 1-3, only the studio's worker streaming on CUDA (1 and 4 torch threads), the engine's own rate at
 # 512 px and a profile of the stylize steps there, with the operators a step dispatches and its waits for the GPU
-# (bench/studio_rate.py, device_stylize.py, device_profile.py).
+# (bench/studio_rate.py, device_stylize.py, device_profile.py). "studio" and "full" end with the GPU's memory per
+# Gaussian (bench/bench_memory_per_gaussian.py --device cuda).
 # Every figure is printed and kept in $OUT/gpu_check.log (OUT defaults to out/gpu_check).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -56,6 +57,11 @@ from gstyle_core.raster.gsplat_module import ensure_gsplat, built_module_path
 t = time.perf_counter(); ensure_gsplat(); print(f'gsplat ready in {time.perf_counter() - t:.1f} s: {built_module_path()}')
 " || exit 1
 
+gpu_memory() {  # the card's memory per Gaussian (what a cap on Gaussians from the card's memory needs)
+  stage "GPU memory per Gaussian: the demo x1 and x4 at 512 px, a stand-in objective"
+  timeout 150 "$PY" bench/bench_memory_per_gaussian.py --width 512 --device cuda 1 4
+}
+
 if [[ $MODE == studio ]]; then  # the studio's live rate only: the worker at 1 and 4 torch threads, then a profile
   for threads in 1 4; do
     stage "the studio's worker on CUDA at 512 px, preview preset, $threads torch thread(s)"
@@ -66,6 +72,7 @@ if [[ $MODE == studio ]]; then  # the studio's live rate only: the worker at 1 a
   timeout 120 "$PY" bench/device_stylize.py --preset preview --devices cuda --rate-width 512
   stage "profile: 8 stylize steps at 512 px on CUDA"
   timeout 100 "$PY" bench/device_profile.py --device cuda --preset preview --working-width 512 --skip 2 --steps 8
+  gpu_memory
   stage "done"
   exit 0
 fi
@@ -94,5 +101,6 @@ if [[ $MODE == full ]]; then  # most wanted first: a cut-short run still brings 
   fi
   stage "demo preview: CUDA beside the CPU (fp32), one process"
   timeout 200 "$PY" bench/device_stylize.py --preset preview --devices cuda,cpu
+  gpu_memory
 fi
 stage "done"

@@ -133,7 +133,7 @@ class MeanColourPull:
         self.weights = weights
 
     def __call__(self, image, content, view, coverage=None):
-        loss = self.weights.nnfm * ((image.reshape(-1, 3).mean(0) - self.target) ** 2).sum()
+        loss = self.weights.nnfm * ((image.reshape(-1, 3).mean(0) - self.target.to(image.device)) ** 2).sum()
         return loss, {"nnfm": float(loss.detach())}
 
 
