@@ -103,7 +103,7 @@ def instrument(engine) -> PartTimer:
     objective = engine.build_objective()
     timer.wrap(colour_cache.ColourCache, "__init__", "colour cache: builds")
     timer.wrap(colour_cache.ColourCache, "render", "colour cache: render")
-    timer.wrap(colour_cache._SparseLinear, "backward", "colour cache: backward")
+    timer.wrap(colour_cache.SparseProduct, "backward", "colour cache: backward")
     timer.wrap(objective.loss.vgg, "forward", "VGG forward")
     if hasattr(objective.loss.vgg, "stacked"):  # the loss terms' passes give the layers' stack
         timer.wrap(objective.loss.vgg, "stacked", "VGG forward")

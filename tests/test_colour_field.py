@@ -67,6 +67,50 @@ def test_the_field_interpolates_linearly_along_each_axis():
     assert torch.allclose(field.sample(), points @ a, atol=1e-4)
 
 
+def test_the_sparse_interpolation_and_its_adjoint_match_their_definitions():
+    """``sample`` (one sparse product) is Σ over a point's 8 corners of weight × value, ``adjoint`` (the transpose's
+    product) the weighted sum of the points' values onto each lattice point, and autograd through ``sample`` gives
+    ``adjoint``: written out here with gathers and ``index_add`` (float64)."""
+    g = torch.Generator().manual_seed(3)
+    points = torch.rand(700, 3, generator=g) * torch.tensor([3.0, 1.0, 2.0])
+    field = ColourField(points, cell=0.15, lr=0.1)
+    grid, n, m = field.grid, len(points), field.cells
+    values, colour_grad = torch.randn(m, 3, generator=g), torch.randn(n, 3, generator=g)
+    index, weights = grid.index, grid.weights.double()
+    by_definition = (values.double()[index] * weights[..., None]).sum(1)
+    onto_lattice = torch.zeros(m, 3, dtype=torch.float64).index_add_(
+        0, index.reshape(-1), (weights[..., None] * colour_grad.double()[:, None, :]).reshape(-1, 3))
+    assert torch.allclose(grid.sample(values).double(), by_definition, atol=1e-5)
+    assert torch.allclose(grid.adjoint(colour_grad).double(), onto_lattice, atol=1e-5)
+    leaf = values.clone().requires_grad_(True)
+    grid.sample(leaf).backward(colour_grad)
+    assert torch.equal(leaf.grad, grid.adjoint(colour_grad))
+    field.take_gradient(colour_grad)  # the step's shortcut: the colours' gradient through the field, no forward
+    assert torch.equal(field.values.grad, grid.adjoint(colour_grad))
+
+
+def test_a_field_stepped_and_not_yet_folded_is_folded_before_the_next_step():
+    """Between a field's step and its fold the colours lack the field's values; a step's ``begin`` folds them first
+    (the views must render the whole colour), and a fold leaves nothing unfolded."""
+    from types import SimpleNamespace
+
+    from gstyle_core.pipeline.colour_steps import ColourSteps
+
+    points = torch.rand(50, 3, generator=torch.Generator().manual_seed(4))
+    field = ColourField(points, cell=0.3, lr=0.1)
+    assert not field.unfolded
+    field.take_gradient(torch.ones(50, 3))
+    field.step()
+    assert field.unfolded and field.values.abs().max() > 0
+    steps = ColourSteps(SimpleNamespace(settings=SimpleNamespace(colour_field=True, style_scale=1.0)))
+    steps.c_opt = torch.full((50, 3), 0.5, requires_grad=True)
+    steps.optimiser, steps.field, steps._field_for = torch.optim.Adam([steps.c_opt], lr=0.1), field, (True, 1.0)
+    expected = 0.5 + field.sample().detach()
+    colours = steps.begin(0.1)
+    assert colours is steps.c_opt and torch.equal(colours.detach(), expected)
+    assert not field.unfolded and field.values.abs().max() == 0
+
+
 def test_one_step_moves_a_neighbourhood_together_and_leaves_far_points():
     points = torch.tensor([[0.0, 0.0, 0.0], [0.02, 0.0, 0.0], [0.0, 0.03, 0.0], [3.0, 3.0, 3.0]])
     field = ColourField(points, cell=0.5, lr=0.1, visible=True)

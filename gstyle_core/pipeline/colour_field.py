@@ -23,11 +23,14 @@ of a whole neighbourhood; the colours keep their own steps for the fine marks.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import torch
+
+from ..raster.colour_cache import SparseProduct
 
 FIELD_CELL_PX = 8.0  # cell edge in working-width pixels at the scene's median distance (times the stroke size). A
 # cell's trilinear hat has σ = edge / √6 ≈ 3.3 px, at the lower edge of the texture-scale figure's coarse band (σ 4-10
@@ -87,16 +90,43 @@ class TrilinearLattice:
         c = CORNERS.to(torch.float32)[None]  # [1, 8, 3]
         self.weights = (c * frac[:, None, :] + (1 - c) * (1 - frac[:, None, :])).prod(-1)  # [N, 8], sum 1
         self.extent = tuple(int(e) + 1 for e in (keys.max(0).values - keys.min(0).values))  # lattice span (x, y, z)
+        self._matrices: tuple[torch.Tensor, torch.Tensor] | None = None
 
     @property
     def size(self) -> int:
         """Number of lattice points."""
         return int(self.lattice.shape[0])
 
+    @property
+    def matrices(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The interpolation as sparse CSR matrices, made on first use: W [N, M] (each point's row holds its 8
+        corners' weights) and its transpose [M, N] (each lattice point's row: the points around it)."""
+        if self._matrices is None:
+            n, m = self.index.shape[0], self.size
+            columns, order = self.index.sort(dim=1)
+            values = self.weights.gather(1, order).reshape(-1)
+            columns, rows = columns.reshape(-1), torch.arange(n).repeat_interleave(8)
+            by_column = torch.argsort(columns, stable=True)  # rows stay ascending within each lattice point
+            t_rows = torch.zeros(m + 1, dtype=torch.int64)
+            t_rows[1:] = torch.bincount(columns, minlength=m).cumsum(0)
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message="Sparse CSR tensor support is in beta")
+                warnings.filterwarnings("ignore", message="Sparse invariant checks are implicitly disabled")
+                self._matrices = (
+                    torch.sparse_csr_tensor(torch.arange(0, 8 * n + 1, 8), columns, values, (n, m)),
+                    torch.sparse_csr_tensor(t_rows, rows[by_column], values[by_column], (m, n)))
+        return self._matrices
+
     def sample(self, values: torch.Tensor) -> torch.Tensor:
-        """Lattice ``values`` [M, C] read at every point, [N, C] (trilinear; differentiable in ``values``)."""
-        corners = values.index_select(0, self.index.reshape(-1)).view(*self.index.shape, values.shape[-1])
-        return (corners * self.weights[..., None]).sum(1)
+        """Lattice ``values`` [M, C] read at every point, [N, C] (trilinear; differentiable in ``values``): one
+        sparse product, and one with the transpose for the gradient."""
+        forward, adjoint = self.matrices
+        return SparseProduct.apply(values.to(torch.float32).contiguous(), forward, adjoint)
+
+    def adjoint(self, point_values: torch.Tensor) -> torch.Tensor:
+        """Per-point ``point_values`` [N, C] summed onto the lattice with the trilinear weights, [M, C]: the
+        gradient of the lattice values for a gradient ``point_values`` of ``sample``'s output."""
+        return self.matrices[1] @ point_values.to(torch.float32).contiguous()
 
     @torch.no_grad()
     def average(self, values: torch.Tensor, weights: torch.Tensor | None = None) -> torch.Tensor:
@@ -125,6 +155,7 @@ class ColourField:
             self.grid.extent
         self.index, self.weights = self.grid.index, self.grid.weights
         self.values = torch.zeros(self.grid.size, 3, requires_grad=True)
+        self.unfolded = False  # True between a step and the fold that adds the values into the colours
         if visible:
             from .visible_adam import VisibleAdam
 
@@ -150,15 +181,23 @@ class ColourField:
         """Forget the last step's gradient."""
         self.optimiser.zero_grad(set_to_none=True)
 
+    def take_gradient(self, colour_grad: torch.Tensor) -> None:
+        """The lattice values' gradient for a gradient ``colour_grad`` [N, 3] of the points' colours, as a loss of
+        ``colours + sample()`` gives it (the interpolation's adjoint). Between folds the values are zero, so a step
+        renders the colours alone and takes the field's gradient here, with no interpolation in its forward pass."""
+        self.values.grad = self.grid.adjoint(colour_grad)
+
     def step(self) -> None:
-        """One optimiser step of the cells (after the loss's backward pass)."""
+        """One optimiser step of the cells (after the loss's backward pass or ``take_gradient``)."""
         self.optimiser.step()
+        self.unfolded = True
 
     @torch.no_grad()
     def fold_into(self, colours: torch.Tensor) -> None:
         """Add the field into ``colours`` [N, 3] (in place) and set the field back to zero."""
         colours.add_(self.sample())
         self.values.zero_()
+        self.unfolded = False
 
     def state_dict(self) -> dict[str, Any]:
         """The optimiser's moments and the lattice's size (the values are zero between steps: they are folded)."""

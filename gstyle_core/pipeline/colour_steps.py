@@ -1,13 +1,14 @@
 """What every optimiser step of a stylization does around its loss: Adam on the active rows of c_s.
 
 The stylization phase (``phases/stylize.py``) and the finer levels (``phases/refine.py``) share it. A step is
-``colours = steps.begin(lr)`` (the optimised colours the views render, with the coarse colour field added when it is
-on), the loss of each view, rendered from ``steps.seen_colours()``, backpropagated, then ``steps.finish()``: the
-gradient goes through the field once, Adam steps the colours (and the field, which is folded into them), the colours
-are clamped to [0, 1] and written into ``run.c_s``, and with keep colours c_s takes c_gt's chroma back. Only the
-active Gaussians are optimised (``active.py``): the unseen ones get no gradient and keep their colour;
-``visible_adam`` moves only the Gaussians the step's views see. The field is rebuilt when the stroke size or its
-switch changes (``colour_field.py``).
+``colours = steps.begin(lr)`` (the optimised colours the views render: the coarse colour field, when it is on, is
+folded into them at every step's end, so it adds zeros here), the loss of each view, rendered from
+``steps.seen_colours()``, backpropagated, then ``steps.finish()``: the colours' gradient gives the field's (the
+interpolation's adjoint, one sparse product), Adam steps the colours and the field, the field is folded into the
+colours (another sparse product), the colours are clamped to [0, 1] and written into ``run.c_s``, and with keep
+colours c_s takes c_gt's chroma back. Only the active Gaussians are optimised (``active.py``): the unseen ones get
+no gradient and keep their colour; ``visible_adam`` moves only the Gaussians the step's views see. The field is
+rebuilt when the stroke size or its switch changes (``colour_field.py``).
 
 The colours the views render are made once a step (``seen_colours``): the seen rows, with the active ones the
 optimised colours, sent to the rasterizer's device once, as a leaf there whose gradient the views add up; ``finish``
@@ -35,7 +36,6 @@ class ColourSteps:
         self.c_opt: torch.Tensor | None = None  # the optimised copy of the active rows of c_s
         self.field: ColourField | None = None  # the coarse colour field over c_opt's Gaussians (colour_field on)
         self._field_for: tuple[bool, float] | None = None  # (switch, stroke size) the field was built for
-        self._with_field: torch.Tensor | None = None
         self._colours: torch.Tensor | None = None
         self._placed: tuple[torch.Tensor, torch.Tensor] | None = None  # (seen colours, their leaf on the device)
 
@@ -56,15 +56,14 @@ class ColourSteps:
         for g in self.optimiser.param_groups:
             g["lr"] = lr * (field.colour_share if field is not None else 1.0)
         self.optimiser.zero_grad(set_to_none=True)
-        colours = self.c_opt
-        if field is not None:  # the field read once a step: the views' gradients meet on a leaf, then go through it
+        if field is not None:  # folded at every step's end, so the views render c_opt (+ a field of zeros)
             field.set_lr(lr * field.field_share)
             field.zero_grad()
-            self._with_field = self.c_opt + field.sample()
-            colours = self._with_field.detach().requires_grad_(True)
-        self._colours = colours
+            if field.unfolded:
+                field.fold_into(self.c_opt)
+        self._colours = self.c_opt
         self._placed = None
-        return colours
+        return self.c_opt
 
     def seen_colours(self) -> torch.Tensor:
         """The step's colours of the seen Gaussians (the colour caches' columns) on the rasterizer's device, made on
@@ -92,9 +91,9 @@ class ColourSteps:
         adds each colour's gradient norm to ``run.grad_acc`` (the colour-gradient split's ranking)."""
         run = self.run
         self._carry_back()
-        if self._with_field is not None and self._colours is not None and self._colours.grad is not None:
-            self._with_field.backward(self._colours.grad)
-        self._with_field = self._colours = None
+        if self.field is not None and self.c_opt.grad is not None:  # the field's gradient: the colours' through it
+            self.field.take_gradient(self.c_opt.grad)
+        self._colours = None
         if accumulate and self.c_opt.grad is not None:
             run.active.scatter_add(run.grad_acc, self.c_opt.grad.detach().norm(dim=-1))
         self.optimiser.step()
@@ -124,7 +123,7 @@ class ColourSteps:
     def stop(self) -> None:
         """Drop the optimiser (new rows after a split, or the phase ended); the next ``begin`` builds a new one."""
         self.optimiser, self.c_opt, self.field = None, None, None
-        self._with_field = self._colours = self._placed = None
+        self._colours = self._placed = None
 
     def sync_field(self, lr: float) -> None:
         """Build the colour field over the optimised Gaussians when the settings ask for it (for their stroke size),

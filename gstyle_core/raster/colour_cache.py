@@ -18,8 +18,8 @@ from .fast import build_tile_lists
 from .projection_kernels import project_gaussians_fast
 
 
-class _SparseLinear(torch.autograd.Function):
-    """y = W x for a constant sparse W; the backward multiplies by the stored W^T."""
+class SparseProduct(torch.autograd.Function):
+    """y = W x for a constant sparse W; the backward multiplies by the stored W^T (``apply(x, W, W^T)``)."""
 
     @staticmethod
     def forward(ctx, x, weights, weights_t):  # noqa: D401
@@ -105,7 +105,7 @@ class ColourCache:
             raise ValueError(
                 f"ColourCache.render: colors must be [{self.n_gaussians}, 3], got {list(colors.shape)}"
             )
-        flat = _SparseLinear.apply(colors.to(torch.float32), self.weights, self.weights_t)
+        flat = SparseProduct.apply(colors.to(torch.float32), self.weights, self.weights_t)
         image = flat.reshape(self.height, self.width, 3)
         if background is not None:
             image = image + self.t_final[..., None] * background.to(torch.float32)
