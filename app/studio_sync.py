@@ -137,6 +137,8 @@ class StudioSync:
             self._setup_note_seen = st.setup_note
             if st.setup_note:
                 self.panel.status = st.setup_note
+        if st.setup_note and not st.last_report:  # the first step has not reported: it is the setup that runs
+            self.panel.phase = "GPU setup"
 
     def _sync_exports(self, st) -> None:
         """New exports become takes (status: the last one); a failed export's one line goes to the status (no take

@@ -131,15 +131,15 @@ def test_the_studio_shows_a_new_setup_note_and_leaves_later_news_alone():
 
     class Studio(StudioSync):
         def __init__(self) -> None:
-            self.panel = type("Panel", (), {"status": ""})()
+            self.panel = type("Panel", (), {"status": "", "phase": "-"})()
             self._setup_note_seen = ""
 
     studio, state = Studio(), WorkerState()
     studio._sync_setup_note(state)
-    assert studio.panel.status == ""
+    assert studio.panel.status == "" and studio.panel.phase == "-"
     state.setup_note = BUILD_NOTE
     studio._sync_setup_note(state)
-    assert studio.panel.status == BUILD_NOTE
+    assert studio.panel.status == BUILD_NOTE and studio.panel.phase == "GPU setup"  # before any step's report
     studio.panel.status = "exported take.ply"  # news after the note is not overwritten by the same note
     studio._sync_setup_note(state)
     assert studio.panel.status == "exported take.ply"
