@@ -26,6 +26,27 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def replicated_demo(copies: int):
+    """The bundled demo scene ``copies`` times (each copy but the first jittered by a fraction of its Gaussians'
+    sizes, so the footprint per Gaussian stays that of a real scene) and its generated cameras."""
+    sys.path.insert(0, str(ROOT))
+    import numpy as np
+
+    from gstyle_core.render_cli import load_scene_and_cameras
+    from gstyle_core.scene import GaussianScene
+
+    scene, _report, cams = load_scene_and_cameras(None, None)
+    rng = np.random.default_rng(0)
+    parts = []
+    for i in range(copies):
+        jitter = rng.normal(0, 0.3, scene.means.shape) * np.exp(scene.log_scales) if i else 0.0
+        parts.append(scene.means + jitter)
+    big = GaussianScene(np.concatenate(parts).astype(np.float32), np.tile(scene.log_scales, (copies, 1)),
+                        np.tile(scene.quats, (copies, 1)), np.tile(scene.opacity_logits, copies),
+                        np.tile(scene.sh_dc, (copies, 1)), np.tile(scene.sh_rest, (copies, 1, 1)))
+    return big, cams.cameras
+
+
 def child(copies: int, width: int, device: str = "cpu") -> dict:
     """Run the stylization in this process on ``device``; return the Gaussian count and the peaks of RSS (and of
     the GPU's memory on CUDA)."""
@@ -38,25 +59,14 @@ def child(copies: int, width: int, device: str = "cpu") -> dict:
     from gstyle_core.machine import set_torch_threads
     from gstyle_core.pipeline.settings import resolve_settings
     from gstyle_core.pipeline.stylizer import Stylizer
-    from gstyle_core.render_cli import load_scene_and_cameras
-    from gstyle_core.scene import GaussianScene
 
     set_torch_threads(1)
-    scene, _report, cams = load_scene_and_cameras(None, None)
-    rng = np.random.default_rng(0)
-    parts = []
-    for i in range(copies):
-        jitter = rng.normal(0, 0.3, scene.means.shape) * np.exp(scene.log_scales) if i else 0.0
-        parts.append(scene.means + jitter)
-    big = GaussianScene(np.concatenate(parts).astype(np.float32), np.tile(scene.log_scales, (copies, 1)),
-                        np.tile(scene.quats, (copies, 1)), np.tile(scene.opacity_logits, copies),
-                        np.tile(scene.sh_dc, (copies, 1)), np.tile(scene.sh_rest, (copies, 1, 1)))
-    n_views = len(cams.cameras)
-    settings = resolve_settings("preview", "360", n_views, refit_iterations=3, epochs=2.0, min_steps=0,
+    big, cameras = replicated_demo(copies)
+    settings = resolve_settings("preview", "360", len(cameras), refit_iterations=3, epochs=2.0, min_steps=0,
                                 split_at=(1 / 3,), preprocess_rounds=1,
                                 working_width=width, device=device)
     style = np.random.default_rng(1).uniform(0, 1, (64, 64, 3)).astype(np.float32)
-    engine = Stylizer(big, cams.cameras, style, settings, objective_factory=MeanColourPull)
+    engine = Stylizer(big, cameras, style, settings, objective_factory=MeanColourPull)
     phases = set()
     while engine.phase not in ("finish", "done") and engine.global_step < 10_000:
         phases.add(engine.step().phase)

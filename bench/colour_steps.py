@@ -28,6 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
+from bench_memory_per_gaussian import replicated_demo  # noqa: E402 (the scene of the memory bench, in bench/)
+
 from gstyle_core.machine import cpu_description, set_torch_threads  # noqa: E402
 from gstyle_core.pipeline import colour_steps  # noqa: E402
 from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
@@ -48,22 +50,6 @@ def adam_ms(rows: int, by_operators: bool, repeats: int = 12) -> float:
         step()
         times.append(time.perf_counter() - started)
     return 1e3 * statistics.median(times[1:])
-
-
-def replicated_demo(copies: int):
-    """The bundled demo scene ``copies`` times (each copy jittered by a fraction of its Gaussians' sizes), its
-    generated cameras."""
-    from gstyle_core.render_cli import load_scene_and_cameras
-    from gstyle_core.scene import GaussianScene
-
-    scene, _report, cams = load_scene_and_cameras(None, None)
-    rng = np.random.default_rng(0)
-    means = [scene.means + (rng.normal(0, 0.3, scene.means.shape) * np.exp(scene.log_scales) if i else 0.0)
-             for i in range(copies)]
-    big = GaussianScene(np.concatenate(means).astype(np.float32), np.tile(scene.log_scales, (copies, 1)),
-                        np.tile(scene.quats, (copies, 1)), np.tile(scene.opacity_logits, copies),
-                        np.tile(scene.sh_dc, (copies, 1)), np.tile(scene.sh_rest, (copies, 1, 1)))
-    return big, cams.cameras
 
 
 def bookkeeping_ms(copies: int) -> tuple[int, float, float, int]:

@@ -36,7 +36,7 @@ class ColourSteps:
         self.c_opt: torch.Tensor | None = None  # the optimised copy of the active rows of c_s
         self.field: ColourField | None = None  # the coarse colour field over c_opt's Gaussians (colour_field on)
         self._field_for: tuple[bool, float] | None = None  # (switch, stroke size) the field was built for
-        self._colours: torch.Tensor | None = None
+        self._in_step = False  # between ``begin`` and ``finish``
         self._placed: tuple[torch.Tensor, torch.Tensor] | None = None  # (seen colours, their leaf on the device)
 
     @property
@@ -61,7 +61,7 @@ class ColourSteps:
             field.zero_grad()
             if field.unfolded:
                 field.fold_into(self.c_opt)
-        self._colours = self.c_opt
+        self._in_step = True
         self._placed = None
         return self.c_opt
 
@@ -69,11 +69,11 @@ class ColourSteps:
         """The step's colours of the seen Gaussians (the colour caches' columns) on the rasterizer's device, made on
         the step's first call: a leaf there, whose gradient the views' backward passes add up (``finish`` carries it
         back into ``begin``'s colours)."""
-        if self._colours is None:
+        if not self._in_step:
             raise RuntimeError("seen_colours() before begin()")
         if self._placed is None:
             run = self.run
-            placed = run.active.place_in_seen(run.c_s, self._colours)
+            placed = run.active.place_in_seen(run.c_s, self.c_opt)
             leaf = placed.detach().to(run.raster_device).requires_grad_(True)
             self._placed = (placed, leaf)
         return self._placed[1]
@@ -93,7 +93,7 @@ class ColourSteps:
         self._carry_back()
         if self.field is not None and self.c_opt.grad is not None:  # the field's gradient: the colours' through it
             self.field.take_gradient(self.c_opt.grad)
-        self._colours = None
+        self._in_step = False
         if accumulate and self.c_opt.grad is not None:
             run.active.scatter_add(run.grad_acc, self.c_opt.grad.detach().norm(dim=-1))
         self.optimiser.step()
@@ -123,7 +123,7 @@ class ColourSteps:
     def stop(self) -> None:
         """Drop the optimiser (new rows after a split, or the phase ended); the next ``begin`` builds a new one."""
         self.optimiser, self.c_opt, self.field = None, None, None
-        self._colours = self._placed = None
+        self._in_step, self._placed = False, None
 
     def sync_field(self, lr: float) -> None:
         """Build the colour field over the optimised Gaussians when the settings ask for it (for their stroke size),

@@ -130,7 +130,6 @@ class VGGFeatures(nn.Module):
         if convention == CAFFE_BGR:  # random weights are held as loaded ones are: every state of the module alike
             state = {key: value.detach() for key, value in self.features.state_dict(prefix="features.").items()}
             self.load_state_dict({**state, **caffe_weights_held(state)}, strict=False)
-        self.register_buffer("input_shift", shift.view(1, 3, 1, 1), persistent=False)
         self.register_buffer("input_scale", scale.view(1, 3, 1, 1), persistent=False)
         # (img − shift) · scale = img · scale + bias: made once here, not on every forward pass
         self.register_buffer("input_bias", -shift.view(1, 3, 1, 1) * scale.view(1, 3, 1, 1), persistent=False)
