@@ -18,6 +18,7 @@ import copy
 import dataclasses
 import multiprocessing as mp
 import queue
+import tempfile
 import traceback
 from collections.abc import Callable
 from pathlib import Path
@@ -76,6 +77,11 @@ class EngineHost:
         self.paused = True
         self.snapshot_pending = False  # never ship the state of a failed step: the UI keeps the last good one
         self.send("error", f"{during}: {one_line_error(exc)}")
+        if self.config.get("device") != "cpu":
+            from gstyle_core.device import is_device_failure
+
+            if is_device_failure(exc):  # the GPU's failure: the UI offers to go on on the CPU (continue_on_cpu)
+                self.send("device_failed", None)
 
     def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
         """Build the engine from ``config`` (default: the current one); ``resume_from``: a checkpoint to continue
@@ -234,6 +240,10 @@ class EngineHost:
             self.paused = False
             self.send("paused", False)
             self.build(*(arg if command == "restart_from" else (arg,)))
+        elif command == "continue_on_cpu":
+            self.paused = False
+            self.send("paused", False)
+            self.continue_on_cpu(arg)
         elif command == "checkpoint_path":
             self.checkpoint_path = arg
         elif command == "set_params":
@@ -247,6 +257,37 @@ class EngineHost:
             self.send("bye", None)
             return False
         return True
+
+    def continue_on_cpu(self, config: dict[str, Any]) -> None:
+        """After the GPU failed: build the engine again on the CPU from ``config`` (its device set to "cpu") and go
+        on from the failed engine's state, the one its last finished step left (a failed step keeps none of its
+        work: the colours, the geometry and their moments are as that step found them; its view is skipped). With
+        no engine (it could not be built on the GPU) or no state to take (the GPU cannot hand it over), it starts
+        afresh on the CPU and says so."""
+        config = {**config, "device": "cpu"}
+        state = None
+        if self.engine is not None:
+            try:
+                state = self.engine.state_dict()  # on the CPU: a checkpoint's tensors are copied there
+            except Exception as exc:  # noqa: BLE001 - the run starts afresh on the CPU; one line says why
+                traceback.print_exc()
+                self.send("error", f"the run's state could not be taken from the GPU ({one_line_error(exc)}); "
+                                   "starting afresh on the CPU")
+        if state is None:
+            self.build(config)
+            return
+        from gstyle_core.pipeline.checkpoint import save_checkpoint
+
+        with tempfile.TemporaryDirectory(prefix="gstyle-cpu-") as folder:
+            path = str(Path(folder) / "handover.ckpt")
+            try:
+                save_checkpoint(path, state, {"kind": "studio", **self.saved_meta()})
+            except Exception as exc:  # noqa: BLE001 - e.g. no space for the handover: afresh, and why
+                self.send("error", f"the run could not be handed over ({one_line_error(exc)}); starting afresh on "
+                                   "the CPU")
+                self.build(config)
+                return
+            self.build(config, resume_from=path)
 
     def set_params(self, params: dict[str, float]) -> None:
         self.params.update(params)

@@ -47,6 +47,8 @@ class StudioCommands:
             self.continue_result()
         elif name == "resume_session":
             self.start_engine(resume=True)
+        elif name == "continue_on_cpu":
+            self.continue_on_cpu()
         elif name == "set_params":
             self.history.record({k: self.panel.params.get(k) for k in args}, args)
             self._apply_params(args)
@@ -75,6 +77,15 @@ class StudioCommands:
         else:
             return False
         return True
+
+    def continue_on_cpu(self) -> None:
+        """The GPU failed: the engine goes on on the CPU from where the run stopped, and later restarts stay there."""
+        self.engine_config["device"] = "cpu"
+        if self.bridge is None:
+            return
+        self.bridge.continue_on_cpu(self.engine_config)
+        self._continuing_on_cpu = self.bridge.state.reports_received  # (a worker started again counts from 0)
+        self.panel.status = "continuing on the CPU (slower than the GPU) ..."
 
     def restart_from_original(self) -> None:
         """A result was opened: open the scene it came from and stylize it with the result's preset, controls and

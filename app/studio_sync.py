@@ -76,6 +76,7 @@ class StudioSync:
             return
         st = self.bridge.state
         p.running, p.paused, p.error = st.alive, st.paused, st.error
+        p.device_failed = st.device_failed and st.error is not None
         p.decisions = st.decisions
         p.loss_history = st.loss_history[-500:]
         if st.params:
@@ -89,9 +90,16 @@ class StudioSync:
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             session = self.session_checkpoint()
-            what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
-                else "the saved result's run"
-            p.status = f"resumed {what} at step {st.resumed.get('step')}"
+            if self._continuing_on_cpu is not None:
+                self._continuing_on_cpu = None
+                p.status = f"continued on the CPU at step {st.resumed.get('step')}"
+            else:
+                what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
+                    else "the saved result's run"
+                p.status = f"resumed {what} at step {st.resumed.get('step')}"
+        if self._continuing_on_cpu is not None and st.reports_received > self._continuing_on_cpu:
+            self._continuing_on_cpu = None  # stepping, and no state was taken over (none, or the GPU kept it)
+            p.status = "started afresh on the CPU"
         self._sync_setup_note(st)
         self._sync_exports(st)
         self._show_takes_error()

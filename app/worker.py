@@ -59,6 +59,8 @@ class WorkerState:
     summary: dict[str, Any] | None = None  # the finished run's summary (its speckle at a display's size)
     refine_note: str = ""  # why Refine was refused, or the level it started
     setup_note: str = ""  # the engine's one-off setup: a build under way (minutes) or how long it took
+    device_failed: bool = False  # the GPU failed (no device, out of memory, no rasterizer): the run can go on on
+    # the CPU (``WorkerBridge.continue_on_cpu``)
 
 
 # ====================================================================== the UI side
@@ -162,14 +164,9 @@ class WorkerBridge:
             self.resume_from = str(resume_from) if resume_from else None
             self.start()
             return
-        self.state.error = None
-        self.state.done = False
-        self.state.paused = False
+        self._forget_engine()
         self.state.loss_history.clear()
-        self.state.decisions = {}
         self.state.reports_received, self.state.step_seconds = 0, 0.0
-        self.state.resumed = None
-        self.state.summary, self.state.refine_note = None, ""
         if self.state.step_times.mean("stylize") is not None:  # the run before prices the new one's ETA
             self.state.prior_times = self.state.step_times
         self.state.step_times = StepTimes()
@@ -177,6 +174,25 @@ class WorkerBridge:
             self._send("restart_from", (self.config, str(resume_from)))
         else:
             self._send("restart", self.config)
+
+    def _forget_engine(self) -> None:
+        """What the UI knew of the engine being replaced: its error, end, pause, decisions, resume and summary."""
+        st = self.state
+        st.error, st.done, st.paused, st.device_failed = None, False, False, False
+        st.decisions, st.resumed, st.summary, st.refine_note = {}, None, None, ""
+
+    def continue_on_cpu(self, config: dict[str, Any]) -> None:
+        """After the GPU failed (``state.device_failed``): the worker builds the engine again on the CPU from
+        ``config`` and goes on from where the run was (``EngineHost.continue_on_cpu``); its loss history stays, the
+        step times start again (the CPU's differ). A worker that is gone starts afresh on the CPU."""
+        self.config = {**config, "device": "cpu"}
+        if not self.alive:
+            self.resume_from = None
+            self.start()
+            return
+        self._forget_engine()
+        self.state.step_times, self.state.prior_times = StepTimes(), None
+        self._send("continue_on_cpu", self.config)
 
     def set_checkpoint_path(self, path: str | os.PathLike | None) -> None:
         """Where the worker saves its checkpoint when it quits (e.g. after the scene or style changed)."""
@@ -208,7 +224,8 @@ class WorkerBridge:
 
         Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
         decisions (dict), exported (path), export_failed (one line), checkpoint (path), resumed (dict), plans (dict),
-        summary (dict), refining (width), refine_refused (one line), bye.
+        summary (dict), refining (width), refine_refused (one line), setup_note (one line), device_failed
+        (None: the GPU failed, ``continue_on_cpu`` can go on), bye.
         """
         messages: list[tuple[str, Any]] = []
         if self._events is None:
@@ -233,7 +250,7 @@ class WorkerBridge:
     def _apply(self, kind: str, payload: Any) -> None:
         st = self.state
         if kind == "ready":
-            st.ready, st.error, st.done = True, None, False
+            st.ready, st.error, st.done, st.device_failed = True, None, False, False
         elif kind == "report":
             st.last_report = payload
             st.reports_received += 1
@@ -281,6 +298,8 @@ class WorkerBridge:
             st.refine_note = str(payload)
         elif kind == "setup_note":
             st.setup_note = str(payload)
+        elif kind == "device_failed":
+            st.device_failed = True
 
     def wait_until(self, predicate: Callable[[WorkerState], bool], timeout: float = 30.0) -> bool:
         """Poll until ``predicate(state)`` holds (True) or ``timeout`` seconds pass (False). For tests and CLI."""

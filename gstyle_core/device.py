@@ -24,7 +24,12 @@ if TYPE_CHECKING:
 DEVICES = ("auto", "cpu", "cuda", "mps")
 
 
-class DeviceUnavailable(GStyleError, RuntimeError):
+class DeviceFailure(GStyleError, RuntimeError):
+    """A GPU could not do its part of a run (not there, out of memory, its rasterizer not built): computing on the CPU
+    avoids it (the studio offers "Continue on the CPU"; ``is_device_failure``)."""
+
+
+class DeviceUnavailable(DeviceFailure):
     """The device asked for is not there (no CUDA/MPS build of torch, or no such GPU); shown as one line."""
 
 
@@ -94,7 +99,7 @@ def describe(choice: DeviceChoice) -> str:
     return f"{choice.kind} ({choice.name}): {choice.reason}"
 
 
-class DeviceMemoryError(GStyleError, RuntimeError):
+class DeviceMemoryError(DeviceFailure):
     """A GPU ran out of memory in a step; shown as one line that says what to lower (``out_of_memory``)."""
 
 
@@ -120,3 +125,19 @@ def out_of_memory(choice: DeviceChoice, doing: str, lighter: str = STYLIZE_LIGHT
         torch.mps.empty_cache()
     return DeviceMemoryError(
         f"{choice.name} ran out of memory in {doing}{held}: {lighter}, or compute on the CPU (--device cpu)")
+
+
+def is_device_failure(error: BaseException) -> bool:
+    """Whether ``error``, or an error it was raised from, is a GPU's failure that computing on the CPU avoids: a
+    ``DeviceFailure``, or torch's out-of-memory or accelerator error (a kernel that faulted, a device lost)."""
+    import torch
+
+    kinds = (DeviceFailure, torch.OutOfMemoryError) + ((torch.AcceleratorError,)
+                                                       if hasattr(torch, "AcceleratorError") else ())
+    seen: set[int] = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, kinds):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False

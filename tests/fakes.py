@@ -137,7 +137,26 @@ class MeanColourPull:
         return loss, {"nnfm": float(loss.detach())}
 
 
-def make_small_stylizer(n: int = 150, **_ignored):
+class OutOfMemoryPull(MeanColourPull):
+    """``MeanColourPull`` standing in for a GPU that runs out of memory: on any device setting but "cpu" (the run
+    computes on the CPU all the same) its ``FAIL_ON``-th call raises torch's out-of-memory error."""
+
+    FAIL_ON = 4
+
+    def __init__(self, style, settings) -> None:
+        super().__init__(style, settings)
+        self.on_gpu, self.calls = settings.device != "cpu", 0
+
+    def __call__(self, image, content, view, coverage=None):
+        import torch
+
+        self.calls += 1
+        if self.on_gpu and self.calls == self.FAIL_ON:
+            raise torch.OutOfMemoryError("CUDA out of memory. Tried to allocate 2.00 GiB (a stand-in)")
+        return super().__call__(image, content, view, coverage)
+
+
+def make_small_stylizer(n: int = 150, device: str | None = None, objective=MeanColourPull, **_ignored):
     """The real ``Stylizer`` on a tiny synthetic scene with ``MeanColourPull`` (for bridge integration tests)."""
     from synthetic import blob_scene, ring_cameras
 
@@ -147,8 +166,8 @@ def make_small_stylizer(n: int = 150, **_ignored):
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0
     settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=3, min_steps=0, refit_iterations=2,
-                                split_at=(1 / 3,), working_width=32, preprocess_rounds=1)
-    return Stylizer(blob_scene(n, seed=5), ring_cameras(3), style, settings, objective_factory=MeanColourPull)
+                                split_at=(1 / 3,), working_width=32, preprocess_rounds=1, device=device)
+    return Stylizer(blob_scene(n, seed=5), ring_cameras(3), style, settings, objective_factory=objective)
 
 
 BUILT: list = []  # engines made by keep_small_stylizer (and other test factories), newest last
@@ -157,6 +176,13 @@ BUILT: list = []  # engines made by keep_small_stylizer (and other test factorie
 def keep_small_stylizer(**config):
     """``make_small_stylizer``, kept in ``BUILT`` for the test to look at (thread mode: the same process)."""
     BUILT.append(make_small_stylizer(**config))
+    return BUILT[-1]
+
+
+def stand_in_gpu_stylizer(**config):
+    """``keep_small_stylizer`` whose "GPU" (its device setting not "cpu") runs out of memory at its fourth stylize
+    step (``OutOfMemoryPull``); on "cpu" it runs through."""
+    BUILT.append(make_small_stylizer(**{**config, "objective": OutOfMemoryPull}))
     return BUILT[-1]
 
 

@@ -4,6 +4,7 @@ import os
 import time
 
 import pytest
+import torch
 from fakes import FakeReport, make_fake_engine
 
 from app.child_process import one_line_error, worker_torch_threads
@@ -59,6 +60,7 @@ def test_raising_engine_is_reported_and_restart_works(bridge_factory):
     assert b.wait_until(lambda s: s.error is not None, 60)
     assert "RuntimeError: fake engine failure second line" in b.state.error
     assert "\n" not in b.state.error
+    assert not b.state.device_failed  # not the GPU's failure: no CPU to go on on is offered
     good = b.state.snapshot["colour_version"]
     time.sleep(0.2)
     b.poll()
@@ -330,3 +332,65 @@ def test_a_spawned_helpers_torch_threads_hold_past_numbas_launch():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env,
                          check=True)
     assert out.stdout.split()[-2:] == ["2", "1"], out.stdout + out.stderr
+
+
+def test_after_the_gpu_failed_the_run_goes_on_on_the_cpu_from_its_last_finished_step(monkeypatch):
+    """A stand-in GPU runs out of memory at a stylize step: the error is one line and the worker offers the CPU;
+    continue_on_cpu builds the engine on the CPU with the failed engine's state (the colours its last finished step
+    left, bit for bit) and runs to the end."""
+    from fakes import BUILT, stand_in_gpu_stylizer
+
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    loaded = []
+    load = Stylizer.load_state_dict
+
+    def recording_load(engine, state):
+        load(engine, state)
+        loaded.append((engine, engine.c_s.clone(), engine.global_step))
+
+    monkeypatch.setattr(Stylizer, "load_state_dict", recording_load)
+    BUILT.clear()
+    b = ThreadWorkerBridge(stand_in_gpu_stylizer, {"n": 80})
+    b.start()
+    try:
+        assert b.wait_until(lambda s: s.error is not None or s.done, 120)
+        assert b.state.device_failed and "ran out of memory in stylize" in b.state.error, b.state.error
+        assert "\n" not in b.state.error and b.state.paused
+        failed, last = BUILT[-1], b.state.last_report["step"]
+        assert failed.global_step == last and failed.phase == "stylize"  # the failed step was not counted
+        colours = failed.c_s.clone()
+        history = len(b.state.loss_history)
+        b.continue_on_cpu(dict(b.config))
+        assert not b.state.device_failed and b.state.error is None
+        assert b.wait_until(lambda s: s.done or s.error, 120), "the run did not end on the CPU"
+        assert b.state.error is None, b.state.error
+        engine, at_load, step = loaded[-1]
+        assert engine is BUILT[-1] is not failed and engine.settings.device == "cpu"
+        assert step == last == b.state.resumed["step"] and torch.equal(at_load, colours)
+        assert b.state.last_report["step"] > last and len(b.state.loss_history) > history  # it went on, kept
+    finally:
+        assert b.quit(timeout=30)
+
+
+def test_a_gpu_that_was_never_there_leaves_the_cpu_to_start_afresh():
+    """The engine could not be built on the device asked for (none there): the CPU is offered and starts afresh."""
+    b = ThreadWorkerBridge(unavailable_gpu_engine, {"n": 16})
+    b.start()
+    try:
+        assert b.wait_until(lambda s: s.error is not None, 30)
+        assert b.state.device_failed and "sees no CUDA device" in b.state.error
+        b.continue_on_cpu(dict(b.config))
+        assert b.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 30), b.state.error
+        assert b.state.error is None and b.state.resumed is None
+    finally:
+        assert b.quit(timeout=30)
+
+
+def unavailable_gpu_engine(device=None, **config):
+    """A ``FakeEngine`` that cannot be built on any device but "cpu" (as on a machine with no CUDA device)."""
+    from gstyle_core.device import DeviceUnavailable
+
+    if device != "cpu":
+        raise DeviceUnavailable("--device cuda: torch sees no CUDA device (a stand-in)")
+    return make_fake_engine(**config)

@@ -82,3 +82,35 @@ def test_gpu_precision_applies_only_to_cuda_runs():
     assert cuda_card(StylizeSettings(precision="auto", device="cpu")) is None
     if not CUDA:
         assert cuda_card(StylizeSettings(precision="auto", device="auto")) is None
+
+
+def test_the_gpus_failures_are_told_from_other_errors():
+    """What the studio offers to go on on the CPU for: the GPU's own failures, also when raised from one."""
+    from gstyle_core.device import DeviceMemoryError, DeviceUnavailable, is_device_failure
+    from gstyle_core.raster.gsplat_module import GsplatUnavailable
+
+    for error in (DeviceMemoryError("x"), DeviceUnavailable("x"), GsplatUnavailable("x"),
+                  torch.OutOfMemoryError("CUDA out of memory"), torch.AcceleratorError("an illegal memory access")):
+        assert is_device_failure(error), error
+    try:
+        try:
+            raise torch.OutOfMemoryError("CUDA out of memory")
+        except RuntimeError as inner:
+            raise ValueError("while rendering") from inner
+    except ValueError as outer:
+        assert is_device_failure(outer)
+    for error in (RuntimeError("a shape mismatch"), ValueError("x"), MemoryError()):
+        assert not is_device_failure(error), error
+
+
+def test_a_checkpoint_resumes_on_another_device_but_not_with_other_settings():
+    """The device is where a run computes, not what: the fingerprint leaves it out, and nothing else."""
+    from gstyle_core.pipeline.checkpoint import engine_fingerprint
+    from tests.fakes import make_small_stylizer
+
+    auto, cpu = engine_fingerprint(make_small_stylizer(device="auto")), engine_fingerprint(make_small_stylizer(
+        device="cpu"))
+    assert auto == cpu and auto["settings"]
+    wider = make_small_stylizer(device="cpu")
+    wider.settings.working_width = 48
+    assert engine_fingerprint(wider)["settings"] != cpu["settings"]

@@ -168,6 +168,38 @@ def test_sigkill_mid_stylization_then_resume_matches_an_uninterrupted_run(inputs
     np.testing.assert_allclose(b.means, a.means, atol=1e-5)
 
 
+@pytest.mark.slow
+def test_a_gpu_failure_keeps_the_run_and_the_cpu_goes_on_from_it(inputs, tmp_path, capsys, monkeypatch):
+    """A GPU that fails mid-stylization (a stand-in: every engine not set to "cpu" runs out of memory at its fifth
+    stylize step): one line that says where the run is kept, and ``--device cpu --resume`` goes on from there."""
+    from gstyle_core.device import DeviceMemoryError
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    scene, style, cache = inputs
+    _vgg_into(cache)
+    step = Stylizer.step
+
+    def failing_on_the_gpu(engine):
+        if engine.settings.device != "cpu" and engine.phase == "stylize" and engine.phase_step == 4:
+            raise DeviceMemoryError("NVIDIA H100 (a stand-in) ran out of memory in stylize: take a lighter preset, or "
+                                    "compute on the CPU (--device cpu)")
+        return step(engine)
+
+    monkeypatch.setattr(Stylizer, "step", failing_on_the_gpu)
+    out = tmp_path / "out" / "o.ply"
+    args = _stylize_args(scene, style, out, "--working-width", "48", "--threads", "1", "--checkpoint-every", "0")
+    assert run(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]  # (the progress bar's lines before it)
+    assert err.startswith("gstyle stylize: error: NVIDIA H100 (a stand-in) ran out of memory") and \
+        err.endswith("the same command with --device cpu --resume goes on from there"), err
+    state, _meta = read_checkpoint(stylize_checkpoint_path(out))
+    assert state["phase"] == "stylize" and state["phase_step"] == 4 and not out.exists()
+    assert run([*args, "--device", "cpu", "--resume"]) == 0
+    assert f"skipped {state['global_step']} of" in capsys.readouterr().out
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["resumed"]["skipped_steps"] == state["global_step"] and summary["settings"]["device"] == "cpu"
+
+
 class RandomWeightsPull:
     """Stand-in objective whose CLIP term draws random numbers (like CLIP's random crops) from its own generator."""
 

@@ -113,6 +113,10 @@ def progress_section(state: PanelState, out: list[Command]) -> None:
         imgui.push_style_color(imgui.Col_.text, imgui.ImVec4(1.0, 0.35, 0.3, 1.0))
         imgui.text_wrapped(f"Error: {state.error}")
         imgui.pop_style_color()
+        if state.device_failed and button(
+                "Continue on the CPU", "Go on from where the run stopped, computing on the CPU (slower; the colours, "
+                "the geometry and the settings stay). Restart afterwards stays on the CPU too."):
+            out.append(Command("continue_on_cpu"))
     status_box(state.status)
     loss_plot(state)
 

@@ -44,6 +44,7 @@ class PanelState:
     paused: bool = False
     running: bool = False
     error: str | None = None
+    device_failed: bool = False  # the error was the GPU's: "Continue on the CPU" is offered under it
     status: str = ""
     loss_history: list[dict[str, float]] = field(default_factory=list)
     params: dict[str, float] = field(default_factory=lambda: {p.key: p.default for p in param_rows()})

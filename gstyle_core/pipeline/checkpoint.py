@@ -77,7 +77,8 @@ def _hash_arrays(arrays) -> str:
 
 
 def engine_fingerprint(engine: Any) -> dict[str, str]:
-    """Digests of what an engine was built from (scene, style, cameras, photos, settings), for resume checks.
+    """Digests of what an engine was built from (scene, style, cameras, photos, settings but its device), for resume
+    checks.
 
     Call it right after building the engine (settings may change later through ``set_params``). Engines without
     these attributes (test doubles) give an empty fingerprint, which matches anything.
@@ -102,7 +103,10 @@ def engine_fingerprint(engine: Any) -> dict[str, str]:
         out["selection"] = _hash_arrays([np.asarray(selection, bool)])
     settings = getattr(engine, "settings", None)
     if settings is not None and hasattr(settings, "to_dict"):
-        out["settings"] = _digest(json.dumps(settings.to_dict(), sort_keys=True, default=str))
+        # where it computes is not what it computes: a run saved on the GPU goes on on the CPU and back (the device
+        # reads as its default here, so the digests of checkpoints saved with it stay as they were)
+        values = {**settings.to_dict(), "device": "auto"}
+        out["settings"] = _digest(json.dumps(values, sort_keys=True, default=str))
     return out
 
 

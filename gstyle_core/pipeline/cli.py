@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..assets import DEMO_SCENE
-from ..device import DEVICES
+from ..device import DEVICES, DeviceFailure
 from ..errors import GStyleError, OutputWriteError
 from ..outputs import SUMMARY, companions
 from ..style.precision import PRECISIONS
@@ -118,7 +118,10 @@ def stylize_command(args: argparse.Namespace) -> int:
             "args": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))}}
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
     with deferred_interrupts() as stop:
-        _run_with_progress(engine, checkpointer, stop)
+        try:
+            _run_with_progress(engine, checkpointer, stop)
+        except DeviceFailure as exc:
+            raise kept_for_the_cpu(exc, checkpointer, s.device) from exc
     needed = ("region", "sh", "preprocess", "preprocess_unsplit", "culled", "loss_terms", "broad_strokes",
               "colour_field", "levels", "colour_match", "clip", "vgg", "precision", "device", "styles")
     for key in needed:  # what it needed (also in OUT.json)
@@ -219,6 +222,19 @@ def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, styl
         group.write(after_path, lambda tmp: save_png(tmp, after))
         group.write(out, lambda tmp: save_scene(stylized, tmp, fmt=format_of(out)))
     return summary, [group.targets[-1], *group.targets[:-1]]
+
+
+def kept_for_the_cpu(exc: DeviceFailure, checkpointer, device: str) -> DeviceFailure:
+    """The GPU failed in a run asked for on ``device``: the run as its last finished step left it is saved (a step
+    that failed keeps none of its work) and the error, one line, says how to go on from there on the CPU."""
+    if device == "cpu":
+        return exc
+    try:
+        path = checkpointer.save()
+    except OutputWriteError as error:
+        return type(exc)(f"{exc}; the run could not be kept ({error})")
+    return type(exc)(f"{exc}; the run so far is kept in {path}: the same command with --device cpu --resume goes "
+                     "on from there")
 
 
 def kept_run_error(exc: OutputWriteError, checkpointer, args: argparse.Namespace) -> OutputWriteError:

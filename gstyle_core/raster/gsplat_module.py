@@ -26,14 +26,14 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from ..errors import GStyleError
+from ..device import DeviceFailure
 from ..paths import cache_dir
 
 MODULE_NAME = "gsplat_cuda"
 BUILD_NOTE = "building gsplat's rasterizer for this GPU: a few minutes, the first run only"  # the status's 2 lines
 
 
-class GsplatUnavailable(GStyleError, RuntimeError):
+class GsplatUnavailable(DeviceFailure):
     """gsplat or its CUDA module cannot be used here (not installed, no CUDA, or its build failed)."""
 
 
