@@ -20,7 +20,7 @@ painting vector, coverage-weighted like the NNFM term), so its λ is on the NNFM
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import torch
 import torch.nn.functional as F
@@ -102,30 +102,27 @@ class MultiScaleStyleLoss(nn.Module):
             small = upsample_for_vgg(small)
         return stacked_features(self.vgg, small)
 
-    def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
-        if render.ndim != 4 or render.shape[1] != 3:
-            raise ValueError(f"render must be [B, 3, H, W], got {tuple(render.shape)}")
-        terms = []
+    def _levels(self, renders: torch.Tensor, coverage: torch.Tensor | None, distance: Callable) -> torch.Tensor:
+        """Each level's ``distance`` (``style_nnfm`` or ``style_nnfm_per_image``) of ``renders`` to its target,
+        stacked; ``last_levels`` keeps each one's value (over the batch)."""
+        if renders.ndim != 4 or renders.shape[1] != 3:
+            raise ValueError(f"renders must be [B, 3, H, W], got {tuple(renders.shape)}")
+        levels = []
         for factor, target in zip(self.factors, self.targets, strict=True):
-            feats = self._level_features(render, factor)
-            grid = feature_weights(coverage, feats.shape[-2:])
-            d = style_nnfm(feats, target, self.chunk, weights=grid)
-            self.last_levels[factor] = d.detach()  # a tensor: reading it here would wait for the GPU
-            terms.append(d)
-        return torch.stack(terms).mean()
+            feats = self._level_features(renders, factor)
+            d = distance(feats, target, self.chunk, weights=feature_weights(coverage, feats.shape[-2:]))
+            # a tensor: reading it here would wait for the GPU
+            self.last_levels[factor] = d.detach() if d.ndim == 0 else d.detach().mean()
+            levels.append(d)
+        return torch.stack(levels)
+
+    def forward(self, render: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
+        return self._levels(render, coverage, style_nnfm).mean()
 
     def per_image(self, renders: torch.Tensor, coverage: torch.Tensor | None = None) -> torch.Tensor:
         """The term of each of a batch of renders of one size, [B] (what ``forward`` gives for each alone), every
         level through the network once for the whole batch (on a GPU: a quarter of the kernel launches for four
         views). ``coverage``: [B, H, W] or [B, 1, H, W], or None."""
-        if renders.ndim != 4 or renders.shape[1] != 3:
-            raise ValueError(f"renders must be [B, 3, H, W], got {tuple(renders.shape)}")
         if coverage is not None and coverage.ndim == 3:
             coverage = coverage[:, None]
-        levels = []
-        for factor, target in zip(self.factors, self.targets, strict=True):
-            feats = self._level_features(renders, factor)
-            d = style_nnfm_per_image(feats, target, self.chunk, weights=feature_weights(coverage, feats.shape[-2:]))
-            self.last_levels[factor] = d.detach().mean()
-            levels.append(d)
-        return torch.stack(levels).mean(0)
+        return self._levels(renders, coverage, style_nnfm_per_image).mean(0)
