@@ -10,7 +10,8 @@
 # 3. gsplat's CUDA module: loaded from $GSTYLE_CACHE (default .gpu/cache) when a build for this torch, CUDA, gsplat
 #    and card is there, else built once and kept there (GSTYLE_GSPLAT_SLIM=1: only the channel counts G-Style uses
 #    are compiled, about a minute on 16 cores instead of several);
-# 4. the GPU tests: the twin test (gsplat against the numba rasterizer), the colour cache, a whole run on CUDA;
+# 4. the GPU tests: the twin test (gsplat against the numba rasterizer), the colour cache, a whole run on CUDA, a
+#    real out-of-memory error on the card handed over to the CPU (tests/test_gpu_handover.py);
 # 5. bench/device_stylize.py: the demo's preview on CUDA with the engine's rate at 512 px ("quick" stops here); with
 #    "full" (the default) the studio's worker streaming on CUDA (bench/studio_rate.py), the demo's final tier on
 #    CUDA, `gstyle fit` on CUDA (a copy of the LLFF fern in .gpu/fern), biker.spz's final tier, then the demo's
@@ -18,7 +19,7 @@
 # "studio": after 1-3, only the studio's worker streaming on CUDA (1 and 4 torch threads), the engine's own rate at
 # 512 px and a profile of the stylize steps there, with the operators a step dispatches and its waits for the GPU
 # (bench/studio_rate.py, device_stylize.py, device_profile.py). "studio" and "full" end with the GPU's memory per
-# Gaussian (bench/bench_memory_per_gaussian.py --device cuda).
+# Gaussian (bench/bench_memory_per_gaussian.py --device cuda); "studio" then runs tests/test_gpu_handover.py.
 # Every figure is printed and kept in $OUT/gpu_check.log (OUT defaults to out/gpu_check).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -73,12 +74,14 @@ if [[ $MODE == studio ]]; then  # the studio's live rate only: the worker at 1 a
   stage "profile: 8 stylize steps at 512 px on CUDA"
   timeout 100 "$PY" bench/device_profile.py --device cuda --preset preview --working-width 512 --skip 2 --steps 8
   gpu_memory
+  stage "a real out-of-memory error on the card, the run handed over to the CPU (the studio's Continue on the CPU)"
+  timeout 90 "$PY" -m pytest -q -p no:cacheprovider tests/test_gpu_handover.py 2>&1 | tail -15
   stage "done"
   exit 0
 fi
 
 stage "GPU tests"
-"$PY" -m pytest -q -p no:cacheprovider tests/test_raster_gsplat.py 2>&1 | tail -25
+"$PY" -m pytest -q -p no:cacheprovider tests/test_raster_gsplat.py tests/test_gpu_handover.py 2>&1 | tail -25
 
 stage "demo preview: CUDA, and the studio's rate at 512 px"
 timeout 120 "$PY" bench/device_stylize.py --preset preview --devices cuda --rate-width 512

@@ -1,0 +1,60 @@
+"""On a CUDA device: a real out-of-memory error on the card mid-stylization, and the run handed over to the CPU from
+its last finished step, through the studio's worker ("Continue on the CPU"). It runs where torch sees a CUDA device
+and gsplat is installed (``bench/gpu_check.sh`` runs it on a GPU machine) and skips elsewhere; ``tests/
+test_app_worker.py`` checks the same path on the CPU with a stand-in GPU."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import pytest
+import torch
+
+from app.worker import ThreadWorkerBridge
+
+needs_cuda = pytest.mark.skipif(not (torch.cuda.is_available() and importlib.util.find_spec("gsplat") is not None),
+                                reason="needs a CUDA device and gsplat (GPU machine: bench/gpu_check.sh runs it)")
+
+
+@needs_cuda
+def test_a_real_out_of_memory_on_the_card_goes_on_on_the_cpu(monkeypatch):
+    from fakes import BUILT, keep_small_stylizer
+
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    step, load = Stylizer.step, Stylizer.load_state_dict
+    loaded = []
+
+    def step_on_a_full_card(engine):
+        """The fourth stylize step with the card's allocator held to a sliver of its memory: a real OOM."""
+        if engine.settings.device == "cuda" and engine.phase == "stylize" and engine.phase_step == 3:
+            torch.cuda.empty_cache()
+            torch.cuda.set_per_process_memory_fraction(1e-4)
+            try:
+                return step(engine)
+            finally:
+                torch.cuda.set_per_process_memory_fraction(1.0)
+        return step(engine)
+
+    def recording_load(engine, state):
+        load(engine, state)
+        loaded.append((engine, engine.c_s.clone(), engine.run_state.params["means"].detach().cpu().clone()))
+
+    monkeypatch.setattr(Stylizer, "step", step_on_a_full_card)
+    monkeypatch.setattr(Stylizer, "load_state_dict", recording_load)
+    BUILT.clear()
+    b = ThreadWorkerBridge(keep_small_stylizer, {"n": 2000, "device": "cuda"})
+    b.start()
+    try:
+        assert b.wait_until(lambda s: s.error is not None or s.done, 300)
+        assert b.state.device_failed and "ran out of memory in stylize" in b.state.error, b.state.error
+        failed = BUILT[-1]
+        colours, means = failed.c_s.detach().cpu().clone(), failed.run_state.params["means"].detach().cpu().clone()
+        b.continue_on_cpu(dict(b.config))
+        assert b.wait_until(lambda s: s.done or s.error, 300), "the run did not end on the CPU"
+        assert b.state.error is None, b.state.error
+        engine, at_load, means_at_load = loaded[-1]
+        assert engine.settings.device == "cpu" and engine.run_state.raster_device.type == "cpu"
+        assert torch.equal(at_load, colours) and torch.equal(means_at_load, means)
+    finally:
+        assert b.quit(timeout=60)
