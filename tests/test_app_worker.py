@@ -361,12 +361,15 @@ def test_after_the_gpu_failed_the_run_goes_on_on_the_cpu_from_its_last_finished_
         assert failed.global_step == last and failed.phase == "stylize"  # the failed step was not counted
         colours = failed.c_s.clone()
         history = len(b.state.loss_history)
+        b.set_params(lambda_nnfm=7.0)  # a slider moved after the failure comes over too
+        assert b.wait_until(lambda s: s.params.get("lambda_nnfm") == 7.0, 10)
         b.continue_on_cpu(dict(b.config))
         assert not b.state.device_failed and b.state.error is None
         assert b.wait_until(lambda s: s.done or s.error, 120), "the run did not end on the CPU"
         assert b.state.error is None, b.state.error
         engine, at_load, step = loaded[-1]
         assert engine is BUILT[-1] is not failed and engine.settings.device == "cpu"
+        assert engine.settings.weights.nnfm == 7.0 and b.state.params["lambda_nnfm"] == 7.0
         assert step == last == b.state.resumed["step"] and torch.equal(at_load, colours)
         assert b.state.last_report["step"] > last and len(b.state.loss_history) > history  # it went on, kept
     finally:
