@@ -261,14 +261,14 @@ class EngineHost:
     def continue_on_cpu(self, config: dict[str, Any]) -> None:
         """After the GPU failed: build the engine again on the CPU from ``config`` (its device set to "cpu") and go
         on from the failed engine's state, the one its last finished step left (a failed step keeps none of its
-        work: the colours, the geometry and their moments are as that step found them; its view is skipped). With
-        no engine (it could not be built on the GPU) or no state to take (the GPU cannot hand it over), it starts
-        afresh on the CPU and says so."""
+        work: the colours, the geometry and their moments are as that step found them; only a refit's shuffle has
+        moved past the failed step's view). With no engine (it could not be built on the GPU) or no state to take
+        (the GPU cannot hand it over), it starts afresh on the CPU and says so."""
         config = {**config, "device": "cpu"}
         state = None
         if self.engine is not None:
             try:
-                state = self.engine.state_dict()  # on the CPU: a checkpoint's tensors are copied there
+                state = self.engine.state_dict()  # copies; the checkpoint below reads back onto the CPU
             except Exception as exc:  # noqa: BLE001 - the run starts afresh on the CPU; one line says why
                 traceback.print_exc()
                 self.send("error", f"the run's state could not be taken from the GPU ({one_line_error(exc)}); "
