@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from gstyle_core.assets import DEMO_SCENE
+from gstyle_core.device import available_devices, is_device_failure
 from gstyle_core.pipeline.controls import painting_controls
 
 from .child_process import lower_priority, one_line_error, single_compute_thread, worker_nice
@@ -67,6 +68,8 @@ class EngineHost:
         self.sent_decisions: dict[str, Any] | None = None
         self.sent_setup_note = ""
         self.in_thread = False  # a worker thread of the UI process (ThreadWorkerBridge), not a spawned process
+        self.handover: str | None = None  # the run's state saved by the last move to another device (move_to)
+        self._handover_folder: tempfile.TemporaryDirectory | None = None
 
     def send(self, kind: str, payload: Any = None) -> None:
         self.events.put((kind, payload))
@@ -78,9 +81,7 @@ class EngineHost:
         self.snapshot_pending = False  # never ship the state of a failed step: the UI keeps the last good one
         self.send("error", f"{during}: {one_line_error(exc)}")
         if self.config.get("device") != "cpu":
-            from gstyle_core.device import is_device_failure
-
-            if is_device_failure(exc):  # the GPU's failure: the UI offers to go on on the CPU (continue_on_cpu)
+            if is_device_failure(exc):  # the GPU's failure: the UI offers to go on on the CPU (move_to)
                 self.send("device_failed", None)
 
     def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
@@ -112,7 +113,9 @@ class EngineHost:
         except Exception as exc:  # noqa: BLE001 - any engine error is reported, never fatal
             self.fail(exc, "building the engine")
             return
-        self.send("ready", {"paused": self.paused})
+        choice = getattr(self.engine, "device_choice", None)
+        self.send("ready", {"paused": self.paused, "device": getattr(choice, "kind", None),
+                            "device_name": getattr(choice, "name", None), "devices": available_devices()})
         self.send_plans()
         if saved is not None:
             self.load_checkpoint(resume_from, saved)
@@ -237,13 +240,14 @@ class EngineHost:
             if self.engine is not None and not self.done:
                 self.step()
         elif command in ("restart", "restart_from"):
+            self.handover = None  # a restart starts from its inputs: no run to move on from
             self.paused = False
             self.send("paused", False)
             self.build(*(arg if command == "restart_from" else (arg,)))
-        elif command == "continue_on_cpu":
+        elif command == "move_to":
             self.paused = False
             self.send("paused", False)
-            self.continue_on_cpu(arg)
+            self.move_to(*arg)
         elif command == "checkpoint_path":
             self.checkpoint_path = arg
         elif command == "set_params":
@@ -258,36 +262,33 @@ class EngineHost:
             return False
         return True
 
-    def continue_on_cpu(self, config: dict[str, Any]) -> None:
-        """After the GPU failed: build the engine again on the CPU from ``config`` (its device set to "cpu") and go
-        on from the failed engine's state, the one its last finished step left (a failed step keeps none of its
-        work: the colours, the geometry and their moments are as that step found them; only a refit's shuffle has
-        moved past the failed step's view). With no engine (it could not be built on the GPU) or no state to take
-        (the GPU cannot hand it over), it starts afresh on the CPU and says so."""
-        config = {**config, "device": "cpu"}
-        state = None
+    def move_to(self, config: dict[str, Any], device: str) -> None:
+        """Build the engine again on ``device`` from ``config`` and go on from the run's state: the engine's now (a
+        step that failed keeps none of its work: the colours, the geometry and their moments are as that step found
+        them; only a refit's shuffle has moved past the failed step's view), or, with no engine (it could not be
+        built on the device moved to), the state handed over last. The hand-over is kept until a restart, so a
+        move that fails loses nothing: moving back goes on from it. Without either it starts afresh and says so."""
+        config = {**config, "device": device}
         if self.engine is not None:
-            try:
-                state = self.engine.state_dict()  # copies; the checkpoint below reads back onto the CPU
-            except Exception as exc:  # noqa: BLE001 - the run starts afresh on the CPU; one line says why
-                traceback.print_exc()
-                self.send("error", f"the run's state could not be taken from the GPU ({one_line_error(exc)}); "
-                                   "starting afresh on the CPU")
-        if state is None:
-            self.build(config)
-            return
+            self.hand_over()
+        self.build(config, resume_from=self.handover)
+
+    def hand_over(self) -> None:
+        """Save the engine's state for the engine that takes over (``handover``); a failure says so in one line and
+        leaves none (the next engine starts afresh)."""
         from gstyle_core.pipeline.checkpoint import save_checkpoint
 
-        with tempfile.TemporaryDirectory(prefix="gstyle-cpu-") as folder:
-            path = str(Path(folder) / "handover.ckpt")
-            try:
-                save_checkpoint(path, state, {"kind": "studio", **self.saved_meta()})
-            except Exception as exc:  # noqa: BLE001 - e.g. no space for the handover: afresh, and why
-                self.send("error", f"the run could not be handed over ({one_line_error(exc)}); starting afresh on "
-                                   "the CPU")
-                self.build(config)
-                return
-            self.build(config, resume_from=path)
+        if self._handover_folder is None:
+            self._handover_folder = tempfile.TemporaryDirectory(prefix="gstyle-handover-")
+        path = str(Path(self._handover_folder.name) / "handover.ckpt")
+        self.handover = None
+        try:
+            save_checkpoint(path, self.engine.state_dict(), {"kind": "studio", **self.saved_meta()})
+        except Exception as exc:  # noqa: BLE001 - e.g. a device that cannot give its tensors back, a full disk
+            traceback.print_exc()
+            self.send("error", f"the run could not be handed over ({one_line_error(exc)}); starting afresh")
+            return
+        self.handover = path
 
     def set_params(self, params: dict[str, float]) -> None:
         self.params.update(params)

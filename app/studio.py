@@ -104,8 +104,8 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
         self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
         self._resume_seen: Any = None  # the last resume report shown in the status line
-        self._continuing_on_cpu: int | None = None  # "Continue on the CPU" asked: the reports received then (its
-        # resume report, or a step without one, says how it went on)
+        self._moving: tuple[str, int] | None = None  # a move to another device asked: the device and the reports
+        # received then (its resume report, or a step without one, says how it went on)
         self._resume_probe: tuple[float, Path | None, bool] = (0.0, None, False)  # (time, path, exists)
         self.loaded: LoadedScene | None = None
         self.cameras: list[Camera] = []

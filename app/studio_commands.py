@@ -17,6 +17,7 @@ from gstyle_core.scene import GaussianScene
 
 from .export import EXPORT_SUFFIXES, export_shown_result
 from .panels import Command
+from .panels.quality import device_words
 from .snapshot import has_scene, scene_from_snapshot
 from .video_job import VideoJob, turntable_path
 
@@ -47,8 +48,8 @@ class StudioCommands:
             self.continue_result()
         elif name == "resume_session":
             self.start_engine(resume=True)
-        elif name == "continue_on_cpu":
-            self.continue_on_cpu()
+        elif name == "move_to":
+            self.move_to(str(args["device"]))
         elif name == "set_params":
             self.history.record({k: self.panel.params.get(k) for k in args}, args)
             self._apply_params(args)
@@ -78,14 +79,15 @@ class StudioCommands:
             return False
         return True
 
-    def continue_on_cpu(self) -> None:
-        """The GPU failed: the engine goes on on the CPU from where the run stopped, and later restarts stay there."""
-        self.engine_config["device"] = "cpu"
+    def move_to(self, device: str) -> None:
+        """Go on on ``device`` from where the run is (the CPU after the GPU failed, or the GPU / the CPU when the
+        artist moves it); later restarts stay there."""
+        self.engine_config["device"] = device
         if self.bridge is None:
             return
-        self.bridge.continue_on_cpu(self.engine_config)
-        self._continuing_on_cpu = self.bridge.state.reports_received  # (a worker started again counts from 0)
-        self.panel.status = "continuing on the CPU (slower than the GPU) ..."
+        self.bridge.move_to(self.engine_config, device)
+        self._moving = (device, self.bridge.state.reports_received)  # (a worker started again counts from 0)
+        self.panel.status = f"moving the run to {device_words(device)} ..."
 
     def restart_from_original(self) -> None:
         """A result was opened: open the scene it came from and stylize it with the result's preset, controls and

@@ -3,6 +3,7 @@ changed) and everything reaches the panel. ``StudioSync`` is a mixin of ``Studio
 
 from __future__ import annotations
 
+from .panels.quality import device_words
 from .renderer import DIFFUSE_LAYER, SH_LAYER
 from .result_undo import in_history
 
@@ -71,7 +72,7 @@ class StudioSync:
         p.selection_outline = self._selection_outline(width, height)
         self._poll_video()
         if self.bridge is None:
-            p.running, p.paused = False, False
+            p.running, p.paused, p.device = False, False, ""
             self._show_takes_error()  # (renaming or forgetting takes needs no engine)
             return
         st = self.bridge.state
@@ -90,16 +91,17 @@ class StudioSync:
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             session = self.session_checkpoint()
-            if self._continuing_on_cpu is not None:
-                self._continuing_on_cpu = None
-                p.status = f"continued on the CPU at step {st.resumed.get('step')}"
+            if self._moving is not None:
+                p.status = f"continued on {device_words(self._moving[0])} at step {st.resumed.get('step')}"
+                self._moving = None
             else:
                 what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
                     else "the saved result's run"
                 p.status = f"resumed {what} at step {st.resumed.get('step')}"
-        if self._continuing_on_cpu is not None and st.reports_received > self._continuing_on_cpu:
-            self._continuing_on_cpu = None  # stepping, and no state was taken over (none, or the GPU kept it)
-            p.status = "started afresh on the CPU"
+        if self._moving is not None and st.reports_received > self._moving[1]:
+            p.status = f"started afresh on {device_words(self._moving[0])}"  # stepping, and no state was taken over
+            self._moving = None
+        p.device, p.device_name, p.devices = st.device or "", st.device_name, st.devices
         self._sync_setup_note(st)
         self._sync_exports(st)
         self._show_takes_error()

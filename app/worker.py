@@ -60,7 +60,10 @@ class WorkerState:
     refine_note: str = ""  # why Refine was refused, or the level it started
     setup_note: str = ""  # the engine's one-off setup: a build under way (minutes) or how long it took
     device_failed: bool = False  # the GPU failed (no device, out of memory, no rasterizer): the run can go on on
-    # the CPU (``WorkerBridge.continue_on_cpu``)
+    # the CPU (``WorkerBridge.move_to``)
+    device: str | None = None  # what the engine computes on ("cpu", "cuda", "mps"; None: no engine built yet)
+    device_name: str = ""  # the same in words (the card)
+    devices: tuple[str, ...] = ("cpu",)  # the devices the worker can compute on (``device.available_devices``)
 
 
 # ====================================================================== the UI side
@@ -176,23 +179,24 @@ class WorkerBridge:
             self._send("restart", self.config)
 
     def _forget_engine(self) -> None:
-        """What the UI knew of the engine being replaced: its error, end, pause, decisions, resume and summary."""
+        """What the UI knew of the engine being replaced: its error, end, pause, device, decisions, resume and
+        summary."""
         st = self.state
-        st.error, st.done, st.paused, st.device_failed = None, False, False, False
+        st.error, st.done, st.paused, st.device_failed, st.device = None, False, False, False, None
         st.decisions, st.resumed, st.summary, st.refine_note = {}, None, None, ""
 
-    def continue_on_cpu(self, config: dict[str, Any]) -> None:
-        """After the GPU failed (``state.device_failed``): the worker builds the engine again on the CPU from
-        ``config`` and goes on from where the run was (``EngineHost.continue_on_cpu``); its loss history stays, the
-        step times start again (the CPU's differ). A worker that is gone starts afresh on the CPU."""
-        self.config = {**config, "device": "cpu"}
+    def move_to(self, config: dict[str, Any], device: str) -> None:
+        """Go on on ``device`` ("cpu" after the GPU failed, ``state.device_failed``): the worker builds the engine
+        again there from ``config`` and goes on from where the run was (``EngineHost.move_to``); the loss history
+        stays, the step times start again (another device's differ). A worker that is gone starts afresh."""
+        self.config = {**config, "device": device}
         if not self.alive:
             self.resume_from = None
             self.start()
             return
         self._forget_engine()
         self.state.step_times, self.state.prior_times = StepTimes(), None
-        self._send("continue_on_cpu", self.config)
+        self._send("move_to", (self.config, device))
 
     def set_checkpoint_path(self, path: str | os.PathLike | None) -> None:
         """Where the worker saves its checkpoint when it quits (e.g. after the scene or style changed)."""
@@ -225,7 +229,7 @@ class WorkerBridge:
         Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
         decisions (dict), exported (path), export_failed (one line), checkpoint (path), resumed (dict), plans (dict),
         summary (dict), refining (width), refine_refused (one line), setup_note (one line), device_failed
-        (None: the GPU failed, ``continue_on_cpu`` can go on), bye.
+        (None: the GPU failed, ``move_to`` the CPU can go on), bye.
         """
         messages: list[tuple[str, Any]] = []
         if self._events is None:
@@ -251,6 +255,9 @@ class WorkerBridge:
         st = self.state
         if kind == "ready":
             st.ready, st.error, st.done, st.device_failed = True, None, False, False
+            info = payload if isinstance(payload, dict) else {}
+            st.device, st.device_name = info.get("device"), str(info.get("device_name") or "")
+            st.devices = tuple(info.get("devices") or ("cpu",))
         elif kind == "report":
             st.last_report = payload
             st.reports_received += 1

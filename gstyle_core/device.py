@@ -94,6 +94,14 @@ def resolve_device(requested: str = "auto") -> DeviceChoice:
     return DeviceChoice(torch.device("cpu"), "CPU", why)
 
 
+def available_devices() -> tuple[str, ...]:
+    """The devices a run can compute on here: the CPU, CUDA where torch sees a CUDA device, MPS where it sees an
+    Apple GPU (what a UI offers to move a run to)."""
+    import torch
+
+    return ("cpu",) + (("cuda",) if torch.cuda.is_available() else ()) + (("mps",) if _mps_available() else ())
+
+
 def describe(choice: DeviceChoice) -> str:
     """One line for OUT.json's ``decisions.device`` and the logs."""
     return f"{choice.kind} ({choice.name}): {choice.reason}"

@@ -336,7 +336,7 @@ def test_a_spawned_helpers_torch_threads_hold_past_numbas_launch():
 
 def test_after_the_gpu_failed_the_run_goes_on_on_the_cpu_from_its_last_finished_step(monkeypatch):
     """A stand-in GPU runs out of memory at a stylize step: the error is one line and the worker offers the CPU;
-    continue_on_cpu builds the engine on the CPU with the failed engine's state (the colours its last finished step
+    move_to("cpu") builds the engine on the CPU with the failed engine's state (the colours its last finished step
     left, bit for bit) and runs to the end."""
     from fakes import BUILT, stand_in_gpu_stylizer
 
@@ -363,7 +363,7 @@ def test_after_the_gpu_failed_the_run_goes_on_on_the_cpu_from_its_last_finished_
         history = len(b.state.loss_history)
         b.set_params(lambda_nnfm=7.0)  # a slider moved after the failure comes over too
         assert b.wait_until(lambda s: s.params.get("lambda_nnfm") == 7.0, 10)
-        b.continue_on_cpu(dict(b.config))
+        b.move_to(dict(b.config), "cpu")
         assert not b.state.device_failed and b.state.error is None
         assert b.wait_until(lambda s: s.done or s.error, 120), "the run did not end on the CPU"
         assert b.state.error is None, b.state.error
@@ -383,7 +383,7 @@ def test_a_gpu_that_was_never_there_leaves_the_cpu_to_start_afresh():
     try:
         assert b.wait_until(lambda s: s.error is not None, 30)
         assert b.state.device_failed and "sees no CUDA device" in b.state.error
-        b.continue_on_cpu(dict(b.config))
+        b.move_to(dict(b.config), "cpu")
         assert b.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 30), b.state.error
         assert b.state.error is None and b.state.resumed is None
     finally:

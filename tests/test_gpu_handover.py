@@ -50,7 +50,7 @@ def test_a_real_out_of_memory_on_the_card_goes_on_on_the_cpu(monkeypatch):
         assert b.state.device_failed and "ran out of memory in stylize" in b.state.error, b.state.error
         failed = BUILT[-1]
         colours, means = failed.c_s.detach().cpu().clone(), failed.run_state.params["means"].detach().cpu().clone()
-        b.continue_on_cpu(dict(b.config))
+        b.move_to(dict(b.config), "cpu")
         assert b.wait_until(lambda s: s.done or s.error, 300), "the run did not end on the CPU"
         assert b.state.error is None, b.state.error
         engine, at_load, means_at_load = loaded[-1]

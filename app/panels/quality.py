@@ -17,6 +17,38 @@ QUALITIES = {
 }
 
 
+DEVICE_WORDS = {"cpu": "the CPU", "cuda": "the GPU", "mps": "the Apple GPU"}
+
+
+def device_words(device: str) -> str:
+    """``device`` ("cpu", "cuda", "mps") as the status line and buttons say it."""
+    return DEVICE_WORDS.get(device, device)
+
+
+def move_target(state: PanelState) -> str | None:
+    """The device the panel offers to move the run to: the GPU (CUDA) from elsewhere where there is one, else the
+    CPU from a GPU; None without an engine, after the GPU failed (the error offers the CPU) or with nowhere to go.
+    MPS is never offered (not measured: ``--device mps`` asks for it)."""
+    if not state.device or state.device_failed:
+        return None
+    if state.device != "cuda" and "cuda" in state.devices:
+        return "cuda"
+    return "cpu" if state.device != "cpu" else None
+
+
+def device_line(state: PanelState, out: list[Command]) -> None:
+    """What the run computes on, and the button that moves it elsewhere (``move_target``)."""
+    if not state.device:
+        return
+    imgui.text_wrapped(f"Computing on: {state.device_name or device_words(state.device)}")
+    tooltip("Where the engine computes. A move goes on from where the run is (its colours, geometry and settings) "
+            "on the other device; restarts stay there.")
+    target = move_target(state)
+    if target and button(f"Move to {device_words(target)}", f"Go on from where the run is, computing on "
+                                                            f"{device_words(target)}."):
+        out.append(Command("move_to", {"device": target}))
+
+
 def quality_section(state: PanelState, out: list[Command]) -> None:
     """Quality radio buttons with their estimates, the run's widths, Refine, and the result once done."""
     imgui.separator()
@@ -47,6 +79,7 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
     if state.refine_note:
         imgui.same_line()
         imgui.text_wrapped(state.refine_note)
+    device_line(state, out)
     if state.summary_line:
         imgui.text_wrapped(font_safe(f"Result: {state.summary_line}"))  # sigma spelled out
         tooltip("Measured on three of the scene's views rendered at a display's size: how much of the colour the "

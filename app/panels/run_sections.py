@@ -116,7 +116,7 @@ def progress_section(state: PanelState, out: list[Command]) -> None:
         if state.device_failed and button(
                 "Continue on the CPU", "Go on from where the run stopped, computing on the CPU (slower; the colours, "
                 "the geometry and the settings stay). Restart afterwards stays on the CPU too."):
-            out.append(Command("continue_on_cpu"))
+            out.append(Command("move_to", {"device": "cpu"}))
     status_box(state.status)
     loss_plot(state)
 

@@ -45,6 +45,9 @@ class PanelState:
     running: bool = False
     error: str | None = None
     device_failed: bool = False  # the error was the GPU's: "Continue on the CPU" is offered under it
+    device: str = ""  # what the engine computes on ("cpu", "cuda", "mps"; "": no engine)
+    device_name: str = ""  # the same in words (the card)
+    devices: tuple[str, ...] = ("cpu",)  # what the worker could compute on (the quality section offers a move)
     status: str = ""
     loss_history: list[dict[str, float]] = field(default_factory=list)
     params: dict[str, float] = field(default_factory=lambda: {p.key: p.default for p in param_rows()})

@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from ..cameras.camera import Camera
-from ..device import out_of_memory
+from ..device import DeviceChoice, out_of_memory
 from ..fit.model import scene_from_params
 from ..raster.gsplat_module import RasterizerSetup
 from ..scene import GaussianScene, rgb_to_sh_dc
@@ -201,6 +201,11 @@ class Stylizer:
         """The current phase's name ("ground_truth" ... "finish", "refit" inside the stylization), or "done"."""
         current = self.current_phase()
         return "done" if current is None else current.current
+
+    @property
+    def device_choice(self) -> DeviceChoice:
+        """The device the run computes on, its name in words and why it was chosen."""
+        return self.run_state.device_choice
 
     @property
     def setup_note(self) -> str:
