@@ -1,5 +1,6 @@
 """How the studio's helpers run beside its UI (the engine worker, the turntable video): one compute thread, a lower
-priority than the UI, Ctrl+C left to the studio (which stops them itself), errors as one line of text."""
+priority than the UI, Ctrl+C left to the studio (which stops them itself), errors as one line of text
+(``gstyle_core.errors.one_line_error``)."""
 
 from __future__ import annotations
 
@@ -13,16 +14,6 @@ from collections.abc import Iterator
 from gstyle_core.machine import set_torch_threads
 
 WORKER_NICE = 10  # default niceness increment of a helper process (env GSTYLE_WORKER_NICE overrides it)
-
-
-def one_line_error(exc: BaseException) -> str:
-    """``Type: message`` on one line (the full traceback goes to the helper's stderr); a ``GStyleError`` is already
-    worded for the user (e.g. ``cannot write PATH: no space left on the device``, as the CLI prints it): its message
-    alone."""
-    from gstyle_core.errors import GStyleError
-
-    text = " ".join(str(exc).split()) or "(no message)"
-    return text if isinstance(exc, GStyleError) else f"{type(exc).__name__}: {text}"
 
 
 def lower_priority(increment: int = WORKER_NICE) -> None:

@@ -26,9 +26,10 @@ from typing import Any
 
 from gstyle_core.assets import DEMO_SCENE
 from gstyle_core.device import available_devices, is_device_failure
+from gstyle_core.errors import one_line_error
 from gstyle_core.pipeline.controls import painting_controls
 
-from .child_process import lower_priority, one_line_error, single_compute_thread, worker_nice
+from .child_process import lower_priority, single_compute_thread, worker_nice
 from .export import export_engine
 from .snapshot import FOLLOW_GEOMETRY
 

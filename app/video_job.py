@@ -16,9 +16,10 @@ from pathlib import Path
 from typing import Any
 
 from gstyle_core.cameras.camera import Camera
+from gstyle_core.errors import one_line_error
 from gstyle_core.scene import GaussianScene
 
-from .child_process import WORKER_NICE, interrupts_ignored, lower_priority, one_line_error, single_compute_thread
+from .child_process import WORKER_NICE, interrupts_ignored, lower_priority, single_compute_thread
 
 TURNTABLE_SUFFIXES = {"mp4": ".mp4", "gif": ".gif", "png frames": ""}
 

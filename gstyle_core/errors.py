@@ -35,3 +35,11 @@ class OutputWriteError(GStyleError, OSError):
 
     def __reduce__(self):
         return type(self), (self.filename, self.cause, self.errno)
+
+
+def one_line_error(exc: BaseException) -> str:
+    """``Type: message`` on one line (for a UI's line or an error that wraps another); a ``GStyleError`` is already
+    worded for the user (e.g. ``cannot write PATH: no space left on the device``, as the CLI prints it): its message
+    alone."""
+    text = " ".join(str(exc).split()) or "(no message)"
+    return text if isinstance(exc, GStyleError) else f"{type(exc).__name__}: {text}"

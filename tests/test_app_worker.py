@@ -7,9 +7,10 @@ import pytest
 import torch
 from fakes import FakeReport, make_fake_engine
 
-from app.child_process import one_line_error, worker_torch_threads
+from app.child_process import worker_torch_threads
 from app.engine_host import report_to_dict
 from app.worker import ThreadWorkerBridge, WorkerBridge
+from gstyle_core.errors import one_line_error
 
 
 @pytest.fixture

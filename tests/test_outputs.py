@@ -262,12 +262,12 @@ def test_convert_to_a_directory_or_under_a_file_is_refused_before_reading(tmp_pa
 
 # ====================================================================== the studio
 def test_studio_export_failure_is_one_line_and_leaves_no_take(tmp_path, monkeypatch):
-    from app.child_process import one_line_error
     from app.export import export_engine, summary_path
     from app.studio_sync import StudioSync
     from app.takes import TakeShelf
     from app.takes_view import TakesView
     from app.worker import WorkerState
+    from gstyle_core.errors import one_line_error
 
     class Engine:
         def stylized_scene(self):

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..assets import DEMO_SCENE
 from ..device import DEVICES, DeviceFailure
-from ..errors import GStyleError, OutputWriteError
+from ..errors import GStyleError, OutputWriteError, one_line_error
 from ..outputs import SUMMARY, companions
 from ..style.precision import PRECISIONS
 from ..style.speckle import DEFAULT_DISPLAY_WIDTH
@@ -231,8 +231,8 @@ def kept_for_the_cpu(exc: DeviceFailure, checkpointer, device: str) -> DeviceFai
         return exc
     try:
         path = checkpointer.save()
-    except OutputWriteError as error:
-        return type(exc)(f"{exc}; the run could not be kept ({error})")
+    except Exception as error:  # noqa: BLE001 - a full disk, or a card that cannot give its tensors back: one line
+        return type(exc)(f"{exc}; the run could not be kept ({one_line_error(error)})")
     return type(exc)(f"{exc}; the run so far is kept in {path}: the same command with --device cpu --resume goes "
                      "on from there")
 
