@@ -1,7 +1,8 @@
-"""On a CUDA device: a real out-of-memory error on the card mid-stylization, and the run handed over to the CPU from
-its last finished step, through the studio's worker ("Continue on the CPU"). It runs where torch sees a CUDA device
-and gsplat is installed (``bench/gpu_check.sh`` runs it on a GPU machine) and skips elsewhere; ``tests/
-test_app_worker.py`` checks the same path on the CPU with a stand-in GPU."""
+"""On a CUDA device: a real out-of-memory error on the card mid-stylization and the run handed over to the CPU from
+its last finished step, through the studio's worker ("Continue on the CPU"), and a run moved the other way ("Move
+to the GPU"). These run where torch sees a CUDA device and gsplat is installed (``bench/gpu_check.sh`` runs them on a
+GPU machine) and skip elsewhere; ``tests/test_app_worker.py`` and ``tests/test_app_device_moves.py`` check the same
+paths on the CPU with stand-ins for the GPU."""
 
 from __future__ import annotations
 
@@ -56,5 +57,24 @@ def test_a_real_out_of_memory_on_the_card_goes_on_on_the_cpu(monkeypatch):
         engine, at_load, means_at_load = loaded[-1]
         assert engine.settings.device == "cpu" and engine.run_state.raster_device.type == "cpu"
         assert torch.equal(at_load, colours) and torch.equal(means_at_load, means)
+    finally:
+        assert b.quit(timeout=60)
+
+
+@needs_cuda
+def test_a_run_moved_from_the_cpu_to_the_card_goes_on_there():
+    """The other way (the studio's Move to the GPU): a run on the CPU, moved mid-stylization, ends on the card."""
+    from fakes import BUILT, keep_small_stylizer
+
+    BUILT.clear()
+    b = ThreadWorkerBridge(keep_small_stylizer, {"n": 2000, "device": "cpu"})
+    b.start()
+    try:
+        assert b.wait_until(lambda s: (s.last_report or {}).get("phase") == "stylize" or s.error, 300)
+        assert b.state.error is None, b.state.error
+        b.move_to(dict(b.config), "cuda")
+        assert b.wait_until(lambda s: s.done or s.error, 300), "the run did not end on the card"
+        assert b.state.error is None and b.state.resumed is not None, b.state.error
+        assert BUILT[-1].device_choice.kind == "cuda" and b.state.device == "cuda"
     finally:
         assert b.quit(timeout=60)
