@@ -55,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "CPU runs it faster (timed once, remembered per CPU model in the cache folder)")
     p.add_argument("--device", choices=DEVICES, default=None,
                    help="where the engine computes: auto (default: CUDA when torch sees an NVIDIA GPU, else the "
-                        "CPU), cpu, cuda or mps")
+                        "CPU), cpu, cuda or mps; the Quality section moves a run between the GPU and the CPU")
     p.add_argument("--headless", action="store_true", help="no window: render offscreen (glfw NULL + EGL)")
     p.add_argument("--frames", type=int, default=None, help="stop after N frames (headless default: 3)")
     p.add_argument("--screenshot", default=None, help="write the last frame as PNG here")
