@@ -246,8 +246,9 @@ class EngineHost:
             self.send("paused", False)
             self.build(*(arg if command == "restart_from" else (arg,)))
         elif command == "move_to":
-            self.paused = False
-            self.send("paused", False)
+            if self.failed or self.engine is None:  # after a failure the run goes on; a paused one stays paused
+                self.paused = False
+            self.send("paused", self.paused)
             self.move_to(*arg)
         elif command == "checkpoint_path":
             self.checkpoint_path = arg

@@ -187,8 +187,9 @@ class WorkerBridge:
 
     def move_to(self, config: dict[str, Any], device: str) -> None:
         """Go on on ``device`` ("cpu" after the GPU failed, ``state.device_failed``): the worker builds the engine
-        again there from ``config`` and goes on from where the run was (``EngineHost.move_to``); the loss history
-        stays, the step times start again (another device's differ). A worker that is gone starts afresh."""
+        again there from ``config`` and goes on from where the run was (``EngineHost.move_to``; a paused run stays
+        paused, a failed one goes on); the loss history stays, the step times start again (another device's
+        differ). A worker that is gone starts afresh."""
         self.config = {**config, "device": device}
         if not self.alive:
             self.resume_from = None

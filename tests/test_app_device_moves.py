@@ -77,7 +77,16 @@ def test_a_move_to_a_gpu_that_fails_loses_nothing_and_the_cpu_goes_on(window, mo
     """The panel says what the run computes on and offers the GPU where the worker sees one (a stand-in here: this
     machine has none, so the move fails to build); the run's state was handed over first, so Continue on the CPU
     goes on from where the run was moved from."""
+    from gstyle_core.pipeline.stylizer import Stylizer
+
     monkeypatch.setattr("app.engine_host.available_devices", lambda: ("cpu", "cuda"))
+    load, loaded = Stylizer.load_state_dict, []
+
+    def recording_load(engine, state):
+        load(engine, state)
+        loaded.append(engine.c_s.clone())
+
+    monkeypatch.setattr(Stylizer, "load_state_dict", recording_load)
     app = small_studio(window, monkeypatch, tmp_path)
     try:
         driver = paused_studio_driver(window, monkeypatch, app)
@@ -94,6 +103,7 @@ def test_a_move_to_a_gpu_that_fails_loses_nothing_and_the_cpu_goes_on(window, mo
         assert [(c.name, c.args) for c in commands] == [("move_to", {"device": "cuda"})]
         assert app.engine_config["device"] == "cuda"
         assert app.bridge.wait_until(lambda s: s.error is not None, 60)
+        assert torch.equal(moved.c_s, colours)  # a paused run stays paused while it is handed over
         driver.frame()
         assert app.panel.device_failed and "sees no CUDA device" in app.panel.error
         widgets = [w.path for w in driver.recorder.widgets]
@@ -102,7 +112,7 @@ def test_a_move_to_a_gpu_that_fails_loses_nothing_and_the_cpu_goes_on(window, mo
         assert app.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), app.bridge.state.error
         driver.frame()
         assert app.panel.status == f"continued on the CPU at step {step}"
-        assert BUILT[-1] is not moved and torch.equal(BUILT[-1].c_s, colours)  # paused: the state as handed over
+        assert BUILT[-1] is not moved and torch.equal(loaded[-1], colours)  # the state as handed over
         assert "Computing on: CPU" in driver.recorder.texts
     finally:
         assert app.close(timeout=60)

@@ -377,6 +377,27 @@ def test_after_the_gpu_failed_the_run_goes_on_on_the_cpu_from_its_last_finished_
         assert b.quit(timeout=30)
 
 
+def test_a_paused_run_moved_to_another_device_stays_paused_where_it_was():
+    from fakes import keep_small_stylizer
+
+    b = ThreadWorkerBridge(keep_small_stylizer, {"n": 80})
+    b.start()
+    try:
+        assert b.wait_until(lambda s: (s.last_report or {}).get("phase") == "stylize" or s.error, 120)
+        b.pause()
+        assert b.wait_until(lambda s: s.paused, 30)
+        step = b.state.last_report["step"]
+        b.move_to(dict(b.config), "cpu")
+        assert b.wait_until(lambda s: s.resumed is not None or s.error, 60) and b.state.error is None
+        reports = b.state.reports_received
+        time.sleep(0.5)
+        b.poll()
+        assert b.state.paused and b.state.reports_received == reports and b.state.resumed["step"] == step
+        assert b.state.device == "cpu" and b.state.device_name == "CPU"
+    finally:
+        assert b.quit(timeout=30)
+
+
 def test_a_gpu_that_was_never_there_leaves_the_cpu_to_start_afresh():
     """The engine could not be built on the device asked for (none there): the CPU is offered and starts afresh."""
     b = ThreadWorkerBridge(unavailable_gpu_engine, {"n": 16})
