@@ -9,7 +9,8 @@ worker, ``engine.step()`` -> report (.phase .step .total_steps .losses .seconds 
 Snapshots carry colours after every step and the geometry only when ``geometry_version`` changed. A credit
 semaphore bounds the snapshots in flight, so a fast engine never floods a slow UI: when no credit is free the
 snapshot is sent later (the newest one). Errors are sent as one line of text and the worker stays alive so
-``restart`` can rebuild the engine.
+``restart`` can rebuild the engine. Checkpoints, kept runs, resumes and moves to another device are in
+``app/engine_saves.py``.
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import copy
 import dataclasses
 import multiprocessing as mp
 import queue
-import tempfile
 import traceback
 from collections.abc import Callable
 from pathlib import Path
@@ -30,6 +30,7 @@ from gstyle_core.errors import one_line_error
 from gstyle_core.pipeline.controls import painting_controls
 
 from .child_process import lower_priority, single_compute_thread, worker_nice
+from .engine_saves import EngineSaves
 from .export import export_engine
 from .snapshot import FOLLOW_GEOMETRY
 
@@ -49,7 +50,7 @@ def report_to_dict(report: Any) -> dict[str, Any]:
     return out
 
 
-class EngineHost:
+class EngineHost(EngineSaves):
     """Lives in the child: owns the engine, executes commands, sends reports and snapshots."""
 
     def __init__(self, factory: Callable[..., Any], config: dict[str, Any], events: Any, credits: Any,
@@ -69,8 +70,6 @@ class EngineHost:
         self.sent_decisions: dict[str, Any] | None = None
         self.sent_setup_note = ""
         self.in_thread = False  # a worker thread of the UI process (ThreadWorkerBridge), not a spawned process
-        self.handover: str | None = None  # the run's state saved by the last move to another device (move_to)
-        self._handover_folder: tempfile.TemporaryDirectory | None = None
 
     def send(self, kind: str, payload: Any = None) -> None:
         self.events.put((kind, payload))
@@ -81,9 +80,8 @@ class EngineHost:
         self.paused = True
         self.snapshot_pending = False  # never ship the state of a failed step: the UI keeps the last good one
         self.send("error", f"{during}: {one_line_error(exc)}")
-        if self.config.get("device") != "cpu":
-            if is_device_failure(exc):  # the GPU's failure: the UI offers to go on on the CPU (move_to)
-                self.send("device_failed", None)
+        if self.config.get("device") != "cpu" and is_device_failure(exc):  # the UI offers the CPU (move_to)
+            self.send("device_failed", None)
 
     def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
         """Build the engine from ``config`` (default: the current one); ``resume_from``: a checkpoint to continue
@@ -249,7 +247,7 @@ class EngineHost:
             if self.failed or self.engine is None:  # after a failure the run goes on; a paused one stays paused
                 self.paused = False
             self.send("paused", self.paused)
-            self.move_to(*arg)
+            self.move_to(arg)
         elif command == "checkpoint_path":
             self.checkpoint_path = arg
         elif command == "set_params":
@@ -263,34 +261,6 @@ class EngineHost:
             self.send("bye", None)
             return False
         return True
-
-    def move_to(self, config: dict[str, Any], device: str) -> None:
-        """Build the engine again on ``device`` from ``config`` and go on from the run's state: the engine's now (a
-        step that failed keeps none of its work: the colours, the geometry and their moments are as that step found
-        them; only a refit's shuffle has moved past the failed step's view), or, with no engine (it could not be
-        built on the device moved to), the state handed over last. The hand-over is kept until a restart, so a
-        move that fails loses nothing: moving back goes on from it. Without either it starts afresh and says so."""
-        config = {**config, "device": device}
-        if self.engine is not None:
-            self.hand_over()
-        self.build(config, resume_from=self.handover)
-
-    def hand_over(self) -> None:
-        """Save the engine's state for the engine that takes over (``handover``); a failure says so in one line and
-        leaves none (the next engine starts afresh)."""
-        from gstyle_core.pipeline.checkpoint import save_checkpoint
-
-        if self._handover_folder is None:
-            self._handover_folder = tempfile.TemporaryDirectory(prefix="gstyle-handover-")
-        path = str(Path(self._handover_folder.name) / "handover.ckpt")
-        self.handover = None
-        try:
-            save_checkpoint(path, self.engine.state_dict(), {"kind": "studio", **self.saved_meta()})
-        except Exception as exc:  # noqa: BLE001 - e.g. a device that cannot give its tensors back, a full disk
-            traceback.print_exc()
-            self.send("error", f"the run could not be handed over ({one_line_error(exc)}); starting afresh")
-            return
-        self.handover = path
 
     def set_params(self, params: dict[str, float]) -> None:
         self.params.update(params)
@@ -321,73 +291,6 @@ class EngineHost:
             return
         self.keep_run(written)
         self.send("exported", written)
-
-    def saved_meta(self) -> dict[str, Any]:
-        """What a checkpoint of this engine says of its inputs: the config and params it was built from (to build
-        it again), its fingerprint, the params now."""
-        return {"scene": self.config.get("scene"), "style": self.config.get("style"), "config": dict(self.config),
-                "fingerprint": self.fingerprint, "build_params": dict(self.build_params), "params": dict(self.params)}
-
-    def keep_run(self, written: str) -> None:
-        """Keep the engine's state with the result just written (``gstyle_core/pipeline/kept_runs.py``), so that the
-        result can be continued when it is reopened; a failure only says so (the result itself was written)."""
-        if not hasattr(self.engine, "state_dict") or not hasattr(self.engine, "input_scene"):
-            return
-        try:
-            from gstyle_core.pipeline.kept_runs import save_result_state
-
-            save_result_state(written, self.engine.state_dict(), self.saved_meta())
-        except Exception as exc:  # noqa: BLE001
-            traceback.print_exc()
-            self.send("error", f"saved, but its run was not kept (it cannot be continued): {one_line_error(exc)}")
-
-    def checkpoint(self) -> None:
-        """Save the engine's state, the fingerprint of its inputs and the slider values (cache folder)."""
-        if self.engine is None or not self.checkpoint_path:
-            return
-        try:
-            from gstyle_core.pipeline.checkpoint import save_checkpoint
-
-            save_checkpoint(self.checkpoint_path, self.engine.state_dict(), {"kind": "studio", **self.saved_meta()})
-            self.send("checkpoint", str(self.checkpoint_path))
-        except Exception as exc:  # noqa: BLE001
-            self.send("error", f"checkpoint: {one_line_error(exc)}")
-
-    def read_saved(self, path: str) -> tuple[dict[str, Any], dict[str, Any]] | None:
-        """The checkpoint at ``path`` (state, meta), or None after saying in one line why it cannot be read."""
-        try:
-            from gstyle_core.pipeline.checkpoint import read_checkpoint
-
-            return read_checkpoint(path)
-        except Exception as exc:  # noqa: BLE001
-            self.send("error", f"resume: {one_line_error(exc)}; starting afresh")
-            return None
-
-    def adopt_saved_inputs(self, meta: dict[str, Any]) -> None:
-        """Before building an engine that will load a checkpoint: the params it was built with (so the settings
-        match its fingerprint) and, for a result's run, the config it was built from (a region's mask included)."""
-        if isinstance(meta.get("build_params"), dict):
-            self.params = dict(meta["build_params"])
-        if meta.get("kind") == "result" and isinstance(meta.get("config"), dict):
-            self.config = dict(meta["config"])
-
-    def load_checkpoint(self, path: str, saved: tuple[dict[str, Any], dict[str, Any]]) -> None:
-        """Continue from ``saved`` (``read_saved(path)``) when it was made for the same inputs; otherwise say why in
-        one line and go on with the fresh engine."""
-        try:
-            from gstyle_core.pipeline.checkpoint import check_fingerprint
-
-            state, meta = saved
-            check_fingerprint(path, meta, self.fingerprint)
-            self.engine.load_state_dict(state)
-        except Exception as exc:  # noqa: BLE001 - a bad checkpoint is reported; the fresh engine carries on
-            traceback.print_exc()
-            self.send("error", f"resume: {one_line_error(exc)}; starting afresh")
-            return
-        step = getattr(self.engine, "global_step", state.get("global_step", state.get("steps")))
-        self.send("resumed", {"checkpoint": str(path), "step": step})
-        if meta.get("params"):
-            self.set_params(dict(meta["params"]))
 
     def should_step(self) -> bool:
         return self.engine is not None and not (self.paused or self.done or self.failed)

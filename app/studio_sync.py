@@ -77,7 +77,7 @@ class StudioSync:
             return
         st = self.bridge.state
         p.running, p.paused, p.error = st.alive, st.paused, st.error
-        p.device_failed = st.device_failed and st.error is not None
+        p.device_failed = st.device_failed  # (cleared with the error: a new engine, a restart)
         p.decisions = st.decisions
         p.loss_history = st.loss_history[-500:]
         if st.params:

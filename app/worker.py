@@ -197,7 +197,7 @@ class WorkerBridge:
             return
         self._forget_engine()
         self.state.step_times, self.state.prior_times = StepTimes(), None
-        self._send("move_to", (self.config, device))
+        self._send("move_to", self.config)
 
     def set_checkpoint_path(self, path: str | os.PathLike | None) -> None:
         """Where the worker saves its checkpoint when it quits (e.g. after the scene or style changed)."""
@@ -256,9 +256,8 @@ class WorkerBridge:
         st = self.state
         if kind == "ready":
             st.ready, st.error, st.done, st.device_failed = True, None, False, False
-            info = payload if isinstance(payload, dict) else {}
-            st.device, st.device_name = info.get("device"), str(info.get("device_name") or "")
-            st.devices = tuple(info.get("devices") or ("cpu",))
+            st.device, st.device_name = payload.get("device"), str(payload.get("device_name") or "")
+            st.devices = tuple(payload.get("devices") or ("cpu",))
         elif kind == "report":
             st.last_report = payload
             st.reports_received += 1
