@@ -16,10 +16,11 @@
 #    "full" (the default) the studio's worker streaming on CUDA (bench/studio_rate.py), the demo's final tier on
 #    CUDA, `gstyle fit` on CUDA (a copy of the LLFF fern in .gpu/fern), biker.spz's final tier, then the demo's
 #    preview on CUDA and on the CPU side by side.
-# "studio": after 1-3, only the studio's worker streaming on CUDA (1 and 4 torch threads), the engine's own rate at
-# 512 px and a profile of the stylize steps there, with the operators a step dispatches and its waits for the GPU
-# (bench/studio_rate.py, device_stylize.py, device_profile.py). "studio" and "full" end with the GPU's memory per
-# Gaussian (bench/bench_memory_per_gaussian.py --device cuda); "studio" then runs tests/test_gpu_handover.py.
+# "studio": after 1-3, most wanted first: the studio's worker streaming on CUDA (1 torch thread, as the studio runs
+# it), tests/test_gpu_handover.py, the engine's own rate at 512 px, a profile of the stylize steps there with the
+# operators a step dispatches and its waits for the GPU (bench/studio_rate.py, device_stylize.py,
+# device_profile.py), the GPU's memory per Gaussian (bench/bench_memory_per_gaussian.py --device cuda), and the
+# worker again at 4 torch threads. "full" also ends with the GPU's memory per Gaussian.
 # Every figure is printed and kept in $OUT/gpu_check.log (OUT defaults to out/gpu_check).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -63,19 +64,20 @@ gpu_memory() {  # the card's memory per Gaussian (what a cap on Gaussians from t
   timeout 150 "$PY" bench/bench_memory_per_gaussian.py --width 512 --device cuda 1 4
 }
 
-if [[ $MODE == studio ]]; then  # the studio's live rate only: the worker at 1 and 4 torch threads, then a profile
-  for threads in 1 4; do
-    stage "the studio's worker on CUDA at 512 px, preview preset, $threads torch thread(s)"
-    timeout 100 "$PY" bench/studio_rate.py --device cuda --working-width 512 --preset preview --skip 2 --seconds 15 \
-      --worker-threads "$threads"
-  done
+if [[ $MODE == studio ]]; then  # the studio's live rate first, then the hand-over tests, the engine, its profile
+  stage "the studio's worker on CUDA at 512 px, preview preset, 1 torch thread (the studio's)"
+  timeout 100 "$PY" bench/studio_rate.py --device cuda --working-width 512 --preset preview --skip 2 --seconds 15 \
+    --worker-threads 1
+  stage "a real out-of-memory error on the card, the run handed over to the CPU (the studio's Continue on the CPU)"
+  timeout 90 "$PY" -m pytest -q -p no:cacheprovider tests/test_gpu_handover.py 2>&1 | tail -15
   stage "the engine alone at 512 px (the same figure as quick's: a change's effect side by side with earlier logs)"
   timeout 120 "$PY" bench/device_stylize.py --preset preview --devices cuda --rate-width 512
   stage "profile: 8 stylize steps at 512 px on CUDA"
   timeout 100 "$PY" bench/device_profile.py --device cuda --preset preview --working-width 512 --skip 2 --steps 8
   gpu_memory
-  stage "a real out-of-memory error on the card, the run handed over to the CPU (the studio's Continue on the CPU)"
-  timeout 90 "$PY" -m pytest -q -p no:cacheprovider tests/test_gpu_handover.py 2>&1 | tail -15
+  stage "the studio's worker on CUDA at 512 px, preview preset, 4 torch threads"
+  timeout 100 "$PY" bench/studio_rate.py --device cuda --working-width 512 --preset preview --skip 2 --seconds 15 \
+    --worker-threads 4
   stage "done"
   exit 0
 fi

@@ -2,10 +2,12 @@
 
 The state goes through a checkpoint file (``save_checkpoint`` / ``read_checkpoint``, ``weights_only`` loading) into a
 freshly built engine (``load_state_dict``), at: a ground-truth view, between two pre-processing rounds, inside a
-pre-processing refit (past its first elongation clamp, before the others), the colour match, inside the
-stylization (Adam moments, accumulated gradients), inside the refit after a colour-gradient split, and the final
-colour match. Small synthetic scenes with a few Gaussians no camera sees, a cheap stand-in objective with its own
-random generator (as CLIP's crops), fixed seed; both versions run in this process, so they must agree to the bit.
+pre-processing refit (past its first elongation clamp, before the others), right after a pre-processing split and
+right after a colour-gradient split (the refit started, its trainer not built yet: its view order's seed), the
+colour match, inside the stylization (Adam moments, accumulated gradients), inside the refit after a
+colour-gradient split, and the final colour match. Small synthetic scenes with a few Gaussians no camera sees, a
+cheap stand-in objective with its own random generator (as CLIP's crops), fixed seed; both versions run in this
+process, so they must agree to the bit.
 """
 
 from __future__ import annotations
@@ -85,10 +87,14 @@ def interruption(engine: Stylizer) -> str | None:
     pre, sty = engine.preprocess, engine.stylize
     if phase == "preprocess" and pre.refit is not None and pre.refit.steps_done == 2:
         return "inside a pre-processing refit"
+    if phase == "preprocess" and pre.refit is not None and pre.refit.steps_done == 0 and pre.round == 1:
+        return "after a pre-processing split, before its refit's first step"
     if phase == "preprocess" and pre.refit is None and pre.round == 1:
         return "between pre-processing rounds"
     if phase == "refit" and sty.refit.steps_done == 2:
         return "inside the refit after a split"
+    if phase == "refit" and sty.refit.steps_done == 0:
+        return "after a colour-gradient split, before its refit's first step"
     if phase == "stylize" and sty.step_index == 2:
         return "inside the stylization"
     if phase == "ground_truth" and engine.global_step == 1:
@@ -96,7 +102,7 @@ def interruption(engine: Stylizer) -> str | None:
     return {"colour_match": "at the colour match", "finish": "at the final colour match"}.get(phase)
 
 
-POINTS = 7
+POINTS = 9
 
 
 @pytest.mark.parametrize("variant", list(VARIANTS))
@@ -130,6 +136,40 @@ def test_a_run_resumed_inside_any_phase_ends_as_an_uninterrupted_one(variant, tm
         assert torch.equal(resumed.c_s, reference.c_s), where
         assert resumed.history == reference.history and resumed.decisions == reference.decisions, where
         assert np.array_equal(resumed.stylized_scene().sh_dc, reference.stylized_scene().sh_dc), where
+
+
+def test_a_refit_whose_first_step_runs_out_of_memory_is_built_by_the_next(monkeypatch):
+    """The first step of each kind of refit (pre-processing, after a colour split) fails building its trainer, as
+    a GPU out of memory does (a real one on an H100 found the refit half-started when it was built by the split
+    step): the error is the one-line one, the step is not counted, and the run, stepped on, ends as an
+    uninterrupted one."""
+    from gstyle_core.device import DeviceMemoryError
+    from gstyle_core.pipeline.phases import Refit
+
+    variant = VARIANTS["a region, some unseen, 360° settings (4 views a step, random order, visible-rows Adam)"]
+    reference = make_engine(**variant)
+    while not reference.done:
+        reference.step()
+    build, failed = Refit._build, []
+
+    def build_or_run_out(refit, ids, seed):
+        if refit.name not in failed:
+            failed.append(refit.name)
+            raise torch.OutOfMemoryError("CUDA out of memory. Tried to allocate 2.00 MiB (a stand-in)")
+        build(refit, ids, seed)
+
+    monkeypatch.setattr(Refit, "_build", build_or_run_out)
+    engine = make_engine(**variant)
+    while not engine.done:
+        before = engine.global_step
+        try:
+            engine.step()
+        except DeviceMemoryError as error:
+            assert "ran out of memory in" in str(error) and engine.global_step == before
+    assert failed == ["preprocess", "refit"]
+    for name, value in reference.params.items():
+        assert torch.equal(engine.params[name], value), name
+    assert torch.equal(engine.c_s, reference.c_s)
 
 
 def test_the_progress_total_is_the_sum_of_the_phases_steps():

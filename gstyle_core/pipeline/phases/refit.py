@@ -5,6 +5,10 @@ When some Gaussians are unseen (or a region is selected), the refit trains a cop
 back after every iteration; in a region run the unselected rows render as they are but never move. A checkpoint
 holds the rows it works on, the trainer's Adam moments, its view order and step count, so a resumed refit goes on
 exactly where it stopped.
+
+The trainer (on CUDA a copy of the rows on the GPU) is built by the refit's first step, not by ``start``: the step
+that starts a refit (a split) then touches no GPU memory, and a first step that fails (the GPU out of memory) leaves
+the refit as it was, to be built again by the next step, on this device or, handed over, on another.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ class Refit(Phase):
         self.trainer: Trainer | None = None
         self._ids: torch.Tensor | None = None  # rows of run.params the trainer's copy holds (None: every row)
         self._frozen: tuple[torch.Tensor, dict[str, torch.Tensor]] | None = None  # region: rows that stay put
+        self._seed = 0  # the trainer's view order, drawn at start
 
     @classmethod
     def after_split(cls, run) -> Refit:
@@ -63,8 +68,7 @@ class Refit(Phase):
 
     def start(self) -> None:
         super().start()
-        run = self.run
-        self._build(run.active.refit_ids(), seed=run.settings.seed + run.global_step)
+        self._seed = self.run.settings.seed + self.run.global_step
 
     def _build(self, ids: torch.Tensor | None, seed: int) -> None:
         """The trainer over ``ids``' rows (a copy) or over the run's parameters themselves (None). On CUDA the
@@ -92,6 +96,8 @@ class Refit(Phase):
         self.trainer = Trainer(params, run.cameras, run.gt_images, cfg, self.strategy, strategy_state={"extras": {}})
 
     def step(self) -> StepReport:
+        if self.trainer is None:  # the first step, or a first step that failed
+            self._build(self.run.active.refit_ids(), seed=self._seed)
         rep = self.trainer.step()
         with torch.no_grad():
             if self._frozen is not None:  # undo whatever the strategy (elongation clamps) did to unselected rows
@@ -113,6 +119,7 @@ class Refit(Phase):
     def state_dict(self) -> dict[str, Any]:
         running = self.trainer is not None
         return {**super().state_dict(), "steps_done": self.steps_done, "iterations": self.iterations,
+                "seed": self._seed,
                 "ids": None if self._ids is None else self._ids.clone(),
                 "trainer": self.trainer.state_dict() if running else None}
 
@@ -120,7 +127,7 @@ class Refit(Phase):
         super().load_state_dict(state)
         if int(state["iterations"]) != self.iterations:
             raise ValueError(f"the saved refit runs {state['iterations']} iterations, this run's {self.iterations}")
-        self.steps_done = int(state["steps_done"])
+        self.steps_done, self._seed = int(state["steps_done"]), int(state.get("seed", 0))
         self.trainer = self._frozen = None
         if state["trainer"] is not None:  # interrupted: the same rows, moments, view order and step count
             self._build(state["ids"], seed=0)
