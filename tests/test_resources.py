@@ -8,9 +8,12 @@ from fakes import MeanColourPull
 
 from gstyle_core.pipeline.resources import (
     FALLBACK_MAX_GAUSSIANS,
+    GPU_BYTES_AT_512,
     available_memory_bytes,
     bytes_per_gaussian,
+    card_free_bytes,
     default_max_gaussians,
+    gpu_bytes_per_gaussian,
 )
 from gstyle_core.pipeline.settings import resolve_settings
 from gstyle_core.pipeline.stylizer import Stylizer
@@ -37,6 +40,20 @@ def test_default_cap_follows_the_available_memory():
     eng = _engine()
     assert eng.settings.max_gaussians == 0 and eng.max_gaussians > 1000
     assert "GiB available" in eng.decisions["max_gaussians"]
+
+
+def test_on_a_gpu_the_cards_free_memory_caps_the_count_too():
+    gib = 2**30
+    assert gpu_bytes_per_gaussian(512) == GPU_BYTES_AT_512  # the width measured
+    assert gpu_bytes_per_gaussian(256) < GPU_BYTES_AT_512 < gpu_bytes_per_gaussian(1024)
+    host_cap, host_how = default_max_gaussians(512, available=64 * gib)
+    cap, how = default_max_gaussians(512, available=64 * gib, card_free=2 * gib)  # a small card, a large host
+    assert cap == int(2 * gib * 0.5 // GPU_BYTES_AT_512) < host_cap and "2.0 GiB free on the GPU" in how
+    assert default_max_gaussians(512, available=64 * gib, card_free=80 * gib) == (host_cap, host_how)  # host binds
+    assert default_max_gaussians(512, available=0, card_free=2 * gib)[0] == cap  # host unknown: the card's still
+    assert default_max_gaussians(512, available=64 * gib, card_free=None) == (host_cap, host_how)
+    if not torch.cuda.is_available():
+        assert card_free_bytes(torch.device("cuda")) is None  # no card: no figure, no crash
 
 
 def test_tiny_cap_reduces_splits_and_reports_it():

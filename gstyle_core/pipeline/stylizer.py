@@ -104,9 +104,10 @@ class Stylizer:
                                     *finish]
         run.max_gaussians, how = settings.max_gaussians, "max_gaussians setting"
         if run.max_gaussians <= 0:  # 0: derived from the memory available now (pipeline/resources.py)
-            from .resources import default_max_gaussians
+            from .resources import card_free_bytes, default_max_gaussians
 
-            run.max_gaussians, how = default_max_gaussians(settings.working_width)
+            card = card_free_bytes(run.raster_device) if run.raster_device.type == "cuda" else None
+            run.max_gaussians, how = default_max_gaussians(settings.working_width, card_free=card)
         run.decisions["max_gaussians"] = f"at most {run.max_gaussians:,} Gaussians ({how})"
         self.phase_step = 0  # steps since the run entered the current phase
         self.rasterizer_setup = RasterizerSetup(run.raster_device)  # gsplat's module on CUDA, before the first step
