@@ -273,9 +273,13 @@ class StyleObjective:
         total = values = None
         for image, content, view, coverage in zip(images, contents, views, coverages, strict=True):
             loss, view_values = self.evaluate(image, content, view, coverage, together=together)
-            (loss * scale).backward()
+            # the inputs left in ``together`` share their first operators with the view's own terms (keep colours'
+            # luminance, a resize): the view's backward keeps those saved for the backward of the terms taken
+            # together; the rest of the view's graph goes with ``loss`` below
+            (loss * scale).backward(retain_graph=together is not None)
             total = loss.detach() if total is None else total + loss.detach()
             values = view_values if values is None else values + view_values
+            del loss
         if together:
             values = values.clone()
             weighted = None
