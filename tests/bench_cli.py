@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ def load_bench(name: str):
     """The bench script ``bench/NAME.py`` as a module of its own (``NAME_bench``), as its command line would run."""
     spec = importlib.util.spec_from_file_location(f"{name}_bench", BENCH / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses and pickling look a class's module up by name
     spec.loader.exec_module(module)
     return module
 

@@ -495,3 +495,22 @@ def test_checkpoint_resume_with_culled_gaussians_matches_uninterrupted_run():
     assert a.gaussian_count == b.gaussian_count
     torch.testing.assert_close(b.c_s, a.c_s, atol=1e-5, rtol=0)
     assert b.decisions["culled"] == a.decisions["culled"]
+
+
+@pytest.mark.parametrize("views_per_step", [1, 3])
+def test_every_term_off_steps_through_to_the_end_and_leaves_the_colours_alone(vgg, no_clip_weights, views_per_step):
+    """An artist may turn every λ to 0: each step's loss is then a constant with nothing to backpropagate (it raised
+    'element 0 of tensors does not require grad' until #48); the run goes on, VGG never runs and the stylization
+    moves no colour."""
+    from fakes import engine_at_stylize
+    from synthetic import blob_scene as scene_of
+
+    off = {f"lambda_{t}": 0.0 for t in ("clip", "nnfm", "multiscale", "content", "tv", "chroma_tv", "edges")}
+    style = np.random.default_rng(0).uniform(size=(24, 24, 3)).astype(np.float32)
+    engine = engine_at_stylize(vgg, scene_of(150, seed=3), style, views_per_step=views_per_step, **off)
+    before = engine.run_state.c_s.clone()
+    while engine.phase == "stylize":
+        report = engine.step()
+        assert report.losses["total"] == 0.0
+    assert torch.equal(engine.run_state.c_s, before)
+    assert engine.build_objective().calls["vgg"] == 0

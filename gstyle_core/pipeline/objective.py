@@ -276,7 +276,8 @@ class StyleObjective:
             # the inputs left in ``together`` share their first operators with the view's own terms (keep colours'
             # luminance, a resize): the view's backward keeps those saved for the backward of the terms taken
             # together; the rest of the view's graph goes with ``loss`` below
-            (loss * scale).backward(retain_graph=together is not None)
+            if loss.requires_grad:  # False when every term of the view is off or left to ``together``
+                (loss * scale).backward(retain_graph=together is not None)
             total = loss.detach() if total is None else total + loss.detach()
             values = view_values if values is None else values + view_values
             del loss

@@ -69,7 +69,9 @@ def backward_views(objective: Any, views: Sequence[Callable[[], ViewInput]], los
     if together is None or not together(len(views)):
         for make in views:
             render, content, view, coverage = make()
-            losses.evaluate(objective, render, content, view, coverage=coverage).backward()
+            loss = losses.evaluate(objective, render, content, view, coverage=coverage)
+            if loss.requires_grad:  # every term off (the artist's λ all 0): a constant, nothing to backpropagate
+                loss.backward()
         return
     inputs = [make() for make in views]
     renders = [render for render, _, _, _ in inputs]
