@@ -35,7 +35,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gstyle_core.pipeline.controls import CONTROLS, Control, preset_values  # noqa: E402
+from gstyle_core.pipeline.controls import CONTROLS, Control  # noqa: E402
+from gstyle_core.pipeline.settings import preset_values  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 WINTER = DATA / "scenes" / "splat" / "winter_fountain.cropped.splat"

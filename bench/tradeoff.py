@@ -53,7 +53,7 @@ sys.path.insert(0, str(ROOT))
 from gstyle_core.machine import set_torch_threads  # noqa: E402
 from gstyle_core.pipeline.build import BuildRequest, build_stylizer  # noqa: E402
 from gstyle_core.pipeline.consistency import nearby_camera, view_consistency  # noqa: E402
-from gstyle_core.pipeline.stylizer import choose_views  # noqa: E402
+from gstyle_core.pipeline.view_choice import choose_views  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
 SCENES: dict[str, tuple[str | None, str | None]] = {"demo": (None, None)}  # (scene, cameras); None = the demo

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from gstyle_core.pipeline import controls
-from gstyle_core.pipeline.controls import CliOption, Control, Effect, apply_controls, control, preset_values
-from gstyle_core.pipeline.settings import resolve_settings, ui_params
+from gstyle_core.pipeline.controls import CliOption, Control, Effect, apply_controls, control
+from gstyle_core.pipeline.settings import preset_values, resolve_settings, ui_params
 
 
 def _write_lr_end(s, value) -> None:

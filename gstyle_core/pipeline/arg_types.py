@@ -1,14 +1,16 @@
 """Command-line value types of the stylization options (``--style-scale``, ``--style-weights``, ``--region``,
 ``--colour-field``, ``--display-width``, ``--refine-widths``), shared by ``gstyle stylize`` and ``gstyle-studio``: a bad
-value is one line from argparse (exit status 2), not a traceback; and the stroke size's own check, which the controls
-table uses too. Nothing here imports torch, the settings or the controls (no import cycle through them)."""
+value is one line from argparse (exit status 2), not a traceback. The stroke size's own check is
+``style/painting_size.py``'s. Nothing here imports torch, the settings or the controls (no import cycle through
+them)."""
 
 from __future__ import annotations
 
 import argparse
-import math
 from collections.abc import Callable
 from typing import Any
+
+from ..style.painting_size import check_style_scale
 
 
 def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
@@ -21,18 +23,6 @@ def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
             raise argparse.ArgumentTypeError(str(exc)) from None
 
     return checked
-
-
-def check_style_scale(scale: float) -> float:
-    """``scale`` as a float if it is a usable stroke size (finite, > 0), else ``ValueError`` saying why."""
-    try:
-        value = float(scale)
-    except (TypeError, ValueError):
-        raise ValueError(f"style scale must be a number, got {scale!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"style scale must be a finite number above 0 (1 = the painting at the working "
-                         f"resolution, 2 = the painting at twice that size), got {scale}")
-    return value
 
 
 def _style_scale(text: str) -> float:

@@ -21,7 +21,8 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from ..style.mix import weights_with_mix
-from .arg_types import check_style_scale, on_off_arg, style_scale_arg
+from ..style.painting_size import check_style_scale
+from .arg_types import on_off_arg, style_scale_arg
 
 if TYPE_CHECKING:
     from .settings import StylizeSettings
@@ -57,7 +58,7 @@ class Control:
     name: str  # set_params / ui_params key
     label: str  # the panel's label
     default: float  # the forward-facing preview's value (the panel's before a scene's preset is known;
-    # ``preset_values`` gives every preset's and scene kind's)
+    # ``settings.preset_values`` gives every preset's and scene kind's)
     low: float  # the panel's range
     high: float
     log: bool  # the panel's slider is on a logarithmic scale
@@ -275,14 +276,6 @@ def apply_controls(settings: StylizeSettings, values: Mapping[str, Any]) -> Effe
         if not abs(float(row.read(settings)) - before) <= row.tolerance:
             effects |= row.effects
     return effects
-
-
-def preset_values(preset: str, scene_kind: str, n_views: int = 1, **kw: Any) -> dict[str, float]:
-    """Every control's default for a preset and a scene kind ("forward" or "360"; ``kw``: ``resolve_settings``'
-    other arguments, e.g. ``clip_available``)."""
-    from .settings import resolve_settings
-
-    return read_controls(resolve_settings(preset, scene_kind, n_views, **kw))
 
 
 def add_control_arguments(parser: argparse.ArgumentParser) -> None:

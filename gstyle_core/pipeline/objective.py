@@ -9,10 +9,10 @@ from dataclasses import asdict
 import numpy as np
 import torch
 
-from ..cameras.images import resize_image
 from ..style.clip import CLIP_OFF
 from ..style.features import concat_features
 from ..style.losses import TERM_NAMES, TOGETHER_TERMS, TermInputs, term_values
+from ..style.painting_size import MAX_STYLE_SIDE, MIN_STYLE_SIDE, resize_long_side, style_side
 from .scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, scene_box
 from .settings import StylizeSettings
 
@@ -22,27 +22,7 @@ def to_bchw(img: np.ndarray | torch.Tensor) -> torch.Tensor:
     return torch.as_tensor(img, dtype=torch.float32).permute(2, 0, 1)[None].contiguous()
 
 
-def resize_long_side(img: np.ndarray, long_side: int) -> np.ndarray:
-    """Resize an [H, W, 3] float image so its longer side is ``long_side`` pixels (aspect kept)."""
-    h, w = img.shape[:2]
-    s = long_side / max(h, w)
-    return resize_image(img, (max(1, int(round(w * s))), max(1, int(round(h * s)))))
-
-
 STYLE_TERMS = ("clip", "nnfm", "multiscale")  # the terms the style strength multiplies
-
-MIN_STYLE_SIDE = 16  # below this the painting has next to no relu3 feature vectors (2 poolings: 4 × 4)
-MAX_STYLE_SIDE = 1024  # above this the style features outgrow a CPU's memory and time (768 × 65k vectors at 1024²)
-
-
-def style_side(working_width: int, scale: float) -> tuple[int, bool]:
-    """Long side in pixels at which the painting is matched for a stroke size ``scale`` (``check_style_scale``):
-    ``scale`` × max(64, working width), clamped to [MIN_STYLE_SIDE, MAX_STYLE_SIDE]; True when it was clamped."""
-    from .settings import check_style_scale
-
-    wanted = round(max(64, int(working_width)) * check_style_scale(scale))
-    side = min(max(wanted, MIN_STYLE_SIDE), MAX_STYLE_SIDE)
-    return int(side), side != wanted
 
 
 class StyleObjective:

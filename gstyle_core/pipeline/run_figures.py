@@ -15,7 +15,7 @@ from .levels import level_widths
 def evaluation_cameras(engine, n_views: int = 3, width: int = 256) -> list:
     """The fixed views the quality figures are measured on: ``n_views`` training cameras spread over the list
     (``choose_views``), resized to ``width`` px."""
-    from .stylizer import choose_views
+    from .view_choice import choose_views
 
     return [engine.full_cameras[i].resized_to_width(width) for i in choose_views(engine.full_cameras, n_views)]
 

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, replace
+from typing import Any
 
 from ..device import DEVICES
 from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
 from ..style.precision import PRECISIONS
-from .arg_types import check_style_scale as check_style_scale  # the engine and the objective import it from here
 from .controls import apply_controls, control_names, read_controls
 
 
@@ -235,6 +235,12 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         s.colour_field = BROAD_STROKES["colour_field"]
     _display_defaults(s, live, overrides)
     return check_settings(s)
+
+
+def preset_values(preset: str, scene_kind: str, n_views: int = 1, **kw: Any) -> dict[str, float]:
+    """Every live control's value for a preset and a scene kind ("forward" or "360"; ``kw``: ``resolve_settings``'
+    other arguments, e.g. ``clip_available``)."""
+    return read_controls(resolve_settings(preset, scene_kind, n_views, **kw))
 
 
 def level_weight_changes(s: StylizeSettings) -> dict[str, float]:

@@ -45,18 +45,11 @@ from .plan import STYLIZED_PHASES
 from .region import region_note, selected_box, selection_mask
 from .run_state import RunState
 from .settings import StylizeSettings, level_weight_changes, ui_params
+from .view_choice import choose_views
 
 __all__ = ["Stylizer", "StepReport", "choose_views", "ENGINE_STATE"]
 
 ENGINE_STATE = 2  # the layout of ``Stylizer.state_dict()`` (checkpoint.FORMAT names it too)
-
-
-def choose_views(cameras: list[Camera], max_views: int) -> list[int]:
-    """Indices of at most ``max_views`` cameras, evenly spread over the list."""
-    n = len(cameras)
-    if n <= max_views:
-        return list(range(n))
-    return sorted({int(round(i)) for i in np.linspace(0, n - 1, max_views)})
 
 
 def _shared(owner: str, name: str, doc: str) -> property:

@@ -62,6 +62,28 @@ def _check_inputs(
         raise ValueError(f"rasterize: tile_size must be positive, got {tile_size}")
 
 
+def _device_backend(means: Tensor, backend: str) -> str:
+    """The blend backend for the tensors' device: "fast" on CUDA is gsplat's (which needs float32 on CUDA)."""
+    if means.is_cuda and backend == "fast":
+        backend = "gsplat"
+    if backend == "gsplat" and (not means.is_cuda or means.dtype != torch.float32):
+        raise ValueError("rasterize: the gsplat backend needs float32 tensors on a CUDA device")
+    return backend
+
+
+def _composite(feats: Tensor, t_final: Tensor, background: Tensor | None) -> tuple[Tensor, Tensor, Tensor]:
+    """(image over ``background`` (default black), alpha, depth) from the blended colour-and-depth features
+    [H, W, 4] and the final transmittance [H, W]; depth is the alpha-normalised mean depth (0 where nothing is)."""
+    if background is None:
+        background = torch.zeros(3, dtype=feats.dtype, device=feats.device)
+    image = feats[..., :3] + t_final[..., None] * background.to(feats.device, feats.dtype)
+    alpha = 1.0 - t_final
+    has_alpha = alpha > 0
+    depth = torch.where(has_alpha, feats[..., 3] / torch.where(has_alpha, alpha, torch.ones_like(alpha)),
+                        torch.zeros_like(alpha))
+    return image, alpha, depth
+
+
 def rasterize(
     means: Tensor,  # [N, 3] world positions
     quats: Tensor,  # [N, 4] wxyz, any length (a zero quaternion means identity)
@@ -91,10 +113,7 @@ def rasterize(
     )
     width, height, tile_size = int(width), int(height), int(tile_size)
     dtype = means.dtype
-    if means.is_cuda and backend == "fast":
-        backend = "gsplat"
-    if backend == "gsplat" and (not means.is_cuda or dtype != torch.float32):
-        raise ValueError("rasterize: the gsplat backend needs float32 tensors on a CUDA device")
+    backend = _device_backend(means, backend)
     viewmat = viewmat.detach().to(dtype=dtype, device=means.device)
     # float32: the numba kernels of the projection (forward and backward), shared by both backends so that they
     # agree on culling bit for bit; float64 runs its torch twin (tests/test_raster_projection.py: the two agree)
@@ -109,21 +128,7 @@ def rasterize(
     features = torch.cat([rgb.to(dtype), proj.depths[:, None]], 1)
     blend = {"fast": blend_fast, "reference": blend_reference, "gsplat": _blend_gsplat}[backend]
     feats, t_final, stats = blend(proj, opacities.to(dtype), features, width, height, tile_size)
-    if background is None:
-        background = torch.zeros(3, dtype=dtype, device=means.device)
-    image = feats[..., :3] + t_final[..., None] * background.to(feats.device, feats.dtype)
-    alpha = 1.0 - t_final
-    has_alpha = alpha > 0
-    depth = torch.where(
-        has_alpha,
-        feats[..., 3] / torch.where(has_alpha, alpha, torch.ones_like(alpha)),
-        torch.zeros_like(alpha),
-    )
-    stats.update(
-        backend=backend,
-        visible=int(proj.visible.sum()),
-        tiles=proj.tiles_x * proj.tiles_y,
-        tiles_x=proj.tiles_x,
-        tiles_y=proj.tiles_y,
-    )
+    image, alpha, depth = _composite(feats, t_final, background)
+    stats.update(backend=backend, visible=int(proj.visible.sum()), tiles=proj.tiles_x * proj.tiles_y,
+                 tiles_x=proj.tiles_x, tiles_y=proj.tiles_y)
     return RenderOutput(image, alpha, depth, proj.means2d, proj.radii, proj.visible, stats)

@@ -195,37 +195,55 @@ class StyleLoss(nn.Module):
         CLIP substitute) are not computed: their inputs (render, coverage) are appended to ``together[term]``, for
         ``terms_together`` to take with other views', and the total and the terms' values leave them out."""
         w = self._weights
-        zero = render.new_zeros(())
-        terms = dict.fromkeys(TERM_NAMES, zero)
+        terms = dict.fromkeys(TERM_NAMES, render.new_zeros(()))
         small = resize_to_width(render, self.working_width) if (w.nnfm or w.content or w.clip or w.multiscale) \
             else render
-        if w.nnfm > 0 or w.content > 0:
-            stacked = stacked_features(self.vgg, upsample_for_vgg(small))
-            self.calls["vgg"] += 1
-            grid = feature_weights(coverage, stacked.shape[-2:])
-            if w.nnfm > 0:
-                terms["nnfm"] = style_nnfm(stacked, self.style_target, self.nnfm_chunk, weights=grid)
-            if w.content > 0:
-                if gt_feats is None:
-                    gt_feats = self.content_features(gt, small.shape[-2:])
-                terms["content"] = stacked_content_loss(stacked, concat_features(gt_feats), grid)
-        if w.clip > 0:
-            clip_in, clip_cov = (small, coverage) if clip_view is None else (
-                resize_to_width(clip_view[0], self.working_width), clip_view[1])
-            if together is not None and self.takes_together("clip"):  # the caller's, with other views' inputs
-                together.setdefault("clip", []).append((clip_in, clip_cov))
-            else:
-                takes_coverage = getattr(self.clip_term, "takes_coverage", False)
-                terms["clip"] = self.clip_term(clip_in, clip_cov) if takes_coverage else self.clip_term(clip_in)
-                self.calls[getattr(self.clip_term, "network", "clip")] += 1
-        if w.multiscale > 0:
-            ms_in, ms_cov = (small, coverage) if multiscale_view is None else (
-                resize_to_width(multiscale_view[0], self.working_width), multiscale_view[1])
-            if together is not None and self.takes_together("multiscale"):
-                together.setdefault("multiscale", []).append((ms_in, ms_cov))
-            else:
-                terms["multiscale"] = self.multiscale_term(ms_in, ms_cov)
-                self.calls["vgg"] += self.multiscale_term.passes
+        self._vgg_terms(terms, small, gt, gt_feats, coverage)
+        for name, view in (("clip", clip_view), ("multiscale", multiscale_view)):
+            if getattr(w, name) > 0:
+                self._large_pattern_term(terms, name, (small, coverage) if view is None else (
+                    resize_to_width(view[0], self.working_width), view[1]), together)
+        self._pixel_terms(terms, render, gt, coverage)
+        # the total as one dot product of the terms with their weights (0 for the terms left to the caller): two
+        # operators, and one in the backward pass, where a sum of weighted terms takes two a term and one a term
+        values = torch.stack([terms[name].float().reshape(()) for name in TERM_NAMES])
+        return values @ self._weight_vector(frozenset(together or ()), values.device), values.detach()
+
+    def _vgg_terms(self, terms: dict[str, torch.Tensor], small: torch.Tensor, gt: torch.Tensor | None,
+                   gt_feats: Mapping[str, torch.Tensor] | torch.Tensor | None, coverage: torch.Tensor | None) -> None:
+        """NNFM and content into ``terms``, from one VGG pass over the (resized) render ``small``."""
+        w = self._weights
+        if not (w.nnfm > 0 or w.content > 0):
+            return
+        stacked = stacked_features(self.vgg, upsample_for_vgg(small))
+        self.calls["vgg"] += 1
+        grid = feature_weights(coverage, stacked.shape[-2:])
+        if w.nnfm > 0:
+            terms["nnfm"] = style_nnfm(stacked, self.style_target, self.nnfm_chunk, weights=grid)
+        if w.content > 0:
+            if gt_feats is None:
+                gt_feats = self.content_features(gt, small.shape[-2:])
+            terms["content"] = stacked_content_loss(stacked, concat_features(gt_feats), grid)
+
+    def _large_pattern_term(self, terms: dict[str, torch.Tensor], name: str,
+                            view: tuple[torch.Tensor, torch.Tensor | None], together: TermInputs | None) -> None:
+        """The CLIP term (or its substitute) or the broad strokes (``name``) on ``view`` = (render, coverage) into
+        ``terms``, or its input into ``together`` when the term takes several views in one pass."""
+        if together is not None and self.takes_together(name):  # the caller's, with other views' inputs
+            together.setdefault(name, []).append(view)
+            return
+        module = self._together_term(name)
+        if name == "multiscale":
+            terms[name] = module(*view)
+            self.calls["vgg"] += module.passes
+            return
+        terms[name] = module(*view) if getattr(module, "takes_coverage", False) else module(view[0])
+        self.calls[getattr(module, "network", "clip")] += 1
+
+    def _pixel_terms(self, terms: dict[str, torch.Tensor], render: torch.Tensor, gt: torch.Tensor | None,
+                     coverage: torch.Tensor | None) -> None:
+        """TV, colour smoothness and edges kept into ``terms``, on the full-resolution render."""
+        w = self._weights
         if w.tv > 0:
             terms["tv"] = tv_loss(render)
         if w.chroma_tv > 0:  # only the colour variation beyond the painting's own
@@ -234,10 +252,6 @@ class StyleLoss(nn.Module):
             if gt is None:
                 raise ValueError("the edges term needs the content target (gt) at the render's size")
             terms["edges"] = edges_loss(render, gt, coverage)
-        # the total as one dot product of the terms with their weights (0 for the terms left to the caller): two
-        # operators, and one in the backward pass, where a sum of weighted terms takes two a term and one a term
-        values = torch.stack([terms[name].float().reshape(()) for name in TERM_NAMES])
-        return values @ self._weight_vector(frozenset(together or ()), values.device), values.detach()
 
     def _weight_vector(self, left: frozenset[str], device: torch.device) -> torch.Tensor:
         """The weights in ``TERM_NAMES`` order as a float32 vector on ``device``, 0 for the terms in ``left``;

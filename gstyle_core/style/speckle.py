@@ -74,7 +74,7 @@ def fine_share(energies: np.ndarray) -> float:
 def painting_chroma_energies(painting: np.ndarray, side: int, channels: str = "chroma") -> np.ndarray:
     """Chroma (or luminance) band energies of ``painting`` [H, W, 3] resized (as the engine resizes it) to a long side
     of ``side``."""
-    from ..pipeline.objective import resize_long_side
+    from .painting_size import resize_long_side
 
     return chroma_energies(resize_long_side(np.asarray(painting, np.float32), int(side)), channels=channels)
 

@@ -120,7 +120,7 @@ def matched_side(working_width: int, scale: float, image_width: int | None = Non
     """Long side (px) of the painting as it is matched (``style_side``: stroke size × the working width), expressed in
     the pixels of images ``image_width`` wide (default: the working width itself), so that it compares with
     renders measured at that width."""
-    from ..pipeline.objective import style_side
+    from .painting_size import style_side
 
     side, _ = style_side(working_width, scale)
     if image_width is None:
@@ -130,7 +130,7 @@ def matched_side(working_width: int, scale: float, image_width: int | None = Non
 
 def painting_shares(painting: np.ndarray, side: int) -> np.ndarray:
     """Shares of ``painting`` [H, W, 3] resized (as the engine resizes it) so its longer side is ``side`` px."""
-    from ..pipeline.objective import resize_long_side
+    from .painting_size import resize_long_side
 
     return band_shares(resize_long_side(np.asarray(painting, np.float32), int(side)))
 

@@ -32,6 +32,7 @@ import torch
 from ..colour_steps import ColourSteps
 from ..levels import MAX_LEVEL_VIEWS
 from ..step_losses import StepLosses, ViewInput, backward_views
+from ..view_choice import choose_views
 from .base import Phase, StepReport
 from .colour_match import content_target, detail_sigma
 from .ground_truth import ground_truth_view
@@ -45,8 +46,6 @@ class Refine(Phase):
 
     def __init__(self, run, width: int, index: int) -> None:
         super().__init__(run)
-        from ..stylizer import choose_views
-
         s = run.settings
         if s.refine_mode not in REFINE_MODES:
             raise ValueError(f"refine mode must be one of {', '.join(REFINE_MODES)}, got {s.refine_mode!r}")
