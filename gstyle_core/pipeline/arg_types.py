@@ -1,7 +1,8 @@
-"""Command-line value types of the stylization options (``--style-scale``, ``--style-weights``, ``--region``,
-``--colour-field``, ``--display-width``, ``--refine-widths``), shared by ``gstyle stylize`` and ``gstyle-studio``: a bad
-value is one line from argparse (exit status 2), not a traceback; and the stroke size's own check, which the controls
-table uses too. Nothing here imports torch, the settings or the controls (no import cycle through them)."""
+"""Command-line value types of the stylization options (``--style-scale``, ``--palette-match``, ``--style-weights``,
+``--region``, ``--colour-field``, ``--display-width``, ``--refine-widths``), shared by ``gstyle stylize`` and
+``gstyle-studio``: a bad value is one line from argparse (exit status 2), not a traceback; and the stroke size's and
+the palette match's own checks, which the controls table uses too. Nothing here imports torch, the settings or the
+controls (no import cycle through them)."""
 
 from __future__ import annotations
 
@@ -32,6 +33,17 @@ def check_style_scale(scale: float) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"style scale must be a finite number above 0 (1 = the painting at the working "
                          f"resolution, 2 = the painting at twice that size), got {scale}")
+    return value
+
+
+def check_palette_match(strength: Any) -> float:
+    """``strength`` as a float if it is a usable palette-match strength (0 to 1), else ``ValueError`` saying why."""
+    try:
+        value = float(strength)
+    except (TypeError, ValueError):
+        raise ValueError(f"palette match must be a number, got {strength!r}") from None
+    if not 0.0 <= value <= 1.0:  # NaN fails too
+        raise ValueError(f"palette match must lie from 0 (the strokes' colours) to 1 (the full match), got {strength}")
     return value
 
 
@@ -95,6 +107,7 @@ def _on_off(text: str) -> bool:
 
 
 style_scale_arg = argument_type(_style_scale)
+palette_match_arg = argument_type(check_palette_match)  # --palette-match: 0 to 1
 on_off_arg = argument_type(_on_off)
 style_weights_arg = argument_type(_style_weights)
 region_arg = argument_type(_region)
