@@ -183,3 +183,25 @@ def test_a_finer_level_after_the_end_matches_again_at_the_strength_then():
     engine.run()
     final = _finish(engine)
     assert torch.equal(engine.c_s, final.before) and final.applied == 0.0
+
+
+def test_the_quality_figures_measure_the_colours_after_the_blend(finished, monkeypatch):
+    from gstyle_core.fit.model import scene_from_params
+    from gstyle_core.pipeline.run_figures import evaluate_run, evaluation_cameras
+    from gstyle_core.render_cli import render_scene_image
+    from gstyle_core.scene import rgb_to_sh_dc
+    from gstyle_core.style import vgg as vgg_module
+
+    monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: vgg_module.VGGFeatures().eval())
+    full = evaluate_run(finished, finished.input_scene, _style(), width=64)
+    finished.set_params(palette_match=0.0)
+    try:
+        none = evaluate_run(finished, finished.input_scene, _style(), width=64)
+    finally:
+        finished.set_params(palette_match=1.0)
+    unmatched = scene_from_params(finished.params)
+    unmatched.sh_dc = rgb_to_sh_dc(_finish(finished).before.clamp(0, 1).numpy())
+    expected = np.concatenate([render_scene_image(unmatched, c) for c in evaluation_cameras(finished, 3, 64)], axis=1)
+    assert np.array_equal(none["images"][1], expected)  # the "after" renders are the colours shipped at 0
+    assert not np.array_equal(full["images"][1], expected)
+    assert none["final"]["colour"] > full["final"]["colour"]  # the full match sits closer to the painting's palette
