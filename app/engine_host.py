@@ -19,6 +19,7 @@ import copy
 import dataclasses
 import multiprocessing as mp
 import queue
+import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
@@ -35,6 +36,7 @@ from .export import export_engine
 from .snapshot import FOLLOW_GEOMETRY
 
 IDLE_POLL_SECONDS = 0.05
+SUMMARY_DELAY_SECONDS = 0.5  # a finished run whose colours a control changed is measured again once they rest this long
 REPORT_FIELDS = ("phase", "step", "total_steps", "losses", "seconds", "gaussians", "colours_changed",
                  "geometry_changed", "done", "message", "width")
 PAINTING_PARAMS = painting_controls()  # engine params that belong to the config's paintings, not carried to a new one
@@ -70,6 +72,7 @@ class EngineHost(EngineSaves):
         self.sent_decisions: dict[str, Any] | None = None
         self.sent_setup_note = ""
         self.in_thread = False  # a worker thread of the UI process (ThreadWorkerBridge), not a spawned process
+        self.summary_due: float | None = None  # when a finished run's summary is measured again (monotonic seconds)
 
     def send(self, kind: str, payload: Any = None) -> None:
         self.events.put((kind, payload))
@@ -90,7 +93,7 @@ class EngineHost(EngineSaves):
             self.config = config
             for key in PAINTING_PARAMS:  # a new config's paintings come with their own mix (its style_weights)
                 self.params.pop(key, None)
-        self.engine, self.done, self.failed = None, False, False
+        self.engine, self.done, self.failed, self.summary_due = None, False, False, None
         self.sent_geometry_version = object()
         self.sent_decisions = None
         self.sent_setup_note = ""
@@ -274,9 +277,20 @@ class EngineHost(EngineSaves):
             self.fail(exc, "set_params")
             return
         self.send("params", dict(self.params))
-        if getattr(self.engine, "colour_version", None) != colours:  # e.g. keep colours restored the hues at once:
-            self.snapshot_pending = True  # shown without waiting for a step (paused, or done)
-            self.flush_snapshot()
+        if getattr(self.engine, "colour_version", None) != colours:  # e.g. keep colours restored the hues at once,
+            self.snapshot_pending = True  # the palette match blended a finished run again: shown without waiting for
+            self.flush_snapshot()  # a step (paused, or done)
+            if self.done:  # its summary describes the colours shown (measured once a slider's drag rests)
+                self.summary_due = time.monotonic() + SUMMARY_DELAY_SECONDS
+
+    def send_due_summary(self) -> None:
+        """The finished run's summary measured again (``send_summary``) when a control changed its colours and they
+        have rested ``SUMMARY_DELAY_SECONDS`` since (a drag's every frame would each cost a measure)."""
+        if self.summary_due is None or time.monotonic() < self.summary_due:
+            return
+        self.summary_due = None
+        if self.done and self.engine is not None:
+            self.send_summary()
 
     def export(self, path: str) -> None:
         if self.engine is None:
@@ -321,5 +335,6 @@ def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: A
         if parent is not None and not parent.is_alive():
             break
         host.flush_snapshot()
+        host.send_due_summary()
         if host.should_step():
             host.step()

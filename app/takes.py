@@ -50,13 +50,16 @@ def widths_text(settings: dict) -> str:
 
 def settings_line(summary: dict) -> str:
     """An export summary's settings in one line: ``preview, 256 -> 512 px; NNFM 200, content 0.05, strength 1,
-    stroke 1; keep colours``."""
+    stroke 1; keep colours; palette match 0.5`` (the palette match when below 1)."""
     settings = summary.get("settings") if isinstance(summary.get("settings"), dict) else {}
     params = summary.get("params") if isinstance(summary.get("params"), dict) else {}
     head = ", ".join(x for x in (str(settings.get("preset") or ""), widths_text(settings)) if x)
     controls = ", ".join(f"{label} {float(params[key]):g}" for key, label in SHOWN_CONTROLS
                          if isinstance(params.get(key), (int, float)))
     switches = "; keep colours" if params.get("keep_colours") else ""
+    palette = params.get("palette_match")
+    if isinstance(palette, (int, float)) and palette != 1.0:  # below the method's full final colour match
+        switches += f"; palette match {float(palette):g}"
     return "; ".join(x for x in (head, controls) if x) + switches
 
 

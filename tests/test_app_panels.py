@@ -202,6 +202,8 @@ def test_a_take_carries_its_settings_in_one_line(tmp_path):
     line = settings_line(summary)
     assert line == "balanced, 256 -> 512 px; NNFM 200, content 0.05, strength 1, stroke 2; keep colours"
     assert settings_line({}) == "" and settings_line({"settings": None, "params": "x"}) == ""
+    summary["params"].update(keep_colours=0.0, palette_match=0.5)
+    assert settings_line(summary).endswith("strength 1, stroke 2; palette match 0.5")
     (tmp_path / "a.ply").write_bytes(b"x")
     TakeShelf(tmp_path).add(tmp_path / "a.ply", 10, settings=line)
     assert TakeShelf(tmp_path).takes[0].settings == line

@@ -230,7 +230,8 @@ def test_strength_multiplies_the_style_terms_against_content():
         resolve_settings("preview", "forward", 4, strength=-1.0)
 
 
-def test_cli_records_strength_and_prints_structure(tiny_scene, fake_vgg_file, tmp_path, capsys, no_clip_weights):
+def test_cli_records_strength_palette_match_and_prints_structure(tiny_scene, fake_vgg_file, tmp_path, capsys,
+                                                                 no_clip_weights):
     import json
 
     from gstyle_core.pipeline import cli
@@ -239,10 +240,11 @@ def test_cli_records_strength_and_prints_structure(tiny_scene, fake_vgg_file, tm
     cli.add_stylize_arguments(parser)
     out = tmp_path / "o.ply"
     args = parser.parse_args([tiny_scene, "--out", str(out), "--working-width", "32", "--strength", "2.5",
-                              "--vgg-weights", fake_vgg_file[0], "--lambda-clip", "0"])
+                              "--vgg-weights", fake_vgg_file[0], "--lambda-clip", "0", "--palette-match", "0.5"])
     assert cli.stylize_command(args) == 0
     summary = json.loads(out.with_suffix(".json").read_text())
     assert summary["settings"]["strength"] == 2.5 and summary["settings"]["defaults"] == "calibrated"
+    assert summary["settings"]["palette_match"] == 0.5
     assert -1.0 <= summary["quality"]["structure"] <= 1.0
     printed = capsys.readouterr().out
     assert f"structure kept (edge correlation before/after over the scene): {summary['quality']['structure']:.2f}" \

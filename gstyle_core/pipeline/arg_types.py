@@ -1,8 +1,8 @@
-"""Command-line value types of the stylization options (``--style-scale``, ``--style-weights``, ``--region``,
-``--colour-field``, ``--display-width``, ``--refine-widths``), shared by ``gstyle stylize`` and ``gstyle-studio``: a bad
-value is one line from argparse (exit status 2), not a traceback. The stroke size's own check is
-``style/painting_size.py``'s. Nothing here imports torch, the settings or the controls (no import cycle through
-them)."""
+"""Command-line value types of the stylization options (``--style-scale``, ``--palette-match``, ``--style-weights``,
+``--region``, ``--colour-field``, ``--display-width``, ``--refine-widths``), shared by ``gstyle stylize`` and
+``gstyle-studio``: a bad value is one line from argparse (exit status 2), not a traceback; and the palette match's own
+check, which the controls table uses too (the stroke size's is ``style/painting_size.py``'s). Nothing here imports
+torch, the settings or the controls (no import cycle through them)."""
 
 from __future__ import annotations
 
@@ -23,6 +23,17 @@ def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
             raise argparse.ArgumentTypeError(str(exc)) from None
 
     return checked
+
+
+def check_palette_match(strength: Any) -> float:
+    """``strength`` as a float if it is a usable palette-match strength (0 to 1), else ``ValueError`` saying why."""
+    try:
+        value = float(strength)
+    except (TypeError, ValueError):
+        raise ValueError(f"palette match must be a number, got {strength!r}") from None
+    if not 0.0 <= value <= 1.0:  # NaN fails too
+        raise ValueError(f"palette match must lie from 0 (the strokes' colours) to 1 (the full match), got {strength}")
+    return value
 
 
 def _style_scale(text: str) -> float:
@@ -85,6 +96,7 @@ def _on_off(text: str) -> bool:
 
 
 style_scale_arg = argument_type(_style_scale)
+palette_match_arg = argument_type(check_palette_match)  # --palette-match: 0 to 1
 on_off_arg = argument_type(_on_off)
 style_weights_arg = argument_type(_style_weights)
 region_arg = argument_type(_region)

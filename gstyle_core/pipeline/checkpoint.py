@@ -77,8 +77,8 @@ def _hash_arrays(arrays) -> str:
 
 
 def engine_fingerprint(engine: Any) -> dict[str, str]:
-    """Digests of what an engine was built from (scene, style, cameras, photos, settings but its device), for resume
-    checks.
+    """Digests of what an engine was built from (scene, style, cameras, photos, settings but its device and palette
+    match), for resume checks.
 
     Call it right after building the engine (settings may change later through ``set_params``). Engines without
     these attributes (test doubles) give an empty fingerprint, which matches anything.
@@ -106,6 +106,9 @@ def engine_fingerprint(engine: Any) -> dict[str, str]:
         # where it computes is not what it computes: a run saved on the GPU goes on on the CPU and back (the device
         # reads as its default here, so the digests of checkpoints saved with it stay as they were)
         values = {**settings.to_dict(), "device": "auto"}
+        # the palette match only blends the final colour match, which a finished run keeps both ends of: a run goes
+        # on at another strength (and the digests of checkpoints written before it was a setting stay as they were)
+        values.pop("palette_match", None)
         out["settings"] = _digest(json.dumps(values, sort_keys=True, default=str))
     return out
 

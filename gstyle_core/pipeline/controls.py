@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..style.mix import weights_with_mix
 from ..style.painting_size import check_style_scale
-from .arg_types import on_off_arg, style_scale_arg
+from .arg_types import check_palette_match, on_off_arg, palette_match_arg, style_scale_arg
 
 if TYPE_CHECKING:
     from .settings import StylizeSettings
@@ -39,6 +39,8 @@ class Effect(enum.Flag):
     LR_SCHEDULE = enum.auto()  # the learning-rate schedule is rescaled (read at the next step: nothing to do now)
     NEXT_SPLIT = enum.auto()  # read at the next colour-gradient split (nothing to do now)
     NEXT_STEP = enum.auto()  # read at the next stylization step (nothing to do now)
+    PALETTE_MATCH = enum.auto()  # a finished final colour match is blended again at the new strength, at once
+    # (``phases/colour_match.py``); before the final match runs, it reads the strength then
 
 
 @dataclass(frozen=True)
@@ -94,6 +96,10 @@ def _write_strength(s: StylizeSettings, value: Any) -> None:
 
 def _write_style_scale(s: StylizeSettings, value: Any) -> None:
     s.style_scale = check_style_scale(value)
+
+
+def _write_palette_match(s: StylizeSettings, value: Any) -> None:
+    s.palette_match = check_palette_match(value)
 
 
 def _write_switch(name: str) -> Callable[[StylizeSettings, Any], None]:
@@ -180,6 +186,15 @@ CONTROLS: tuple[Control, ...] = (
             cli=CliOption("stroke size: the painting is matched at S × the working width (2: at twice that size, "
                           "0.5: half; visible with the broad-strokes term, docs/texture-scale.md); default 1",
                           type=style_scale_arg, metavar="S")),
+    Control("palette_match", "palette match", 1.0, 0.0, 1.0, False,
+            "Palette match: how far the finished colours move onto the painting's palette in the last colour match. "
+            "1: the method's full match (the painting's colours); 0: the colours as the strokes left them; between: "
+            "a blend of the two. A finished result changes at once, without running again; during a run the end "
+            "takes it (--palette-match; with keep colours it blends the luminance match alone).",
+            Effect.PALETTE_MATCH, read=lambda s: s.palette_match, write=_write_palette_match, fmt="%.2f",
+            cli=CliOption("palette match of the final colour match: 1 the method's full match onto the painting's "
+                          "palette, 0 the colours as the strokes left them, between a blend; default 1",
+                          type=palette_match_arg, metavar="T")),
     Control("keep_colours", "keep colours", 0.0, 0.0, 1.0, False,
             "Keep the scene's colours: it keeps its hues and takes only the painting's light and dark pattern "
             "(colour match and networks on luminance; each Gaussian's own chroma restored after every step). "

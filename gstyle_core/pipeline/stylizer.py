@@ -16,7 +16,9 @@ fully). Stroke size (``settings.style_scale``): the painting is matched at that 
 its features are extracted again before the next step (``objective.py``). Several paintings (``style`` a list,
 ``settings.style_weights``, ``style/mix.py``): every style term is the weighted sum of its terms against each
 painting and the colour matches map onto the weighted palette; a mix changed mid-run (``set_params(style_mix=...)``)
-re-matches the content targets and re-weights the terms from the next step.
+re-matches the content targets and re-weights the terms from the next step. Palette match
+(``settings.palette_match``, t): the final colour match leaves (1 − t)·before + t·matched; both are kept, so a
+finished run takes a new t at once (``phases/colour_match.ColourMatch.reapply``).
 """
 
 from __future__ import annotations
@@ -319,17 +321,17 @@ class Stylizer:
         finish = [p for p in self.phases if isinstance(p, ColourMatch) and p.final]
         self.phases = [p for p in self.phases if p not in finish] + [level] + finish
         for p in finish:
-            p.done = False
+            p.reopen()
         note_levels(self.run_state.decisions, s)
         self._settle()
         return width
 
     # ----------------------------------------------------------------- live controls
     def set_params(self, **kw: float) -> None:
-        """Change live controls (``controls.CONTROLS``: λ weights, strength, stroke size, keep colours, split rate,
-        lr, style mix: the last painting's weight when several are mixed, the others share the rest) from the next
-        step on; a term whose weight turns non-zero is built then. ``ValueError`` (nothing changed) for an unknown
-        name or a refused value."""
+        """Change live controls (``controls.CONTROLS``: λ weights, strength, stroke size, palette match, keep colours,
+        split rate, lr, style mix: the last painting's weight when several are mixed, the others share the rest) from
+        the next step on (the palette match of a finished run at once); a term whose weight turns non-zero is built
+        then. ``ValueError`` (nothing changed) for an unknown name or a refused value."""
         self.live.carry_out(apply_controls(self.settings, kw))
 
     # ----------------------------------------------------------------- outputs
@@ -387,6 +389,7 @@ class Stylizer:
             self.settings.style_weights = normalise_style_weights(saved["style_weights"], len(self.styles))
         # a resumed run keeps its stroke size and keep colours; the painting's features follow them and the mix
         kept = {"style_scale": saved.get("style_scale"), "keep_colours": saved.get("keep_colours")}
-        self.live.carry_out(apply_controls(self.settings, kept) | Effect.STYLE_FEATURES)
+        # ... and a finished run's palette match is this engine's (not in the fingerprint: it can be re-applied)
+        self.live.carry_out(apply_controls(self.settings, kept) | Effect.STYLE_FEATURES | Effect.PALETTE_MATCH)
         self._settle()
 

@@ -135,14 +135,32 @@ def surface_blur(image: torch.Tensor, alpha: torch.Tensor, sigma: float) -> torc
     return (blurred[:3] / blurred[3:].clamp_min(1e-6)).permute(1, 2, 0)
 
 
+def blend_colours(before: torch.Tensor, matched: torch.Tensor, strength: float) -> torch.Tensor:
+    """(1 − t)·``before`` + t·``matched`` for t = ``strength`` in [0, 1]; t = 0 gives ``before`` and t = 1 ``matched``
+    bit for bit (copies)."""
+    if strength <= 0.0:
+        return before.clone()
+    if strength >= 1.0:
+        return matched.clone()
+    return torch.lerp(before, matched, float(strength))
+
+
 class ColourMatch(Phase):
-    """One colour match of the (selected) Gaussians' colours: c_gt -> c_s before stylization, c_s -> c_s after."""
+    """One colour match of the (selected) Gaussians' colours: c_gt -> c_s before stylization, c_s -> c_s after.
+
+    The final match (``final``) is applied at ``settings.palette_match`` = t: c_s = (1 − t)·before + t·matched,
+    ``before`` the colours the stylization (and its levels) left, ``matched`` what the full match gives (with keep
+    colours: the luminance match, chroma restored). Both are kept, so a finished run takes a new strength at once
+    (``reapply``) without fitting the match again; checkpoints keep them too."""
 
     def __init__(self, run, final: bool = False) -> None:
         super().__init__(run)
         self.final = final
         self.name = "finish" if final else "colour_match"
         self.done = False
+        self.before: torch.Tensor | None = None  # the final match's input and full output (kept once it ran)
+        self.matched: torch.Tensor | None = None
+        self.applied = 1.0  # the strength c_s holds now
 
     @property
     def finished(self) -> bool:
@@ -157,7 +175,7 @@ class ColourMatch(Phase):
         keep = run.settings.keep_colours
         if self.final:
             A, b = transfer(run, *self.renders())
-            source = run.c_s
+            source = run.c_s.detach().clone()
         else:
             if run.active.region:
                 run.region_coverage = [run.selected_weight(v) for v in range(len(run.cameras))]
@@ -168,10 +186,33 @@ class ColourMatch(Phase):
         if keep:
             run.restore_chroma()
         self.done = True
-        if self.final:
-            what = "luminance (colours kept)" if keep else "style"
-            return self.report(colours_changed=True, message=f"final colour match to the {what}")
-        return self.report(colours_changed=True, message="colours matched to the style")
+        if not self.final:
+            return self.report(colours_changed=True, message="colours matched to the style")
+        self.before, self.matched = source, run.c_s.detach().clone()
+        self.applied = float(run.settings.palette_match)
+        run.c_s = blend_colours(self.before, self.matched, self.applied)
+        what = "luminance (colours kept)" if keep else "style"
+        strength = "" if self.applied == 1.0 else f" at strength {self.applied:g}"
+        return self.report(colours_changed=True, message=f"final colour match to the {what}{strength}")
+
+    def reapply(self, strength: float) -> bool:
+        """A finished final match blended again at ``strength``: c_s takes the new blend and True, when c_s is still
+        the blend this phase left (no refine, keep colours switch or resumed step changed it since); else False and
+        nothing changes (the strength applies when the final match runs next)."""
+        if not (self.final and self.done) or self.before is None or self.matched is None:
+            return False
+        run = self.run
+        if self.before.shape != run.c_s.shape or not torch.equal(
+                run.c_s, blend_colours(self.before, self.matched, self.applied)):
+            return False
+        self.applied = float(strength)
+        run.c_s = blend_colours(self.before, self.matched, self.applied)
+        return True
+
+    def reopen(self) -> None:
+        """The final match is due again (a finer level was added after it): it runs anew at its end."""
+        self.done = False
+        self.before = self.matched = None
 
     def renders(self) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
         """The stylized renders of the training views and what of each the scene (or the region) covers."""
@@ -182,8 +223,18 @@ class ColourMatch(Phase):
         return images, [1.0 - run.cache(v).t_final for v in range(len(run.cameras))]
 
     def state_dict(self) -> dict:
-        return {**super().state_dict(), "done": self.done}
+        kept = {} if self.before is None else {"before": self.before.clone(), "matched": self.matched.clone(),
+                                               "applied": self.applied}
+        return {**super().state_dict(), "done": self.done, **kept}
 
     def load_state_dict(self, state: dict) -> None:
+        """Restore ``state_dict()``; a checkpoint written before the palette match kept none of its colours: the
+        run resumes, and a finished one takes a new strength only after its final match runs again."""
         super().load_state_dict(state)
         self.done = bool(state["done"])
+        before, matched = state.get("before"), state.get("matched")
+        if before is None or matched is None:
+            self.before = self.matched = None
+            return
+        self.before, self.matched = torch.as_tensor(before).clone(), torch.as_tensor(matched).clone()
+        self.applied = float(state.get("applied", 1.0))
