@@ -174,3 +174,24 @@ def test_a_cache_that_refuses_files_still_gives_one_line(tmp_path, monkeypatch, 
     assert run(["info", "scene.ply"]) == 1
     line, _printed = failure_line(capsys)
     assert line.startswith("gstyle info: unexpected error: ValueError: injected; the traceback could not be saved (")
+
+
+def test_a_run_that_cannot_be_kept_says_so_on_its_line(cache, tmp_path, monkeypatch, capsys):
+    """A full cache folder: the failure's line says the run could not be kept, and gives no --resume."""
+    import errno
+
+    from gstyle_core.errors import OutputWriteError
+    from gstyle_core.pipeline import checkpoint
+
+    def full(path, *_a, **_k):
+        raise OutputWriteError(path, "no space left on the device", errno.ENOSPC)
+
+    monkeypatch.setattr(checkpoint, "save_checkpoint", full)
+    inject(monkeypatch, phases.GroundTruth, 2)
+    out = tmp_path / "full.ply"
+    assert run(["stylize", "--working-width", "32", "--display-width", "0", "--out", str(out)]) == 1
+    line, printed = failure_line(capsys)
+    assert "Traceback" not in printed and "--resume" not in line and not out.exists()
+    assert re.match(r"gstyle stylize: unexpected error in phase ground_truth at step 2 of \d+: RuntimeError: "
+                    r"injected into GroundTruth; controls: the preview preset's; the run could not be kept \(cannot "
+                    r"write \S+\.ckpt: no space left on the device\); traceback in \S+\.log$", line), line
