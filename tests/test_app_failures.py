@@ -157,3 +157,14 @@ def test_a_bug_in_the_worker_loop_itself_is_one_line_and_the_worker_is_said_gone
         assert not b.state.stepping and stopped_reason(b.state).startswith("The engine is not running: Restart")
     finally:
         b.quit(timeout=5)
+
+
+def test_space_does_nothing_while_pause_and_resume_cannot_work():
+    pytest.importorskip("imgui_bundle")
+    from app.keys import KeyPress
+    from app.panels.draw import _shortcut
+    from app.panels.state import PanelState
+
+    space = KeyPress("space")
+    assert [c.name for c in _shortcut(PanelState(paused=True), space)] == ["resume"]
+    assert _shortcut(PanelState(paused=True, stopped="The run stopped at an error (above): ..."), space) == []
