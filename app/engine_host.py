@@ -8,9 +8,10 @@ worker, ``engine.step()`` -> report (.phase .step .total_steps .losses .seconds 
 
 Snapshots carry colours after every step and the geometry only when ``geometry_version`` changed. A credit
 semaphore bounds the snapshots in flight, so a fast engine never floods a slow UI: when no credit is free the
-snapshot is sent later (the newest one). Errors are sent as one line of text and the worker stays alive so
-``restart`` can rebuild the engine. Checkpoints, kept runs, resumes and moves to another device are in
-``app/engine_saves.py``.
+snapshot is sent later (the newest one). Errors are sent as one line of text (where the run stopped, what failed,
+and for a bug the crash log with its traceback: ``gstyle_core/crash.py``) and the worker stays alive so ``restart``
+can rebuild the engine, or ``continue`` go on from the last finished step. Checkpoints, kept runs, resumes and
+moves to another device are in ``app/engine_saves.py``.
 """
 
 from __future__ import annotations
@@ -20,15 +21,16 @@ import dataclasses
 import multiprocessing as mp
 import queue
 import time
-import traceback
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from gstyle_core.assets import DEMO_SCENE
+from gstyle_core.crash import log_crash, what_failed
 from gstyle_core.device import available_devices, is_device_failure
-from gstyle_core.errors import one_line_error
+from gstyle_core.errors import GStyleError, one_line_error
 from gstyle_core.pipeline.controls import painting_controls
+from gstyle_core.pipeline.run_crash import all_controls, controls_in_force, where_the_run_is
 
 from .child_process import lower_priority, single_compute_thread, worker_nice
 from .engine_saves import EngineSaves
@@ -78,13 +80,43 @@ class EngineHost(EngineSaves):
         self.events.put((kind, payload))
 
     def fail(self, exc: BaseException, during: str) -> None:
-        traceback.print_exc()
+        """Stop stepping at ``exc``: the UI gets one line (``failure_line``) and keeps its last good snapshot. After
+        the GPU's failure it offers the CPU (``device_failed``); after another, with an engine, Continue from the last
+        finished step (``failed``' ``continue_from``: a step that failed keeps none of its work)."""
         self.failed = True
         self.paused = True
         self.snapshot_pending = False  # never ship the state of a failed step: the UI keeps the last good one
-        self.send("error", f"{during}: {one_line_error(exc)}")
-        if self.config.get("device") != "cpu" and is_device_failure(exc):  # the UI offers the CPU (move_to)
+        self.send("error", self.failure_line(exc, during))
+        device = self.config.get("device") != "cpu" and is_device_failure(exc)
+        if device:  # the UI offers the CPU (move_to)
             self.send("device_failed", None)
+        self.send("failed", {"continue_from": None if device or self.engine is None else self.steps_done()})
+
+    def failure_line(self, exc: BaseException, during: str) -> str:
+        """``DURING WHERE: Type: first line``: where the run is (its phase and step) and what failed, with the crash
+        log of a bug (``worded``)."""
+        where = where_the_run_is(self.engine) if self.engine is not None else ""
+        rep = self.last_report
+        if not where and rep:  # an engine that cannot tell: its last report
+            where = f"in phase {rep.get('phase')} at step {int(rep.get('step', 0)) + 1}"
+        return self.worded(exc, f"{during}{f' {where}' if where else ''}: {what_failed(exc)}")
+
+    def worded(self, exc: BaseException, line: str) -> str:
+        """``line`` about ``exc``; for a bug (not a ``GStyleError`` or an ``OSError``, which are worded for the
+        artist already) with the crash log that has its traceback (``gstyle_core/crash.py``)."""
+        if isinstance(exc, (GStyleError, OSError)):
+            return line
+        details = [f"studio worker: {line}", f"engine config: {self.config}", f"params: {self.params}"]
+        if self.engine is not None:
+            details += [controls_in_force(self.engine), all_controls(self.engine)]
+        return f"{line}; {log_crash(exc, 'studio', details)}"
+
+    def steps_done(self) -> int:
+        """The steps the run has done: the engine's count, else its last report's."""
+        done = getattr(self.engine, "global_step", None)
+        if done is None and self.last_report is not None:
+            done = self.last_report.get("step")
+        return int(done or 0)
 
     def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
         """Build the engine from ``config`` (default: the current one); ``resume_from``: a checkpoint to continue
@@ -132,7 +164,7 @@ class EngineHost(EngineSaves):
         try:
             report = report_to_dict(self.engine.step())
         except Exception as exc:  # noqa: BLE001
-            self.fail(exc, "step")
+            self.fail(exc, "the run stopped")
             return
         self.last_report = report
         self.done = bool(report.get("done"))
@@ -177,13 +209,15 @@ class EngineHost(EngineSaves):
 
             self.send("summary", result_summary(self.engine))
         except Exception as exc:  # noqa: BLE001
-            traceback.print_exc()
-            self.send("summary", {"line": f"no summary: {one_line_error(exc)}"})
+            self.send("summary", {"line": self.worded(exc, f"no summary: {what_failed(exc)}")})
 
     def refine(self) -> None:
         """Carry the run on at its next finer level (``engine.refine()``), from its colours as they are."""
         if self.engine is None or not hasattr(self.engine, "refine"):
             self.send("error", "refine: this engine has no finer levels")
+            return
+        if self.failed:  # it would wait for steps that never come
+            self.send("refine_refused", "refine: the run stopped at an error; Continue or Restart it first")
             return
         try:
             width = self.engine.refine()
@@ -236,21 +270,21 @@ class EngineHost(EngineSaves):
             self.flush_snapshot(force=True)  # the last step's colours arrive before the acknowledgement
             self.send("paused", True)
         elif command == "resume":
-            self.paused = False
-            self.send("paused", False)
+            self.paused = self.failed  # after a failure nothing steps until Continue, a move or a restart
+            self.send("paused", self.paused)
         elif command == "step":
-            if self.engine is not None and not self.done:
+            if self.engine is not None and not (self.done or self.failed):  # after a failure: Continue, not a retry
                 self.step()
         elif command in ("restart", "restart_from"):
             self.handover = None  # a restart starts from its inputs: no run to move on from
             self.paused = False
             self.send("paused", False)
             self.build(*(arg if command == "restart_from" else (arg,)))
-        elif command == "move_to":
+        elif command in ("move_to", "continue"):  # continue: after a failure, on the device it is on
             if self.failed or self.engine is None:  # after a failure the run goes on; a paused one stays paused
                 self.paused = False
             self.send("paused", self.paused)
-            self.move_to(arg)
+            self.move_to(arg if command == "move_to" else self.config)
         elif command == "checkpoint_path":
             self.checkpoint_path = arg
         elif command == "set_params":
@@ -300,8 +334,7 @@ class EngineHost(EngineSaves):
             written = export_engine(self.engine, Path(path), self.last_report, self.params, self.config.get("style"),
                                     self.config.get("scene") or str(DEMO_SCENE))
         except Exception as exc:  # noqa: BLE001 - one line in the panel; the run goes on, nothing was written
-            traceback.print_exc()
-            self.send("export_failed", f"export: {one_line_error(exc)}")
+            self.send("export_failed", self.worded(exc, f"export: {what_failed(exc)}"))
             return
         self.keep_run(written)
         self.send("exported", written)
@@ -314,15 +347,24 @@ def worker_main(factory: Callable[..., Any], config: dict[str, Any], commands: A
                 checkpoint_path: str | None, start_paused: bool, resume_from: str | None = None,
                 in_thread: bool = False) -> None:
     """Entry point of the spawned process (or, with ``in_thread``, of the UI process's worker thread: no nice,
-    which would apply to the whole process)."""
+    which would apply to the whole process). A bug that stops the loop itself is one line to the UI, its traceback
+    in a crash log (the UI then sees the worker gone)."""
     single_compute_thread(in_thread)
     if not in_thread:
         lower_priority(worker_nice())
     host = EngineHost(factory, config, events, credits, checkpoint_path)
     host.in_thread = in_thread
     host.paused = start_paused
-    host.build(resume_from=resume_from)
-    parent = None if in_thread else mp.parent_process()
+    try:
+        host.build(resume_from=resume_from)
+        serve(host, commands, None if in_thread else mp.parent_process())
+    except Exception as exc:  # noqa: BLE001 - the worker's own bug: said, logged, and the worker ends
+        host.send("error", host.worded(exc, f"the engine worker stopped: {what_failed(exc)}"))
+
+
+def serve(host: EngineHost, commands: Any, parent: Any) -> None:
+    """The worker's loop: every pending command first, then a snapshot owed and a step, until "quit" (or the UI's
+    process, ``parent``, is gone)."""
     running = True
     while running:
         try:

@@ -50,6 +50,8 @@ class StudioCommands:
             self.start_engine(resume=True)
         elif name == "move_to":
             self.move_to(str(args["device"]))
+        elif name == "continue_run":
+            self.continue_run()
         elif name == "set_params":
             self.history.record({k: self.panel.params.get(k) for k in args}, args)
             self._apply_params(args)
@@ -88,6 +90,17 @@ class StudioCommands:
         self.bridge.move_to(self.engine_config, device)
         self._moving = (device, self.bridge.state.reports_received)  # (a worker started again counts from 0)
         self.panel.status = f"moving the run to {device_words(device)} ..."
+
+    def continue_run(self) -> None:
+        """After an engine error: go on from the run's last finished step on the device it is on (the worker builds
+        the engine again from the run's state; the status then says where it continued, as after a move)."""
+        if self.bridge is None:
+            return
+        st = self.bridge.state
+        device, step = st.device or str(self.engine_config.get("device") or "cpu"), st.continue_from
+        self.bridge.continue_run()
+        self._moving = (device, st.reports_received)
+        self.panel.status = f"continuing from step {step} ..."
 
     def restart_from_original(self) -> None:
         """A result was opened: open the scene it came from and stylize it with the result's preset, controls and

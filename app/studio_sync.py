@@ -3,9 +3,30 @@ changed) and everything reaches the panel. ``StudioSync`` is a mixin of ``Studio
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from .panels.quality import device_words
 from .renderer import DIFFUSE_LAYER, SH_LAYER
 from .result_undo import in_history
+
+if TYPE_CHECKING:
+    from .worker import WorkerState
+
+
+def stopped_reason(st: WorkerState) -> str:
+    """Why Pause / Resume and Step cannot work now ("" when they can): a worker that is gone, or a run an error
+    stopped (the panel names the ways on: Continue, the CPU, Restart)."""
+    if not st.alive:
+        return "The engine is not running: Restart starts it again."
+    if not st.failed:
+        return ""
+    if st.continue_from is not None:
+        way = f"Continue goes on from step {st.continue_from}, the last finished one; Restart starts again."
+    elif st.device_failed:
+        way = "Continue on the CPU goes on from where it stopped; Restart starts again."
+    else:
+        way = "Restart starts again."
+    return f"The run stopped at an error (above): {way}"
 
 
 class StudioSync:
@@ -73,21 +94,26 @@ class StudioSync:
         self._poll_video()
         if self.bridge is None:
             p.running, p.paused, p.device = False, False, ""
+            p.failed, p.continue_from, p.stopped = False, None, ""
             self._show_takes_error()  # (renaming or forgetting takes needs no engine)
             return
         st = self.bridge.state
-        p.running, p.paused, p.error = st.alive, st.paused, st.error
-        p.device_failed = st.device_failed  # (cleared with the error: a new engine, a restart)
+        self._fill_run(st)
         p.decisions = st.decisions
         p.loss_history = st.loss_history[-500:]
         if st.params:
             p.params.update(st.params)
-        rep = st.last_report
-        if rep:
-            p.phase = "done" if st.done else str(rep.get("phase", "-"))
-            p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
-            p.eta_seconds = None if st.done or st.paused else self._eta(st)  # paused: no ETA
         self._fill_quality(st)
+        self._sync_resumed(st)
+        p.device, p.device_name, p.devices = st.device or "", st.device_name, st.devices
+        self._sync_setup_note(st)
+        self._sync_exports(st)
+        self._show_takes_error()
+
+    def _sync_resumed(self, st) -> None:
+        """The status after a resume: of the last session, a saved result's run, or a move or Continue (where it
+        went on, or that it started afresh: stepping, and no state was taken over)."""
+        p = self.panel
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             session = self.session_checkpoint()
@@ -99,12 +125,23 @@ class StudioSync:
                     else "the saved result's run"
                 p.status = f"resumed {what} at step {st.resumed.get('step')}"
         if self._moving is not None and st.reports_received > self._moving[1]:
-            p.status = f"started afresh on {device_words(self._moving[0])}"  # stepping, and no state was taken over
+            p.status = f"started afresh on {device_words(self._moving[0])}"
             self._moving = None
-        p.device, p.device_name, p.devices = st.device or "", st.device_name, st.devices
-        self._sync_setup_note(st)
-        self._sync_exports(st)
-        self._show_takes_error()
+
+    def _fill_run(self, st) -> None:
+        """Whether the worker steps, why not (``stopped_reason``), the error and the ways on from it, the phase, the
+        step and the ETA (only while it steps: a paused, finished or failed run has none)."""
+        p = self.panel
+        p.running, p.paused, p.error = st.stepping, st.paused, st.error
+        p.device_failed = st.device_failed  # (cleared with the error: a new engine, a restart)
+        p.failed, p.continue_from = st.failed, st.continue_from
+        p.stopped = stopped_reason(st)
+        rep = st.last_report
+        if rep:
+            p.phase = "done" if st.done else str(rep.get("phase", "-"))
+            p.phase += " (stopped at an error)" if st.failed else ""
+            p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
+            p.eta_seconds = self._eta(st) if st.stepping else None
 
     def _eta(self, st) -> float | None:
         """Seconds left: the run's plan (its steps of each kind) at the measured cost of each kind, the run

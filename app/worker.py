@@ -64,6 +64,15 @@ class WorkerState:
     device: str | None = None  # what the engine computes on ("cpu", "cuda", "mps"; None: no engine built yet)
     device_name: str = ""  # the same in words (the card)
     devices: tuple[str, ...] = ("cpu",)  # the devices the worker can compute on (``device.available_devices``)
+    failed: bool = False  # an engine error stopped the run: nothing steps until Continue (``continue_run``), a move
+    # to another device or a restart
+    continue_from: int | None = None  # after ``failed``: the last finished step, where Continue goes on (None: no
+    # engine to go on from, or the GPU's failure, whose way on is the CPU)
+
+    @property
+    def stepping(self) -> bool:
+        """True while the worker steps the engine: alive, built, and not paused, done or stopped by an error."""
+        return self.alive and self.ready and not (self.paused or self.done or self.failed)
 
 
 # ====================================================================== the UI side
@@ -184,6 +193,7 @@ class WorkerBridge:
         st = self.state
         st.error, st.done, st.paused, st.device_failed, st.device = None, False, False, False, None
         st.decisions, st.resumed, st.summary, st.refine_note = {}, None, None, ""
+        st.failed, st.continue_from = False, None
 
     def move_to(self, config: dict[str, Any], device: str) -> None:
         """Go on on ``device`` ("cpu" after the GPU failed, ``state.device_failed``): the worker builds the engine
@@ -198,6 +208,17 @@ class WorkerBridge:
         self._forget_engine()
         self.state.step_times, self.state.prior_times = StepTimes(), None
         self._send("move_to", self.config)
+
+    def continue_run(self) -> None:
+        """After an engine error (``state.failed``): the worker builds the engine again on the device it is on and goes
+        on from the run's last finished step (``state.continue_from``: the failed step kept none of its work); the
+        loss history and the step times stay. A worker that is gone starts afresh."""
+        if not self.alive:
+            self.resume_from = None
+            self.start()
+            return
+        self._forget_engine()
+        self._send("continue")
 
     def set_checkpoint_path(self, path: str | os.PathLike | None) -> None:
         """Where the worker saves its checkpoint when it quits (e.g. after the scene or style changed)."""
@@ -230,7 +251,8 @@ class WorkerBridge:
         Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
         decisions (dict), exported (path), export_failed (one line), checkpoint (path), resumed (dict), plans (dict),
         summary (dict), refining (width), refine_refused (one line), setup_note (one line), device_failed
-        (None: the GPU failed, ``move_to`` the CPU can go on), bye.
+        (None: the GPU failed, ``move_to`` the CPU can go on), failed ({"continue_from": step or None}: an engine
+        error stopped the run, ``continue_run`` goes on), bye.
         """
         messages: list[tuple[str, Any]] = []
         if self._events is None:
@@ -256,6 +278,7 @@ class WorkerBridge:
         st = self.state
         if kind == "ready":
             st.ready, st.error, st.done, st.device_failed = True, None, False, False
+            st.failed, st.continue_from = False, None
             st.device, st.device_name = payload.get("device"), str(payload.get("device_name") or "")
             st.devices = tuple(payload.get("devices") or ("cpu",))
         elif kind == "report":
@@ -277,9 +300,11 @@ class WorkerBridge:
                 st.gt_colours_received += 1
             st.snapshot.update(payload)
             st.snapshots_received += 1
-        elif kind == "error":
+        elif kind == "error":  # one line (an engine failure comes with "failed"; other errors leave the run going)
             st.error = payload
-            st.paused = True
+        elif kind == "failed":  # the worker stopped stepping: it says so until Continue, a move or a restart
+            st.failed, st.paused, st.continue_from = True, True, payload.get("continue_from")
+            st.refine_note = ""
         elif kind == "paused":
             st.paused = bool(payload)
         elif kind == "params":

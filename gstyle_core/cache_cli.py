@@ -7,6 +7,7 @@ import os
 import shutil
 from pathlib import Path
 
+from .crash import CRASHES
 from .paths import cache_dir
 
 
@@ -45,6 +46,8 @@ def _describe(entry: Path) -> str:
         return "checkpoints of interrupted runs (gstyle stylize --resume, gstyle-studio --resume)"
     if entry.name == "results" and entry.is_dir():
         return "the runs of results the studio saved (Continue this run; the newest 24 within 2 GB)"
+    if entry.name == CRASHES and entry.is_dir():
+        return "crash logs: the tracebacks of unexpected errors (gstyle, the studio), named by their time"
     if entry.name == "history" and entry.is_dir():
         return "results kept for the studio's undo (deleted when it closes)"
     if entry.is_dir() and any(entry.rglob("*.nbi")):

@@ -2,7 +2,9 @@
 
 Every error a user can cause (bad file, missing cameras, missing weights, an output that cannot be written: a full
 disk, a read-only or forbidden folder) is a ``GStyleError`` and is printed as one line without a traceback; the exit
-status is then 2.
+status is then 2. Any other error is a bug: one line too (what failed, where: for ``stylize`` the phase, the step,
+the controls in force and the ``--resume`` command that goes on from the last finished step) naming the crash log
+that holds its traceback (``crash.py``); the exit status is then 1.
 """
 
 from __future__ import annotations
@@ -123,7 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def run(argv: Sequence[str] | None, func_wrapper: Callable[[Callable[[], int]], int] | None = None) -> int:
     """Parse ``argv`` and run the command; GStyleError and bad paths become one line and exit status 2 (writes
-    that fail are ``OutputWriteError``s: ``cannot write PATH: CAUSE``)."""
+    that fail are ``OutputWriteError``s: ``cannot write PATH: CAUSE``), any other error one line naming its crash
+    log and exit status 1."""
     args = build_parser().parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)  # as given: ``gstyle stylize``'s resume command
     try:
@@ -138,6 +141,11 @@ def run(argv: Sequence[str] | None, func_wrapper: Callable[[Callable[[], int]], 
     except KeyboardInterrupt:
         print(f"gstyle {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - a bug: one line for the artist, its traceback in a crash log
+        from .crash import crash_line
+
+        print(crash_line(args.command, exc, args.argv), file=sys.stderr)
+        return 1
 
 
 def main() -> None:

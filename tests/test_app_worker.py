@@ -1,7 +1,9 @@
 """Worker bridge with the fake engine in a spawned process."""
 
 import os
+import re
 import time
+from pathlib import Path
 
 import pytest
 import torch
@@ -56,12 +58,18 @@ def test_lambda_change_reaches_the_engine(bridge_factory):
     assert b.state.params["lambda_clip"] == 2.5
 
 
-def test_raising_engine_is_reported_and_restart_works(bridge_factory):
+def test_raising_engine_is_reported_and_restart_works(bridge_factory, tmp_path, monkeypatch):
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))  # the worker process writes its crash log there
     b = bridge_factory(n=16, fail_at=3)
     assert b.wait_until(lambda s: s.error is not None, 60)
-    assert "RuntimeError: fake engine failure second line" in b.state.error
-    assert "\n" not in b.state.error
+    # where (the fake tells its phase and step by its reports), what (the message's first line), the crash log
+    line = re.fullmatch(r"the run stopped in phase stylize at step 3: RuntimeError: fake engine failure; "
+                        r"traceback in (\S+\.log)", b.state.error)
+    assert line, b.state.error
+    assert "second line" in Path(line.group(1)).read_text() and Path(line.group(1)).parent == tmp_path / "cache" / \
+        "crashes"
     assert not b.state.device_failed  # not the GPU's failure: no CPU to go on on is offered
+    assert b.wait_until(lambda s: s.failed, 10) and b.state.continue_from == 2 and not b.state.stepping
     good = b.state.snapshot["colour_version"]
     time.sleep(0.2)
     b.poll()

@@ -105,8 +105,9 @@ def test_a_term_that_starts_at_zero_turns_on_mid_run(small_engine, term):
 # ====================================================================== the CLIP term says what it is
 
 
-class StopBeforeStepping(Exception):
-    """Raised instead of the first step."""
+class StopBeforeStepping(BaseException):
+    """Raised instead of the first step (a ``BaseException``, as an interrupt: an ``Exception`` there is a crash,
+    which ``gstyle stylize`` words in one line after keeping the run)."""
 
 
 def test_cli_names_the_coarse_substitute_before_stepping(tiny_scene, tmp_path, monkeypatch, capsys, no_clip_weights):

@@ -45,8 +45,8 @@ def _shortcut(state: PanelState, press: KeyPress) -> list[Command]:
         return [Command("screenshot", {"scene_only": press.shift})]
     if not press.plain:
         return []
-    if name == "space":
-        return [Command("resume" if state.paused else "pause")]
+    if name == "space":  # as the Pause / Resume button: nothing while it cannot work (``state.stopped``)
+        return [] if state.stopped else [Command("resume" if state.paused else "pause")]
     if name == "c":  # compare with the original (from a take's too), or back
         with_original = state.view_mode == "compare" and not state.compare_with_take
         return [Command("view_mode", {"mode": "stylized" if with_original else "compare"})]

@@ -49,6 +49,20 @@ def device_line(state: PanelState, out: list[Command]) -> None:
         out.append(Command("move_to", {"device": target}))
 
 
+def refine_button(state: PanelState, out: list[Command]) -> None:
+    """Refine to the next width; disabled after an engine error (its level would wait for steps that do not come),
+    its tooltip saying so."""
+    tip = (f"Carry the current colours on at {state.next_width} px without a restart: a finer level, then the final "
+           "colour match again. Works during a run and after it. On a 360-degree scene a preview's first level keeps "
+           "edges (lambda edges 4000, NNFM 400) unless you moved them.")
+    if state.failed:
+        tip = "The run stopped at an error: Continue it (or Restart) first, then refine."
+    imgui.begin_disabled(state.failed)
+    if button(f"Refine -> {state.next_width} px", tip):
+        out.append(Command("refine"))
+    imgui.end_disabled()
+
+
 def quality_section(state: PanelState, out: list[Command]) -> None:
     """Quality radio buttons with their estimates, the run's widths, Refine, and the result once done."""
     imgui.separator()
@@ -70,12 +84,7 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
     tooltip("The width the engine renders at now. Finer levels go on from the colours at twice the pixels, so the "
             "strokes hold up at a display's size (docs/tradeoffs.md).")
     if state.next_width:
-        if button(f"Refine -> {state.next_width} px", f"Carry the current colours on at {state.next_width} px "
-                                                         "without a restart: a finer level, then the final colour "
-                                                         "match again. Works during a run and after it. On a "
-                                                         "360-degree scene a preview's first level keeps edges "
-                                                         "(lambda edges 4000, NNFM 400) unless you moved them."):
-            out.append(Command("refine"))
+        refine_button(state, out)
     if state.refine_note:
         imgui.same_line()
         imgui.text_wrapped(state.refine_note)

@@ -100,25 +100,47 @@ def progress_section(state: PanelState, out: list[Command]) -> None:
     fraction = state.step / state.total_steps if state.total_steps else 0.0
     imgui.progress_bar(min(max(fraction, 0.0), 1.0), imgui.ImVec2(-1, 0),
                        f"{state.step}/{state.total_steps}  ETA {format_eta(state.eta_seconds)}")
-    pause = (("Resume###pause", "Continue stepping the engine (Space).", Command("resume")) if state.paused else
-             ("Pause###pause", "Stop stepping after the current step; the view stays live (Space).", Command("pause")))
-    button_row(out, pause, ("Step", "Run exactly one engine step (useful while paused).", Command("step")),
-               ("Restart", "Start the stylization again from the input scene with the current settings.",
-                Command("restart")))
+    run_buttons(state, out)
     if state.resume_available and button(
             "Resume last session", "Continue the stylization saved when the studio last closed with this scene and "
             "style."):
         out.append(Command("resume_session"))
     if state.error:
-        imgui.push_style_color(imgui.Col_.text, imgui.ImVec4(1.0, 0.35, 0.3, 1.0))
-        imgui.text_wrapped(f"Error: {state.error}")
-        imgui.pop_style_color()
-        if state.device_failed and button(
-                "Continue on the CPU", "Go on from where the run stopped, computing on the CPU (slower; the colours, "
-                "the geometry and the settings stay). Restart afterwards stays on the CPU too."):
-            out.append(Command("move_to", {"device": "cpu"}))
+        error_block(state, out)
     status_box(state.status)
     loss_plot(state)
+
+
+def run_buttons(state: PanelState, out: list[Command]) -> None:
+    """Pause / Resume and Step (disabled, their tooltip saying why, while they cannot work: ``state.stopped``), and
+    Restart."""
+    pause = (("Resume###pause", "Continue stepping the engine (Space).", Command("resume")) if state.paused else
+             ("Pause###pause", "Stop stepping after the current step; the view stays live (Space).", Command("pause")))
+    step = ("Step", "Run exactly one engine step (useful while paused).", Command("step"))
+    imgui.begin_disabled(bool(state.stopped))
+    button_row(out, *((label, state.stopped or tip, command) for label, tip, command in (pause, step)))
+    imgui.end_disabled()
+    imgui.same_line()
+    if button("Restart", "Start the stylization again from the input scene with the current settings."):
+        out.append(Command("restart"))
+
+
+def error_block(state: PanelState, out: list[Command]) -> None:
+    """The error in red, and under it the way on: Continue from the last finished step after an engine error, or
+    the CPU after the GPU's."""
+    imgui.push_style_color(imgui.Col_.text, imgui.ImVec4(1.0, 0.35, 0.3, 1.0))
+    imgui.text_wrapped(f"Error: {state.error}")
+    imgui.pop_style_color()
+    if state.device_failed and button(
+            "Continue on the CPU", "Go on from where the run stopped, computing on the CPU (slower; the colours, "
+            "the geometry and the settings stay). Restart afterwards stays on the CPU too."):
+        out.append(Command("move_to", {"device": "cpu"}))
+    elif state.failed and state.continue_from is not None and button(
+            f"Continue from step {state.continue_from}",
+            f"Go on from step {state.continue_from}, the last step that finished: the engine is built again from "
+            "the run as that step left it (the failed step kept none of its work). The traceback is in the crash log "
+            "named above; if the error comes back, Restart or change a setting first."):
+        out.append(Command("continue_run"))
 
 
 STATUS_LINES = 2

@@ -42,9 +42,12 @@ class PanelState:
     gaussians: int = 0
     fps: float = 0.0
     paused: bool = False
-    running: bool = False
+    running: bool = False  # the worker steps the engine now (``WorkerState.stepping``)
     error: str | None = None
     device_failed: bool = False  # the error was the GPU's: "Continue on the CPU" is offered under it
+    failed: bool = False  # an engine error stopped the run (nothing steps until Continue, a move or a restart)
+    continue_from: int | None = None  # after it, the last finished step: "Continue from step N" is offered
+    stopped: str = ""  # why Pause / Resume and Step cannot work now ("" when they can): their tooltip, disabled
     device: str = ""  # what the engine computes on ("cpu", "cuda", "mps"; "": no engine)
     device_name: str = ""  # the same in words (the card)
     devices: tuple[str, ...] = ("cpu",)  # what the worker could compute on (the quality section offers a move)

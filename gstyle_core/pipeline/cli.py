@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..assets import DEMO_SCENE
+from ..crash import RunCrashed, what_failed
 from ..device import DEVICES, DeviceFailure
 from ..errors import GStyleError, OutputWriteError, one_line_error
 from ..outputs import SUMMARY, companions
@@ -96,7 +97,7 @@ def region_summary(engine) -> dict | None:
 def stylize_command(args: argparse.Namespace) -> int:
     """Run ``gstyle stylize``."""
     from ..machine import set_torch_threads
-    from .checkpoint import RunCheckpointer, deferred_interrupts, engine_fingerprint, stylize_checkpoint_path
+    from .checkpoint import RunCheckpointer, engine_fingerprint, stylize_checkpoint_path
 
     out, every = _checked_output(args)
     ckpt_path = stylize_checkpoint_path(out)
@@ -117,11 +118,32 @@ def stylize_command(args: argparse.Namespace) -> int:
     meta = {"kind": "stylize", "out": str(out.resolve()), "fingerprint": fingerprint, "settings": s.to_dict(),
             "args": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))}}
     checkpointer = RunCheckpointer(engine, ckpt_path, meta, every)
+    try:
+        summary, written, quality = _run_and_write(args, out, built, checkpointer, t0, resumed)
+    except (GStyleError, OSError):
+        raise
+    except Exception as exc:  # a bug: the run is kept at its last finished step and the one line says how to go on
+        raise crashed_run(exc, engine, checkpointer, args) from exc
+    checkpointer.remove()
+    keep_finished_run(engine, out, request)
+    _print_figures(quality)
+    print(f"wrote {', '.join(map(str, written))} ({summary['seconds_total']:.0f} s)")
+    return 0
+
+
+def _run_and_write(args: argparse.Namespace, out: Path, built: BuiltEngine, checkpointer, t0: float,
+                   resumed: dict | None) -> tuple[dict, list[Path], dict]:
+    """Step the engine to the end (Ctrl+C saves and stops; a GPU that fails keeps the run for the CPU), say what it
+    needed, measure it and write its outputs (a failed write keeps the finished run). Returns the summary, the files
+    written and the quality figures."""
+    from .checkpoint import deferred_interrupts
+
+    engine = built.engine
     with deferred_interrupts() as stop:
         try:
             _run_with_progress(engine, checkpointer, stop)
         except DeviceFailure as exc:
-            raise kept_for_the_cpu(exc, checkpointer, s.device) from exc
+            raise kept_for_the_cpu(exc, checkpointer, engine.settings.device) from exc
     needed = ("region", "sh", "preprocess", "preprocess_unsplit", "culled", "loss_terms", "broad_strokes",
               "colour_field", "levels", "colour_match", "clip", "vgg", "precision", "device", "styles")
     for key in needed:  # what it needed (also in OUT.json)
@@ -134,9 +156,12 @@ def stylize_command(args: argparse.Namespace) -> int:
         summary, written = _write_outputs(args, out, built, stylized, quality, t0, run)
     except OutputWriteError as exc:
         raise kept_run_error(exc, checkpointer, args) from exc
-    checkpointer.remove()
-    keep_finished_run(engine, out, request)
-    q = quality
+    return summary, written, quality
+
+
+def _print_figures(q: dict) -> None:
+    """The finished run's figures: how much of the painting arrived, the structure kept, and where it has them, the
+    same at the final width, the texture scale and the speckle at a display's size."""
     print(f"NNFM distance to the style: {q['initial']['nnfm']:.4f} -> {q['final']['nnfm']:.4f} "
           f"({100 * q['nnfm_drop']:.0f}% lower: how much of the painting arrived)")
     print(f"structure kept (edge correlation before/after over the scene): {q['structure']:.2f}")
@@ -148,8 +173,6 @@ def stylize_command(args: argparse.Namespace) -> int:
         print(texture_scale_line(q["texture_scale"]))
     if "display" in q:  # the same at the display's size: excess fine colour
         print(display_speckle_line(q["display"]))
-    print(f"wrote {', '.join(map(str, written))} ({summary['seconds_total']:.0f} s)")
-    return 0
 
 
 def keep_finished_run(engine, out: Path, request: BuildRequest) -> None:
@@ -235,6 +258,25 @@ def kept_for_the_cpu(exc: DeviceFailure, checkpointer, device: str) -> DeviceFai
         return type(exc)(f"{exc}; the run could not be kept ({one_line_error(error)})")
     return type(exc)(f"{exc}; the run so far is kept in {path}: the same command with --device cpu --resume goes "
                      "on from there")
+
+
+def crashed_run(exc: Exception, engine, checkpointer, args: argparse.Namespace) -> RunCrashed:
+    """``exc`` (a bug, not a bad input) with where the run was (its phase and step, or past its last step), the
+    controls in force and, saved now, the run as its last finished step left it (a step that failed keeps none of
+    its work) with the command that goes on from there; without a save, its last checkpoint if one was written."""
+    from .run_crash import all_controls, controls_in_force, where_the_run_is
+
+    step = getattr(engine, "global_step", None)
+    try:
+        path = checkpointer.save()
+        kept = f"the run up to step {step} is kept: {resume_command(args)} goes on from there"
+    except Exception as error:  # noqa: BLE001 - a full cache, or state the error left unsaveable: say so
+        kept = f"the run could not be kept ({what_failed(error)})"
+        path = checkpointer.path if checkpointer.path.exists() else None
+        if path is not None:
+            kept += f"; its last checkpoint is kept: {resume_command(args)} goes on from there"
+    details = [all_controls(engine), f"checkpoint: {path or 'none'}"]
+    return RunCrashed(exc, where_the_run_is(engine), controls_in_force(engine), kept, details)
 
 
 def kept_run_error(exc: OutputWriteError, checkpointer, args: argparse.Namespace) -> OutputWriteError:
