@@ -6,10 +6,10 @@ builds engines with its ``build``."""
 from __future__ import annotations
 
 import tempfile
-import traceback
 from pathlib import Path
 from typing import Any
 
+from gstyle_core.crash import log_crash
 from gstyle_core.errors import one_line_error
 
 
@@ -42,8 +42,8 @@ class EngineSaves:
 
             save_result_state(written, self.engine.state_dict(), self.saved_meta())
         except Exception as exc:  # noqa: BLE001
-            traceback.print_exc()
-            self.send("error", f"saved, but its run was not kept (it cannot be continued): {one_line_error(exc)}")
+            self.send("error", f"saved, but its run was not kept (it cannot be continued): {one_line_error(exc)}; "
+                               f"{log_crash(exc, 'studio-keep-run', [f'keeping the run of {written}'])}")
 
     def checkpoint(self) -> None:
         """Save the engine's state, the fingerprint of its inputs and the slider values (cache folder)."""
@@ -83,8 +83,8 @@ class EngineSaves:
             check_fingerprint(path, meta, self.fingerprint)
             self.engine.load_state_dict(state)
         except Exception as exc:  # noqa: BLE001 - a bad checkpoint is reported; the fresh engine carries on
-            traceback.print_exc()
-            self.send("error", f"resume: {one_line_error(exc)}; starting afresh")
+            self.send("error", f"resume: {one_line_error(exc)}; starting afresh; "
+                               f"{log_crash(exc, 'studio-resume', [f'resuming from {path}'])}")
             return
         step = getattr(self.engine, "global_step", state.get("global_step", state.get("steps")))
         self.send("resumed", {"checkpoint": str(path), "step": step})
@@ -112,7 +112,7 @@ class EngineSaves:
         try:
             self.save_state(path)
         except Exception as exc:  # noqa: BLE001 - e.g. a device that cannot give its tensors back, a full disk
-            traceback.print_exc()
-            self.send("error", f"the run could not be handed over ({one_line_error(exc)}); starting afresh")
+            self.send("error", f"the run could not be handed over ({one_line_error(exc)}); starting afresh; "
+                               f"{log_crash(exc, 'studio-handover', ['handing the run over'])}")
             return
         self.handover = path

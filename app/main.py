@@ -105,6 +105,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl+C a second time while the studio was closing
         print("gstyle-studio: interrupted", file=sys.stderr)
         return INTERRUPTED
+    except Exception as exc:  # noqa: BLE001 - a bug: one line and a crash log, never a traceback
+        from gstyle_core.crash import crash_line
+
+        print(crash_line("studio", exc).replace("gstyle studio:", "gstyle-studio:", 1), file=sys.stderr)
+        return 1
 
 
 def run(args: argparse.Namespace) -> int:

@@ -195,3 +195,18 @@ def test_a_run_that_cannot_be_kept_says_so_on_its_line(cache, tmp_path, monkeypa
     assert re.match(r"gstyle stylize: unexpected error in phase ground_truth at step 2 of \d+: RuntimeError: "
                     r"injected into GroundTruth; controls: the preview preset's; the run could not be kept \(cannot "
                     r"write \S+\.ckpt: no space left on the device\); traceback in \S+\.log$", line), line
+
+
+def test_a_bug_in_the_studio_is_one_line_and_a_crash_log(cache, capsys, monkeypatch):
+    import app.main as studio_main
+
+    def broken(args):
+        raise RuntimeError("injected into the studio\nsecond line of the message")
+
+    monkeypatch.setattr(studio_main, "run", broken)
+    assert studio_main.main(["--headless", "--frames", "1"]) == 1
+    captured = capsys.readouterr()
+    lines = [line for line in captured.err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in captured.out + captured.err
+    assert lines[0].startswith("gstyle-studio: unexpected error: RuntimeError: injected into the studio;")
+    check_crash_log(lines[0], "second line of the message")
