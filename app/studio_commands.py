@@ -90,19 +90,18 @@ class StudioCommands:
         self.panel.status = f"moving the run to {device_words(device)} ..."
 
     def restart_from_original(self) -> None:
-        """A result was opened: open the scene it came from and stylize it with the result's preset, controls and
-        painting (the ones found)."""
+        """A result is on show: open the scene it came from and stylize it with the result's preset and the
+        painting(s) and controls shown (the result's, ``show_result_painting``, or what the artist chose since)."""
         info = self.result
         if info is None or info.source is None:
             self.panel.status = "the original scene of this result was not found"
             return
         if info.preset:
             self.engine_config["preset"] = info.preset
-        if info.styles:  # a painting that no longer reads: one line, the current one kept
-            self.open_path(str(info.styles[0]), record=False)
+        shown = {k: v for k, v in self.panel.params.items() if k in info.params}  # the original resets the panel
         if self.open_path(str(info.source)) and self.bridge is None:
             self.start_engine()
-        self._apply_params({k: v for k, v in info.params.items() if k in self.panel.params})  # from the first step
+        self._apply_params({k: v for k, v in shown.items() if k in self.panel.params})  # from the first step
 
     def continue_result(self) -> None:
         """A result whose run was kept (``pipeline/kept_runs.py``) was opened: open its original and paintings, put its
