@@ -156,8 +156,10 @@ class OutOfMemoryPull(MeanColourPull):
         return super().__call__(image, content, view, coverage)
 
 
-def make_small_stylizer(n: int = 150, device: str | None = None, objective=MeanColourPull, **_ignored):
-    """The real ``Stylizer`` on a tiny synthetic scene with ``MeanColourPull`` (for bridge integration tests)."""
+def make_small_stylizer(n: int = 150, device: str | None = None, objective=MeanColourPull, kind: str = "forward",
+                        **_ignored):
+    """The real ``Stylizer`` on a tiny synthetic scene with ``MeanColourPull`` (for bridge integration tests);
+    ``kind`` "360": a calibrated 360° preview (its first Refine level takes the weights of runs with levels)."""
     from synthetic import blob_scene, ring_cameras
 
     from gstyle_core.pipeline.settings import resolve_settings
@@ -165,7 +167,7 @@ def make_small_stylizer(n: int = 150, device: str | None = None, objective=MeanC
 
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0
-    settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=3, min_steps=0, refit_iterations=2,
+    settings = resolve_settings("preview", kind, 3, max_views=3, epochs=3, min_steps=0, refit_iterations=2,
                                 split_at=(1 / 3,), working_width=32, preprocess_rounds=1, device=device)
     return Stylizer(blob_scene(n, seed=5), ring_cameras(3), style, settings, objective_factory=objective)
 
@@ -176,6 +178,12 @@ BUILT: list = []  # engines made by keep_small_stylizer (and other test factorie
 def keep_small_stylizer(**config):
     """``make_small_stylizer``, kept in ``BUILT`` for the test to look at (thread mode: the same process)."""
     BUILT.append(make_small_stylizer(**config))
+    return BUILT[-1]
+
+
+def keep_small_360_stylizer(**config):
+    """``keep_small_stylizer`` as a calibrated 360° preview."""
+    BUILT.append(make_small_stylizer(**{**config, "kind": "360"}))
     return BUILT[-1]
 
 

@@ -56,6 +56,38 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
         app.close(timeout=60)
 
 
+def test_refine_moves_the_weights_for_its_level_only_and_a_restart_returns_the_panels(window, monkeypatch, tmp_path):
+    """A calibrated 360° preview refined: its first level runs at the weights of runs with levels (the sliders show
+    them meanwhile); Restart goes back to the values before the refine, except one the artist moved since."""
+    from fakes import keep_small_360_stylizer
+
+    from app.panels import Command
+
+    app = small_studio(window, monkeypatch, tmp_path, factory=keep_small_360_stylizer)
+    try:
+        driver = paused_studio_driver(window, monkeypatch, app)
+        before = dict(app.bridge.state.params)
+        assert (before["lambda_nnfm"], before["lambda_edges"]) == (200.0, 0.0)
+        app.bridge.resume()
+        assert app.bridge.wait_until(lambda s: s.done or s.error, 120), app.bridge.state.error
+        app.execute(Command("refine"))
+        assert app.bridge.wait_until(lambda s: s.params.get("lambda_edges") == 4000.0 or s.error, 60)
+        driver.frame()
+        assert (app.panel.params["lambda_nnfm"], app.panel.params["lambda_edges"]) == (400.0, 4000.0)
+        assert BUILT[-1].settings.weights.edges == 4000.0  # the level runs at them
+        app.execute(Command("set_params", {"lambda_multiscale": 250.0}))  # the artist's own, after the refine
+        app.execute(Command("restart"))
+        assert app.bridge.wait_until(lambda s: len(BUILT) == 2 and s.params.get("lambda_edges") == 0.0 or s.error,
+                                     60), app.bridge.state.error
+        driver.frame()
+        kept = {**before, "lambda_multiscale": 250.0}
+        assert {k: app.panel.params[k] for k in kept} == kept
+        w = BUILT[-1].settings.weights
+        assert (w.nnfm, w.edges, w.multiscale, w.chroma_tv) == (200.0, 0.0, 250.0, before["lambda_chroma_tv"])
+    finally:
+        app.close(timeout=60)
+
+
 def test_a_plan_prices_each_kind_of_step_and_grows_with_the_preset():
     plans = {name: planned_steps(resolve_settings(name, "360", 24, clip_available=False), 24)
              for name in ("preview", "balanced", "final")}
