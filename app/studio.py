@@ -155,6 +155,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         if info is not None:
             p.params.update({k: v for k, v in info.params.items() if k in p.params})
             p.phase = "result (nothing running)"
+            p.levels, p.width = list(info.levels), (info.levels[-1] if info.levels else 0)  # the result's own
 
     def _preset_params(self, with_overrides: bool) -> dict[str, float]:
         """The preset's slider values for this scene's kind (``resolve_settings`` + ``ui_params``): what "reset"
@@ -202,6 +203,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         if self.engine_factory is None:
             return False
         self.keep_result(action)
+        self.end_run_status()
         self._region_to_config()
         path = self.session_checkpoint()
         if resume_from is None and resume and path is not None and path.is_file():
@@ -217,7 +219,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self.bridge.restart(self.engine_config, resume_from=resume_from)
         if resume_from is not None:
             what = "the last session" if resume_from == path else "this result's run"
-            self.panel.status = f"resuming {what} ({resume_from.name}) ..."
+            self.say_of_run(f"resuming {what} ({resume_from.name}) ...")
         self._snapshots_seen = 0
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
         return resume_from is not None
@@ -233,6 +235,9 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             p.step, p.total_steps, p.eta_seconds, p.loss_history = 0, 0, None, []
             p.phase = "result (nothing running)" if self.result is not None else "stopped"
             p.summary_line, p.refine_note, p.next_width = "", "", None
+            if self.result is None:  # no run's width to show (a result on show shows its own, set_scene)
+                p.width, p.levels = 0, []
+            self.end_run_status()
 
     def close(self, timeout: float = 20.0) -> bool:
         """Stop the engine (it saves the session in the cache folder; killed after ``timeout`` s) and free GL

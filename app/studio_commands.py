@@ -87,7 +87,7 @@ class StudioCommands:
             return
         self.bridge.move_to(self.engine_config, device)
         self._moving = (device, self.bridge.state.reports_received)  # (a worker started again counts from 0)
-        self.panel.status = f"moving the run to {device_words(device)} ..."
+        self.say_of_run(f"moving the run to {device_words(device)} ...")
 
     def restart_from_original(self) -> None:
         """A result is on show: open the scene it came from and stylize it with the result's preset and the

@@ -11,6 +11,18 @@ from .result_undo import in_history
 class StudioSync:
     """``StudioApp``'s per-frame updates of its renderer and panel."""
 
+    _run_status = ""  # the status line, when it describes the running engine (its resume, a move): ends with it
+
+    def say_of_run(self, line: str) -> None:
+        """A status line about the running engine: cleared when that run ends (``end_run_status``) if still shown."""
+        self.panel.status = self._run_status = line
+
+    def end_run_status(self) -> None:
+        """The engine's run ends (a restart, a stop, another scene): a status line that described it goes too."""
+        if self._run_status and self.panel.status == self._run_status:
+            self.panel.status = ""
+        self._run_status = ""
+
     def _apply_engine_updates(self) -> None:
         if self.bridge is None:
             return
@@ -50,8 +62,8 @@ class StudioSync:
         p.take_settings = [t.settings for t in self.takes.takes]
         p.take_thumbnails = [self.take_texture(t) for t in self.takes.takes]
         p.save_folder = str(self.export_folder())
-        p.undo_note = self.history.done[-1].describe() if self.history.done else ""
-        p.redo_note = self.history.undone[-1].describe() if self.history.undone else ""
+        p.undo_note = self.history.done[-1].brings_back("undo") if self.history.done else ""  # what each puts back
+        p.redo_note = self.history.undone[-1].brings_back("redo") if self.history.undone else ""
         now = self.view_key()
         p.take_differs = [not now or t.view_key != now for t in self.takes.takes]
         shown = [i for i, t in enumerate(self.takes.takes) if t.path == self.take_shown]
@@ -77,6 +89,9 @@ class StudioSync:
             return
         st = self.bridge.state
         p.running, p.paused, p.error = st.alive, st.paused, st.error
+        if st.went_on_after is not None:  # a step succeeded after an error: no longer red, said once as past
+            self.say_of_run(f"the run went on after: {st.went_on_after}")
+            st.went_on_after = None
         p.device_failed = st.device_failed  # (cleared with the error: a new engine, a restart)
         p.decisions = st.decisions
         p.loss_history = st.loss_history[-500:]
@@ -92,14 +107,14 @@ class StudioSync:
             self._resume_seen = st.resumed
             session = self.session_checkpoint()
             if self._moving is not None:
-                p.status = f"continued on {device_words(self._moving[0])} at step {st.resumed.get('step')}"
+                self.say_of_run(f"continued on {device_words(self._moving[0])} at step {st.resumed.get('step')}")
                 self._moving = None
             else:
                 what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
                     else "the saved result's run"
-                p.status = f"resumed {what} at step {st.resumed.get('step')}"
+                self.say_of_run(f"resumed {what} at step {st.resumed.get('step')}")
         if self._moving is not None and st.reports_received > self._moving[1]:
-            p.status = f"started afresh on {device_words(self._moving[0])}"  # stepping, and no state was taken over
+            self.say_of_run(f"started afresh on {device_words(self._moving[0])}")  # no state was taken over
             self._moving = None
         p.device, p.device_name, p.devices = st.device or "", st.device_name, st.devices
         self._sync_setup_note(st)

@@ -38,6 +38,8 @@ class WorkerState:
     paused: bool = False
     done: bool = False
     error: str | None = None
+    went_on_after: str | None = None  # an error a step that succeeded since has made stale (the studio's status
+    # shows it once, ``StudioSync``; the red error line is cleared)
     last_report: dict[str, Any] | None = None
     loss_history: list[dict[str, float]] = field(default_factory=list)
     snapshot: dict[str, Any] = field(default_factory=dict)  # merged: geometry kept until a new one arrives
@@ -57,7 +59,8 @@ class WorkerState:
     step_times: StepTimes = field(default_factory=StepTimes)  # seconds per step of each kind (the estimates)
     prior_times: StepTimes | None = None  # the run before a restart's step times (the new run's ETA from its start)
     summary: dict[str, Any] | None = None  # the finished run's summary (its speckle at a display's size)
-    refine_note: str = ""  # why Refine was refused, or the level it started
+    refine_note: str = ""  # why Refine was refused, or the level it started (while that level runs)
+    refining: bool = False  # a Refine level runs (``refine_note`` says its width until the run is done)
     setup_note: str = ""  # the engine's one-off setup: a build under way (minutes) or how long it took
     device_failed: bool = False  # the GPU failed (no device, out of memory, no rasterizer): the run can go on on
     # the CPU (``WorkerBridge.move_to``)
@@ -183,7 +186,7 @@ class WorkerBridge:
         summary."""
         st = self.state
         st.error, st.done, st.paused, st.device_failed, st.device = None, False, False, False, None
-        st.decisions, st.resumed, st.summary, st.refine_note = {}, None, None, ""
+        st.decisions, st.resumed, st.summary, st.refine_note, st.refining = {}, None, None, "", False
 
     def move_to(self, config: dict[str, Any], device: str) -> None:
         """Go on on ``device`` ("cpu" after the GPU failed, ``state.device_failed``): the worker builds the engine
@@ -259,14 +262,7 @@ class WorkerBridge:
             st.device, st.device_name = payload.get("device"), str(payload.get("device_name") or "")
             st.devices = tuple(payload.get("devices") or ("cpu",))
         elif kind == "report":
-            st.last_report = payload
-            st.reports_received += 1
-            st.step_times.add(payload)
-            st.step_seconds += float(payload.get("seconds") or 0.0)
-            st.done = bool(payload.get("done"))
-            losses = dict(payload.get("losses") or {})
-            if losses:  # each with the step it was recorded at (the plot's x axis)
-                st.loss_history.append({STEP_KEY: float(payload.get("step", len(st.loss_history))), **losses})
+            self._apply_report(payload)
         elif kind == "snapshot":
             credit, payload = payload
             if credit:
@@ -299,7 +295,7 @@ class WorkerBridge:
         elif kind == "summary":
             st.summary = dict(payload)
         elif kind == "refining":
-            st.done, st.summary = False, None
+            st.done, st.summary, st.refining = False, None, True
             st.refine_note = f"refining at {payload} px"
         elif kind == "refine_refused":
             st.refine_note = str(payload)
@@ -307,6 +303,23 @@ class WorkerBridge:
             st.setup_note = str(payload)
         elif kind == "device_failed":
             st.device_failed = True
+
+    def _apply_report(self, report: dict[str, Any]) -> None:
+        """A step succeeded: its report, step time and losses; an error before it is stale now (``went_on_after``),
+        and a Refine level's note ends with the run."""
+        st = self.state
+        st.last_report = report
+        st.reports_received += 1
+        st.step_times.add(report)
+        st.step_seconds += float(report.get("seconds") or 0.0)
+        st.done = bool(report.get("done"))
+        if st.error is not None:
+            st.went_on_after, st.error, st.device_failed = st.error, None, False
+        if st.done and st.refining:
+            st.refining, st.refine_note = False, ""
+        losses = dict(report.get("losses") or {})
+        if losses:  # each with the step it was recorded at (the plot's x axis)
+            st.loss_history.append({STEP_KEY: float(report.get("step", len(st.loss_history))), **losses})
 
     def wait_until(self, predicate: Callable[[WorkerState], bool], timeout: float = 30.0) -> bool:
         """Poll until ``predicate(state)`` holds (True) or ``timeout`` seconds pass (False). For tests and CLI."""

@@ -23,6 +23,7 @@ class FakeReport:
     colours_changed: bool = True
     geometry_changed: bool = False
     done: bool = False
+    width: int | None = None  # the width the step rendered at (None: the engine does not say)
 
 
 class FakeEngine:
@@ -95,6 +96,33 @@ class FakeEngine:
 def make_fake_engine(scene=None, style=None, cameras=None, preset=None, **config) -> FakeEngine:
     """Module-level factory (picklable for the spawn start method); ignores the app's scene/style keys."""
     return FakeEngine(**config)
+
+
+class StylizingEngine(FakeEngine):
+    """A ``FakeEngine`` that says it is stylizing and has settings (a calibrated 360° preview, 256 px), so its exports
+    are results (``app/result_files.py``); ``width``: the width its reports say it works at (None: none)."""
+
+    decisions: dict = {}
+
+    def __init__(self, width: int | None = None, **config) -> None:
+        from gstyle_core.pipeline.settings import resolve_settings
+
+        super().__init__(**config)
+        self.settings, self.width = resolve_settings("preview", "360", 4), width
+
+    def step(self) -> FakeReport:
+        report = super().step()
+        if self.width is not None:
+            report.width = self.width
+        return report
+
+    def snapshot(self) -> dict:
+        return {**super().snapshot(), "phase": "stylize"}
+
+
+def make_stylizing_engine(scene=None, style=None, cameras=None, preset=None, **config) -> StylizingEngine:
+    """``StylizingEngine`` for the studio's factory (ignores the app's scene/style keys)."""
+    return StylizingEngine(**config)
 
 
 class MarkingEngine(FakeEngine):

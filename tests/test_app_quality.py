@@ -45,6 +45,7 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
         assert not np.array_equal(engine.c_s.numpy(), colours.numpy())
         driver.frame()
         assert "Width: 64 px (levels 32 px -> 64 px)" in driver.recorder.texts
+        assert app.panel.refine_note == "" and not [t for t in driver.recorder.texts if "refining" in t]  # it ended
         assert all(ord(c) < 256 for text in driver.recorder.texts for c in text)  # the font has Latin-1 only
         commands = driver.click("balanced (~" + [w.path for w in driver.recorder.widgets
                                                  if w.path.endswith("###q_balanced")][0].split("(~", 1)[1])

@@ -121,10 +121,10 @@ def test_resume_from_a_foreign_checkpoint_is_one_line_and_the_engine_starts_afre
     b = WorkerBridge(make_fake_engine, {"n": 8}, resume_from=path)
     b.start()
     try:
-        assert b.wait_until(lambda s: s.error is not None, 120)
-        assert b.state.error.startswith("resume: ") and "starting afresh" in b.state.error
-        assert "\n" not in b.state.error and b.state.resumed is None
-        assert b.wait_until(lambda s: s.reports_received >= 2, 60)  # the fresh engine runs
+        assert b.wait_until(lambda s: s.reports_received >= 2, 120)  # the fresh engine runs
+        line = b.state.went_on_after  # the steps since made the error stale: the studio says it once, not in red
+        assert b.state.error is None and line.startswith("resume: ") and "starting afresh" in line
+        assert "\n" not in line and b.state.resumed is None
     finally:
         b.quit()
 

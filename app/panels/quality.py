@@ -65,10 +65,11 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
         if button(f"Restart at {state.quality}", f"Start the stylization again from the input scene at the "
                                                  f"{state.quality} quality (the run now is {state.preset})."):
             out.append(Command("restart_quality", {"preset": state.quality}))
-    levels = " -> ".join(f"{w} px" for w in state.levels)  # the panel's font has Latin-1 glyphs only
-    imgui.text_wrapped(f"Width: {state.width} px" + (f" (levels {levels})" if len(state.levels) > 1 else ""))
-    tooltip("The width the engine renders at now. Finer levels go on from the colours at twice the pixels, so the "
-            "strokes hold up at a display's size (docs/tradeoffs.md).")
+    if state.width:  # (nothing to say before a run or a result gives one)
+        levels = " -> ".join(f"{w} px" for w in state.levels)  # the panel's font has Latin-1 glyphs only
+        imgui.text_wrapped(f"Width: {state.width} px" + (f" (levels {levels})" if len(state.levels) > 1 else ""))
+        tooltip("The width of what is on show: the engine's now, or a result's last level. Finer levels go on from "
+                "the colours at twice the pixels, so the strokes hold up at a display's size (docs/tradeoffs.md).")
     if state.next_width:
         if button(f"Refine -> {state.next_width} px", f"Carry the current colours on at {state.next_width} px "
                                                          "without a restart: a finer level, then the final colour "
