@@ -234,7 +234,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             p = self.panel  # what the stopped run showed goes with it
             p.step, p.total_steps, p.eta_seconds, p.loss_history = 0, 0, None, []
             p.phase = "result (nothing running)" if self.result is not None else "stopped"
-            p.summary_line, p.refine_note, p.next_width = "", "", None
+            p.summary_line, p.grain, p.refine_note, p.next_width = "", "", "", None
             if self.result is None:  # no run's width to show (a result on show shows its own, set_scene)
                 p.width, p.levels = 0, []
             self.end_run_status()

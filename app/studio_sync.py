@@ -154,6 +154,9 @@ class StudioSync:
         p.width = int(rep.get("width") or (p.levels[0] if p.levels else 0))
         p.refine_note = st.refine_note
         p.summary_line = str((st.summary or {}).get("line", ""))
+        display = (st.summary or {}).get("display")
+        ratio = display.get("speckle_ratio") if isinstance(display, dict) else None
+        p.grain = "" if not isinstance(display, dict) else "-" if ratio is None else f"{float(ratio):.2f}"
 
     def _sync_setup_note(self, st) -> None:
         """The engine's one-off setup note to the status when it changes (the build of gsplat's CUDA module on a

@@ -32,8 +32,10 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
         driver.frame()
         estimates = app.panel.quality_estimates
         assert 0 < estimates["preview"] < estimates["balanced"] < estimates["final"]  # priced at this run's steps
-        result = [t for t in driver.recorder.texts if t.startswith("Result: speckle at 1024 px")]
-        assert result, driver.recorder.texts
+        result = [t for t in driver.recorder.texts if t.startswith("Fine grain at screen size: ")]
+        assert result and result[0].endswith("(1 = the painting's own)"), driver.recorder.texts
+        ratio = app.bridge.state.summary["display"]["speckle_ratio"]
+        assert app.panel.grain == ("-" if ratio is None else f"{ratio:.2f}") and app.panel.grain in result[0]
         colours = BUILT[-1].c_s.clone()
         assert driver.recorder.find("Refine -> 64 px").tooltip
         commands = driver.click("Refine -> 64 px")

@@ -59,8 +59,6 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
         if imgui.radio_button(label, state.quality == name):
             out.append(Command("set_quality", {"preset": name}))
         tooltip(f"{tip} The time is this scene's on this machine, priced at the step times of the run so far.")
-        if name != "final":
-            imgui.same_line()
     if state.quality != state.preset and state.preset:
         if button(f"Restart at {state.quality}", f"Start the stylization again from the input scene at the "
                                                  f"{state.quality} quality (the run now is {state.preset})."):
@@ -75,14 +73,19 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
                                                          "without a restart: a finer level, then the final colour "
                                                          "match again. Works during a run and after it. On a "
                                                          "360-degree scene a preview's first level keeps edges "
-                                                         "(lambda edges 4000, NNFM 400) unless you moved them."):
+                                                         "(edges kept 4000, brush strokes 400) unless you moved "
+                                                         "them; a restart goes back to the values before."):
             out.append(Command("refine"))
     if state.refine_note:
         imgui.same_line()
         imgui.text_wrapped(state.refine_note)
     device_line(state, out)
-    if state.summary_line:
-        imgui.text_wrapped(font_safe(f"Result: {state.summary_line}"))  # sigma spelled out
-        tooltip("Measured on three of the scene's views rendered at a display's size: how much of the colour the "
-                "stylization added is finer than sigma 4 px, against the painting's own share at the size its strokes "
-                "are matched (1: the painting's grain; well above 1: single-splat confetti).")
+    if state.grain:
+        imgui.text_wrapped(f"Fine grain at screen size: {state.grain} (1 = the painting's own)")
+        tooltip("How fine the colour detail the stylization added is, seen at a display's size: measured on three of "
+                "the scene's views rendered at a display's width, the share of the added colour finer than sigma 4 px "
+                "against the painting's own share at the size its strokes are matched (1: the painting's grain; well "
+                "above 1: single-splat confetti; the speckle ratio of docs/display-size.md). "
+                + font_safe(f"The engine's line: {state.summary_line}"))  # sigma spelled out
+    elif state.summary_line:  # no figure (its measurement failed): the engine's line as it is
+        imgui.text_wrapped(font_safe(f"Result: {state.summary_line}"))
