@@ -19,6 +19,7 @@ import numpy as np
 from gstyle_core.atomic import atomic_write_bytes
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.pipeline.controls import cli_control_names
+from gstyle_core.pipeline.plan import MachineRates
 from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
@@ -101,6 +102,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
         self.panel.quality = str(self.engine_config.get("preset") or "preview")
         self.bridge: WorkerBridge | None = None
+        self._rates: dict[tuple[str, str], MachineRates] = {}  # step rates per (scene, device) (``session_rates``)
         self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
         self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
         self._resume_seen: Any = None  # the last resume report shown in the status line
@@ -212,10 +214,11 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         if self.bridge is None:
             bridge_class = ThreadWorkerBridge if self.worker_mode == "thread" else WorkerBridge
             self.bridge = bridge_class(self.engine_factory, self.engine_config, checkpoint_path=path,
-                                       resume_from=resume_from)
+                                       resume_from=resume_from, rates=self.session_rates())
             self.bridge.start()
         else:
             self.bridge.set_checkpoint_path(path)
+            self.bridge.rates = self.session_rates()
             self.bridge.restart(self.engine_config, resume_from=resume_from)
         if resume_from is not None:
             what = "the last session" if resume_from == path else "this result's run"
@@ -223,6 +226,12 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._snapshots_seen = 0
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
         return resume_from is not None
+
+    def session_rates(self) -> MachineRates:
+        """This machine's step rates for the scene and the device the engine runs with now, kept over the session
+        (restarts, other qualities, results opened in between): what the quality choice prices the presets at."""
+        key = (str(self.engine_config.get("scene") or ""), str(self.engine_config.get("device") or "auto"))
+        return self._rates.setdefault(key, MachineRates())
 
     def stop_engine(self, timeout: float = 20.0) -> None:
         """Stop the running engine (its session is saved as on close; a stylized result becomes a step back); the

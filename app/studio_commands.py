@@ -85,6 +85,7 @@ class StudioCommands:
         self.engine_config["device"] = device
         if self.bridge is None:
             return
+        self.bridge.rates = self.session_rates()  # another device's step rates are its own
         self.bridge.move_to(self.engine_config, device)
         self._moving = (device, self.bridge.state.reports_received)  # (a worker started again counts from 0)
         self.say_of_run(f"moving the run to {device_words(device)} ...")

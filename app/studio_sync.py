@@ -122,15 +122,15 @@ class StudioSync:
         self._show_takes_error()
 
     def _eta(self, st) -> float | None:
-        """Seconds left: the run's plan (its steps of each kind) at the measured cost of each kind, the run
-        before a restart's where this one has none yet (``plan.remaining_seconds``); without a plan, the mean step
-        so far times the steps left."""
+        """Seconds left: the run's plan (its steps of each kind) at the session's rate of each kind (the runs
+        before a restart's included), else this run's mean so far (``plan.remaining_seconds``); without a plan, the
+        mean step so far times the steps left."""
         from gstyle_core.pipeline.plan import remaining_seconds
 
         plans = st.plans or {}
         plan = plans.get("run")
         if plan:
-            left = remaining_seconds(plan, st.step_times, int(plans.get("working_width", 256)), st.prior_times)
+            left = remaining_seconds(plan, st.step_times, int(plans.get("working_width", 256)), self.bridge.rates)
             if left is not None:
                 return left
         if not st.reports_received:
@@ -138,7 +138,8 @@ class StudioSync:
         return st.step_seconds / st.reports_received * max(self.panel.total_steps - self.panel.step, 0)
 
     def _fill_quality(self, st) -> None:
-        """The quality section: the preset run, each preset's estimate at this run's step times, the widths."""
+        """The quality section: the preset run, each preset's estimate at the session's step rates on this
+        machine (``MachineRates``: they settle), the widths."""
         from gstyle_core.pipeline.plan import estimate_seconds
 
         p = self.panel
@@ -146,7 +147,7 @@ class StudioSync:
         if plans:
             p.preset = str(plans.get("preset", ""))
             working = int(plans.get("working_width", 256))
-            p.quality_estimates = {name: estimate_seconds(plan, st.step_times, working)
+            p.quality_estimates = {name: estimate_seconds(plan, self.bridge.rates, working)
                                    for name, plan in plans.get("plans", {}).items()}
             p.levels = list(plans.get("levels", []))
             p.next_width = plans.get("next_width")

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from gstyle_core.pipeline.plan import StepTimes
+from gstyle_core.pipeline.plan import MachineRates, StepTimes
 
 from .child_process import interrupts_ignored
 from .engine_host import worker_main
@@ -56,8 +56,7 @@ class WorkerState:
     resumed: dict[str, Any] | None = None  # {"checkpoint": path, "step": n} once a checkpoint was loaded
     started_at: float = 0.0
     plans: dict[str, Any] = field(default_factory=dict)  # every preset's steps, the preset run, its widths (plans)
-    step_times: StepTimes = field(default_factory=StepTimes)  # seconds per step of each kind (the estimates)
-    prior_times: StepTimes | None = None  # the run before a restart's step times (the new run's ETA from its start)
+    step_times: StepTimes = field(default_factory=StepTimes)  # this run's steps of each kind (its ETA)
     summary: dict[str, Any] | None = None  # the finished run's summary (its speckle at a display's size)
     refine_note: str = ""  # why Refine was refused, or the level it started (while that level runs)
     refining: bool = False  # a Refine level runs (``refine_note`` says its width until the run is done)
@@ -75,8 +74,10 @@ class WorkerBridge:
 
     def __init__(self, factory: Callable[..., Any], config: dict[str, Any] | None = None, *,
                  checkpoint_path: str | os.PathLike | None = None, start_paused: bool = False,
-                 resume_from: str | os.PathLike | None = None) -> None:
+                 resume_from: str | os.PathLike | None = None, rates: MachineRates | None = None) -> None:
         self.factory = factory
+        self.rates = rates if rates is not None else MachineRates()  # every step's time goes there too (the studio's
+        # session rates of this scene and device: the quality estimates); the studio may hand it another
         self.config = dict(config or {})
         self.checkpoint_path = str(checkpoint_path) if checkpoint_path else None
         self.resume_from = str(resume_from) if resume_from else None  # used by the next start()
@@ -105,6 +106,7 @@ class WorkerBridge:
             args=(self.factory, self.config, self._commands, self._events, self._credits, self.checkpoint_path,
                   self.start_paused, self.resume_from), kwargs={"in_thread": self.in_thread})
         self.resume_from = None
+        self.rates.new_run()
         with interrupts_ignored():
             self._process.start()
         self.state = WorkerState(alive=True, paused=self.start_paused, started_at=time.monotonic())
@@ -173,9 +175,8 @@ class WorkerBridge:
         self._forget_engine()
         self.state.loss_history.clear()
         self.state.reports_received, self.state.step_seconds = 0, 0.0
-        if self.state.step_times.mean("stylize") is not None:  # the run before prices the new one's ETA
-            self.state.prior_times = self.state.step_times
-        self.state.step_times = StepTimes()
+        self.state.step_times = StepTimes()  # (the runs before stay in ``rates``, which price the new one's ETA)
+        self.rates.new_run()
         if resume_from:
             self._send("restart_from", (self.config, str(resume_from)))
         else:
@@ -199,7 +200,8 @@ class WorkerBridge:
             self.start()
             return
         self._forget_engine()
-        self.state.step_times, self.state.prior_times = StepTimes(), None
+        self.state.step_times = StepTimes()
+        self.rates.new_run()
         self._send("move_to", self.config)
 
     def set_checkpoint_path(self, path: str | os.PathLike | None) -> None:
@@ -311,6 +313,7 @@ class WorkerBridge:
         st.last_report = report
         st.reports_received += 1
         st.step_times.add(report)
+        self.rates.add(report)
         st.step_seconds += float(report.get("seconds") or 0.0)
         st.done = bool(report.get("done"))
         if st.error is not None:

@@ -297,13 +297,13 @@ def test_thread_mode_leaves_the_process_environment_alone(monkeypatch):
     assert "NUMBA_NUM_THREADS" not in os.environ
 
 
-def test_a_restart_keeps_the_run_befores_step_times_for_the_new_runs_eta():
+def test_a_restart_keeps_the_sessions_step_rates_for_the_new_runs_eta():
     b = ThreadWorkerBridge(make_fake_engine, {"n": 16})
     b.start()
     try:
-        assert b.wait_until(lambda s: s.step_times.mean("stylize") is not None or s.error, 30), b.state.error
+        assert b.wait_until(lambda s: b.rates.median("stylize") is not None or s.error, 30), b.state.error
         b.restart({"n": 16})
-        assert b.state.prior_times is not None and b.state.prior_times.mean("stylize") is not None
+        assert b.rates.median("stylize") is not None and b.rates.phase == (None, 0)  # kept; a new run's phases
         assert b.state.step_times.counts == {}  # the new run counts its own
     finally:
         b.quit(timeout=5)

@@ -58,7 +58,8 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
         label = f"{name} ({'~' + format_eta(estimate) if estimate is not None else 'time: measuring'})###q_{name}"
         if imgui.radio_button(label, state.quality == name):
             out.append(Command("set_quality", {"preset": name}))
-        tooltip(f"{tip} The time is this scene's on this machine, priced at the step times of the run so far.")
+        tooltip(f"{tip} The time is this scene's on this machine, priced at the median step times measured in "
+                "this session's runs of it (a phase's first steps left out).")
     if state.quality != state.preset and state.preset:
         if button(f"Restart at {state.quality}", f"Start the stylization again from the input scene at the "
                                                  f"{state.quality} quality (the run now is {state.preset})."):
