@@ -97,18 +97,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._snapshots_seen = 0
         self._geometry_version: Any = None
         self._colour_key: Any = None  # (colour_version, geometry_version) of the colours last uploaded
-        self.engine_factory = engine_factory
-        self.engine_config = dict(engine_config or {})
-        self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
-        self.panel.quality = str(self.engine_config.get("preset") or "preview")
-        self.bridge: WorkerBridge | None = None
-        self._rates: dict[tuple[str, str], MachineRates] = {}  # step rates per (scene, device) (``session_rates``)
-        self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
-        self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
-        self._resume_seen: Any = None  # the last resume report shown in the status line
-        self._moving: tuple[str, int] | None = None  # a move to another device asked: the device and the reports
-        # received then (its resume report, or a step without one, says how it went on)
-        self._resume_probe: tuple[float, Path | None, bool] = (0.0, None, False)  # (time, path, exists)
+        self._init_engine(engine_factory, engine_config)
         self.loaded: LoadedScene | None = None
         self.cameras: list[Camera] = []
         self.last_frame_rgb: np.ndarray | None = None
@@ -127,6 +116,21 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self.set_scene(loaded)
         if style_path:
             self.set_style(style_path)
+
+    def _init_engine(self, engine_factory: Callable[..., Any] | None, engine_config: dict[str, Any] | None) -> None:
+        """The engine's side of the studio before one starts: its factory and config, no bridge, nothing seen."""
+        self.engine_factory = engine_factory
+        self.engine_config = dict(engine_config or {})
+        self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
+        self.panel.quality = str(self.engine_config.get("preset") or "preview")
+        self.bridge: WorkerBridge | None = None
+        self._rates: dict[tuple[str, str], MachineRates] = {}  # step rates per (scene, device) (``session_rates``)
+        self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
+        self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
+        self._resume_seen: Any = None  # the last resume report shown in the status line
+        self._moving: tuple[str, int] | None = None  # a move to another device asked: the device and the reports
+        # received then (its resume report, or a step without one, says how it went on)
+        self._resume_probe: tuple[float, Path | None, bool] = (0.0, None, False)  # (time, path, exists)
 
     # ----------------------------------------------------------------- scene, style, engine
     def set_scene(self, loaded: LoadedScene) -> None:
@@ -225,6 +229,8 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self.say_of_run(f"resuming {what} ({resume_from.name}) ...")
         self._snapshots_seen = 0
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
+        p = self.panel  # the run before's progress goes with it (the new run's first report says its own)
+        p.phase, p.step, p.total_steps, p.eta_seconds = "starting", 0, 0, None
         return resume_from is not None
 
     def session_rates(self) -> MachineRates:

@@ -89,9 +89,6 @@ class StudioSync:
             return
         st = self.bridge.state
         p.running, p.paused, p.error = st.alive, st.paused, st.error
-        if st.went_on_after is not None:  # a step succeeded after an error: no longer red, said once as past
-            self.say_of_run(f"the run went on after: {st.went_on_after}")
-            st.went_on_after = None
         p.device_failed = st.device_failed  # (cleared with the error: a new engine, a restart)
         p.decisions = st.decisions
         p.loss_history = st.loss_history[-500:]
@@ -103,6 +100,18 @@ class StudioSync:
             p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
             p.eta_seconds = None if st.done or st.paused else self._eta(st)  # paused: no ETA
         self._fill_quality(st)
+        self._sync_run_lines(st)
+        p.device, p.device_name, p.devices = st.device or "", st.device_name, st.devices
+        self._sync_setup_note(st)
+        self._sync_exports(st)
+        self._show_takes_error()
+
+    def _sync_run_lines(self, st) -> None:
+        """The status lines about the running engine (``say_of_run``): it went on after an error (no longer red,
+        said once as past), resumed a saved run, continued or started afresh on another device."""
+        if st.went_on_after is not None:
+            self.say_of_run(f"the run went on after: {st.went_on_after}")
+            st.went_on_after = None
         if st.resumed is not None and st.resumed is not self._resume_seen:
             self._resume_seen = st.resumed
             session = self.session_checkpoint()
@@ -116,10 +125,6 @@ class StudioSync:
         if self._moving is not None and st.reports_received > self._moving[1]:
             self.say_of_run(f"started afresh on {device_words(self._moving[0])}")  # no state was taken over
             self._moving = None
-        p.device, p.device_name, p.devices = st.device or "", st.device_name, st.devices
-        self._sync_setup_note(st)
-        self._sync_exports(st)
-        self._show_takes_error()
 
     def _eta(self, st) -> float | None:
         """Seconds left: the run's plan (its steps of each kind) at the session's rate of each kind (the runs

@@ -174,7 +174,7 @@ class WorkerBridge:
             return
         self._forget_engine()
         self.state.loss_history.clear()
-        self.state.reports_received, self.state.step_seconds = 0, 0.0
+        self.state.reports_received, self.state.step_seconds, self.state.last_report = 0, 0.0, None
         self.state.step_times = StepTimes()  # (the runs before stay in ``rates``, which price the new one's ETA)
         self.rates.new_run()
         if resume_from:

@@ -69,6 +69,7 @@ def test_a_resumes_status_goes_with_the_run_it_describes(window, tmp_path, monke
         assert app.panel.status.startswith("resumed the last session at step ")
         for _ in range(2):
             app.execute(Command("restart"))
+            assert (app.panel.phase, app.panel.step) == ("starting", 0)  # not the run before's progress
             assert app.bridge.wait_until(lambda s: s.reports_received >= 1 or s.error, 30)
             app._fill_panel()
             assert "resumed" not in app.panel.status
