@@ -39,6 +39,14 @@ class ParamEdit:
             return f"{name} {self.before.get(name, value):g} -> {value:g}"
         return ", ".join(sorted(self.after))
 
+    def brings_back(self, name: str) -> str:
+        """What undo (``name`` "undo") or redo puts back: ``lambda_nnfm back to 100`` / ``lambda_nnfm to 200``."""
+        values = self.before if name == "undo" else self.after
+        if len(self.after) == 1:
+            (key, value), = self.after.items()
+            return f"{key} {'back ' if name == 'undo' else ''}to {values.get(key, value):g}"
+        return f"{', '.join(sorted(self.after))} as they were {'before' if name == 'undo' else 'set'}"
+
 
 @dataclass
 class ResultEdit:
@@ -52,6 +60,12 @@ class ResultEdit:
 
     def describe(self) -> str:
         return f"the result before {self.action} ({self.before.name})"
+
+    def brings_back(self, name: str) -> str:
+        """What undo (``name`` "undo": the result before) or redo (the one after, once an undo saved it) opens."""
+        if name == "undo":
+            return self.describe()
+        return f"the result after {self.action} ({self.after.name if self.after else 'not saved: nothing to open'})"
 
 
 @dataclass
@@ -75,6 +89,16 @@ class ChoiceEdit:
 
         return f"the painting ({names(self.before)} -> {names(self.after)})"
 
+    def brings_back(self, name: str) -> str:
+        """What undo (``name`` "undo": the choice before) or redo (the choice again, or the result made with it) puts
+        back."""
+        if name == "redo" and self.result_after is not None:
+            return f"the result made after it ({self.result_after.name})"
+        state = self.before if name == "undo" else self.after
+        if self.kind == "quality":
+            return f"the {state} quality"
+        return f"the painting {' + '.join(Path(p).name for p in state[:2] if p) or '(none)'}"
+
 
 def _same_region(a: tuple, b: tuple) -> bool:
     """Two region states (on, box, rectangle mask) select the same."""
@@ -96,6 +120,10 @@ class RegionEdit:
 
     def describe(self) -> str:
         return "the region selection"
+
+    def brings_back(self, name: str) -> str:
+        """The selection before the change (``name`` "undo") or after it."""
+        return f"the region selection {'before' if name == 'undo' else 'after'} the change"
 
 
 Edit = ParamEdit | ResultEdit | RegionEdit | ChoiceEdit

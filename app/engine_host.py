@@ -71,6 +71,7 @@ class EngineHost(EngineSaves):
         self.last_report: dict[str, Any] | None = None
         self.params: dict[str, float] = {}
         self.build_params: dict[str, float] = {}  # the params the engine was built with (its fingerprint's settings)
+        self.level_weights: dict[str, tuple[float, float]] = {}  # weights Refine's level set: (before, the level's)
         self.sent_decisions: dict[str, Any] | None = None
         self.sent_setup_note = ""
         self.in_thread = False  # a worker thread of the UI process (ThreadWorkerBridge), not a spawned process
@@ -132,6 +133,8 @@ class EngineHost(EngineSaves):
         saved = self.read_saved(resume_from) if resume_from else None
         if saved is not None:
             self.adopt_saved_inputs(saved[1])
+        else:  # a run from its inputs has no finer levels yet: the weights a level set go back
+            self.drop_level_weights()
         try:
             self.engine = self.factory(**self.config)
             single_compute_thread(self.in_thread)
@@ -227,12 +230,24 @@ class EngineHost(EngineSaves):
         self.done = False
         self.send("refining", width)
         current = getattr(self.engine, "current_params", None)
-        now = current() if current is not None else {}
-        if any(self.params.get(k) != v for k, v in now.items()):  # the level changed weights (a 360° preview's
-            self.params.update(now)  # first level): the sliders show them
+        moved = {k: v for k, v in (current() if current is not None else {}).items() if self.params.get(k) != v}
+        if moved:  # the level changed weights (a 360° preview's first level): the sliders show them while it runs
+            for name, value in moved.items():
+                before = self.level_weights.get(name, (self.params.get(name), value))[0]
+                if before is not None:
+                    self.level_weights[name] = (before, value)
+            self.params.update(moved)
             self.send("params", dict(self.params))
         self.send_plans()
         self.send_decisions()
+
+    def drop_level_weights(self) -> None:
+        """A run started again has none of Refine's levels: each weight a level set goes back to its value before
+        the refine, unless the artist moved it since (then the artist's value stays)."""
+        for name, (before, level) in self.level_weights.items():
+            if self.params.get(name) == level:
+                self.params[name] = before
+        self.level_weights = {}
 
     def send_decisions(self) -> None:
         """Forward the engine's ``decisions`` dict (if it has one) whenever it changed."""

@@ -23,7 +23,8 @@ class EngineSaves:
         """What a checkpoint of this engine says of its inputs: the config and params it was built from (to build
         it again), its fingerprint, the params now."""
         return {"scene": self.config.get("scene"), "style": self.config.get("style"), "config": dict(self.config),
-                "fingerprint": self.fingerprint, "build_params": dict(self.build_params), "params": dict(self.params)}
+                "fingerprint": self.fingerprint, "build_params": dict(self.build_params), "params": dict(self.params),
+                "level_weights": {k: list(v) for k, v in self.level_weights.items()}}
 
     def save_state(self, path: str) -> None:
         """Write the engine's state with ``saved_meta`` as a studio checkpoint at ``path`` (raises what the save
@@ -67,9 +68,13 @@ class EngineSaves:
 
     def adopt_saved_inputs(self, meta: dict[str, Any]) -> None:
         """Before building an engine that will load a checkpoint: the params it was built with (so the settings
-        match its fingerprint) and, for a result's run, the config it was built from (a region's mask included)."""
+        match its fingerprint), the weights its Refine levels set (``drop_level_weights`` after a later restart) and,
+        for a result's run, the config it was built from (a region's mask included)."""
         if isinstance(meta.get("build_params"), dict):
             self.params = dict(meta["build_params"])
+        levels = meta.get("level_weights")
+        self.level_weights = {str(k): (float(v[0]), float(v[1])) for k, v in levels.items()} \
+            if isinstance(levels, dict) else {}
         if meta.get("kind") == "result" and isinstance(meta.get("config"), dict):
             self.config = dict(meta["config"])
 

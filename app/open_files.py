@@ -135,13 +135,18 @@ class OpenFiles:
         return True
 
     def show_result_painting(self) -> None:
-        """A stylized result is shown: show the painting it was made after, when its file is found and reads (else
-        the painting shown stays; the result opens all the same)."""
-        if self.result is not None and self.result.styles:
-            try:
-                self.set_style(str(self.result.styles[0]))
-            except GStyleError:
-                pass
+        """A stylized result is shown: show the painting(s) it was made after (a second one at the result's mix),
+        when their files are found and read (else the paintings shown stay; the result opens all the same). These,
+        or the ones the artist opens while it is on show, are what *Restart from the original* stylizes with."""
+        info = self.result
+        if info is None or not info.styles:
+            return
+        second = str(info.styles[1]) if len(info.styles) > 1 else ""
+        mix = float(info.params.get("style_mix", 0.5)) if second else 0.0
+        try:
+            self.put_paintings((str(info.styles[0]), second, mix))
+        except GStyleError:
+            pass
 
     def _say(self, message: str) -> None:
         """The status line, and the same line in the terminal."""

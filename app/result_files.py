@@ -30,6 +30,7 @@ class ResultInfo:
     styles: list[Path] = field(default_factory=list)  # its paintings whose files are found
     state: Path | None = None  # the run kept with it (``pipeline/kept_runs.py``) while the file is still as written
     state_config: dict[str, Any] = field(default_factory=dict)  # the engine config that run was built from
+    levels: list[int] = field(default_factory=list)  # its widths, coarse to fine (the last: the result's width)
 
 
 def read_result(scene_path: str | Path) -> ResultInfo | None:
@@ -57,6 +58,7 @@ def read_result(scene_path: str | Path) -> ResultInfo | None:
         info.source = _found(Path(named), summary.parent)
     info.line = _describe(data, path)
     info.preset = str(data["settings"].get("preset") or "")
+    info.levels = level_widths(data["settings"])
     for entry in data.get("styles") or []:
         found = _found(Path(str(entry.get("path", ""))), summary.parent) if isinstance(entry, dict) else None
         if found is not None:
@@ -66,6 +68,12 @@ def read_result(scene_path: str | Path) -> ResultInfo | None:
         info.state, note = kept
         info.state_config = dict(note.get("config") or {})
     return info
+
+
+def level_widths(settings: dict) -> list[int]:
+    """A summary's widths, coarse to fine: its working width and its finer levels' (those it names)."""
+    widths = [settings.get("working_width"), *(settings.get("refine_widths") or [])]
+    return [int(w) for w in widths if isinstance(w, (int, float)) and w > 0]
 
 
 def _found(named: Path, beside: Path) -> Path | None:

@@ -54,6 +54,13 @@ class ResultUndo:
                 f.unlink(missing_ok=True)
         return path
 
+    def shown_result_file(self) -> Path | None:
+        """The result file on show with no engine (opened, or by an undo or redo): an undo leaves it as it is on
+        disk, so redo opens it again."""
+        if self.result is None or self.loaded is None or (self.bridge is not None and self.bridge.alive):
+            return None
+        return Path(self.loaded.path)
+
     def keep_result(self, action: str) -> None:
         """Before ``action`` replaces the running result: save it and make it a step back."""
         if self._restoring:
@@ -85,7 +92,7 @@ class ResultUndo:
             self.undo_or_redo_choice(edit, name)
             return
         if name == "undo":
-            edit.after = self.save_result() or edit.after  # the result undo leaves, for redo
+            edit.after = self.save_result() or self.shown_result_file() or edit.after  # what undo leaves, for redo
             target = edit.before
         else:
             target = edit.after

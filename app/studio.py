@@ -19,6 +19,7 @@ import numpy as np
 from gstyle_core.atomic import atomic_write_bytes
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.pipeline.controls import cli_control_names
+from gstyle_core.pipeline.plan import MachineRates
 from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
@@ -96,17 +97,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         self._snapshots_seen = 0
         self._geometry_version: Any = None
         self._colour_key: Any = None  # (colour_version, geometry_version) of the colours last uploaded
-        self.engine_factory = engine_factory
-        self.engine_config = dict(engine_config or {})
-        self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
-        self.panel.quality = str(self.engine_config.get("preset") or "preview")
-        self.bridge: WorkerBridge | None = None
-        self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
-        self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
-        self._resume_seen: Any = None  # the last resume report shown in the status line
-        self._moving: tuple[str, int] | None = None  # a move to another device asked: the device and the reports
-        # received then (its resume report, or a step without one, says how it went on)
-        self._resume_probe: tuple[float, Path | None, bool] = (0.0, None, False)  # (time, path, exists)
+        self._init_engine(engine_factory, engine_config)
         self.loaded: LoadedScene | None = None
         self.cameras: list[Camera] = []
         self.last_frame_rgb: np.ndarray | None = None
@@ -125,6 +116,21 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             self.set_scene(loaded)
         if style_path:
             self.set_style(style_path)
+
+    def _init_engine(self, engine_factory: Callable[..., Any] | None, engine_config: dict[str, Any] | None) -> None:
+        """The engine's side of the studio before one starts: its factory and config, no bridge, nothing seen."""
+        self.engine_factory = engine_factory
+        self.engine_config = dict(engine_config or {})
+        self.panel.clip_name = clip_term_name(self.engine_config.get("clip_weights"))
+        self.panel.quality = str(self.engine_config.get("preset") or "preview")
+        self.bridge: WorkerBridge | None = None
+        self._rates: dict[tuple[str, str], MachineRates] = {}  # step rates per (scene, device) (``session_rates``)
+        self._bridge_seen: tuple[bool, str | None] | None = None  # (alive, error) last seen by ``busy``
+        self._resumed_from: Path | None = None  # the session checkpoint this engine continued from
+        self._resume_seen: Any = None  # the last resume report shown in the status line
+        self._moving: tuple[str, int] | None = None  # a move to another device asked: the device and the reports
+        # received then (its resume report, or a step without one, says how it went on)
+        self._resume_probe: tuple[float, Path | None, bool] = (0.0, None, False)  # (time, path, exists)
 
     # ----------------------------------------------------------------- scene, style, engine
     def set_scene(self, loaded: LoadedScene) -> None:
@@ -155,6 +161,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         if info is not None:
             p.params.update({k: v for k, v in info.params.items() if k in p.params})
             p.phase = "result (nothing running)"
+            p.levels, p.width = list(info.levels), (info.levels[-1] if info.levels else 0)  # the result's own
 
     def _preset_params(self, with_overrides: bool) -> dict[str, float]:
         """The preset's slider values for this scene's kind (``resolve_settings`` + ``ui_params``): what "reset"
@@ -202,6 +209,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         if self.engine_factory is None:
             return False
         self.keep_result(action)
+        self.end_run_status()
         self._region_to_config()
         path = self.session_checkpoint()
         if resume_from is None and resume and path is not None and path.is_file():
@@ -210,17 +218,26 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         if self.bridge is None:
             bridge_class = ThreadWorkerBridge if self.worker_mode == "thread" else WorkerBridge
             self.bridge = bridge_class(self.engine_factory, self.engine_config, checkpoint_path=path,
-                                       resume_from=resume_from)
+                                       resume_from=resume_from, rates=self.session_rates())
             self.bridge.start()
         else:
             self.bridge.set_checkpoint_path(path)
+            self.bridge.rates = self.session_rates()
             self.bridge.restart(self.engine_config, resume_from=resume_from)
         if resume_from is not None:
             what = "the last session" if resume_from == path else "this result's run"
-            self.panel.status = f"resuming {what} ({resume_from.name}) ..."
+            self.say_of_run(f"resuming {what} ({resume_from.name}) ...")
         self._snapshots_seen = 0
         self._geometry_version = self._colour_key = None  # a new engine counts its versions from 0 again
+        p = self.panel  # the run before's progress goes with it (the new run's first report says its own)
+        p.phase, p.step, p.total_steps, p.eta_seconds = "starting", 0, 0, None
         return resume_from is not None
+
+    def session_rates(self) -> MachineRates:
+        """This machine's step rates for the scene and the device the engine runs with now, kept over the session
+        (restarts, other qualities, results opened in between): what the quality choice prices the presets at."""
+        key = (str(self.engine_config.get("scene") or ""), str(self.engine_config.get("device") or "auto"))
+        return self._rates.setdefault(key, MachineRates())
 
     def stop_engine(self, timeout: float = 20.0) -> None:
         """Stop the running engine (its session is saved as on close; a stylized result becomes a step back); the
@@ -232,7 +249,10 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
             p = self.panel  # what the stopped run showed goes with it
             p.step, p.total_steps, p.eta_seconds, p.loss_history = 0, 0, None, []
             p.phase = "result (nothing running)" if self.result is not None else "stopped"
-            p.summary_line, p.refine_note, p.next_width = "", "", None
+            p.summary_line, p.grain, p.refine_note, p.next_width = "", "", "", None
+            if self.result is None:  # no run's width to show (a result on show shows its own, set_scene)
+                p.width, p.levels = 0, []
+            self.end_run_status()
 
     def close(self, timeout: float = 20.0) -> bool:
         """Stop the engine (it saves the session in the cache folder; killed after ``timeout`` s) and free GL

@@ -87,9 +87,10 @@ class StudioCommands:
         self.engine_config["device"] = device
         if self.bridge is None:
             return
+        self.bridge.rates = self.session_rates()  # another device's step rates are its own
         self.bridge.move_to(self.engine_config, device)
         self._moving = (device, self.bridge.state.reports_received)  # (a worker started again counts from 0)
-        self.panel.status = f"moving the run to {device_words(device)} ..."
+        self.say_of_run(f"moving the run to {device_words(device)} ...")
 
     def continue_run(self) -> None:
         """After an engine error: go on from the run's last finished step on the device it is on (the worker builds
@@ -103,19 +104,18 @@ class StudioCommands:
         self.panel.status = f"continuing from step {step} ..."
 
     def restart_from_original(self) -> None:
-        """A result was opened: open the scene it came from and stylize it with the result's preset, controls and
-        painting (the ones found)."""
+        """A result is on show: open the scene it came from and stylize it with the result's preset and the
+        painting(s) and controls shown (the result's, ``show_result_painting``, or what the artist chose since)."""
         info = self.result
         if info is None or info.source is None:
             self.panel.status = "the original scene of this result was not found"
             return
         if info.preset:
             self.engine_config["preset"] = info.preset
-        if info.styles:  # a painting that no longer reads: one line, the current one kept
-            self.open_path(str(info.styles[0]), record=False)
+        shown = {k: v for k, v in self.panel.params.items() if k in info.params}  # the original resets the panel
         if self.open_path(str(info.source)) and self.bridge is None:
             self.start_engine()
-        self._apply_params({k: v for k, v in info.params.items() if k in self.panel.params})  # from the first step
+        self._apply_params({k: v for k, v in shown.items() if k in self.panel.params})  # from the first step
 
     def continue_result(self) -> None:
         """A result whose run was kept (``pipeline/kept_runs.py``) was opened: open its original and paintings, put its

@@ -32,6 +32,18 @@ def stopped_reason(st: WorkerState) -> str:
 class StudioSync:
     """``StudioApp``'s per-frame updates of its renderer and panel."""
 
+    _run_status = ""  # the status line, when it describes the running engine (its resume, a move): ends with it
+
+    def say_of_run(self, line: str) -> None:
+        """A status line about the running engine: cleared when that run ends (``end_run_status``) if still shown."""
+        self.panel.status = self._run_status = line
+
+    def end_run_status(self) -> None:
+        """The engine's run ends (a restart, a stop, another scene): a status line that described it goes too."""
+        if self._run_status and self.panel.status == self._run_status:
+            self.panel.status = ""
+        self._run_status = ""
+
     def _apply_engine_updates(self) -> None:
         if self.bridge is None:
             return
@@ -71,8 +83,8 @@ class StudioSync:
         p.take_settings = [t.settings for t in self.takes.takes]
         p.take_thumbnails = [self.take_texture(t) for t in self.takes.takes]
         p.save_folder = str(self.export_folder())
-        p.undo_note = self.history.done[-1].describe() if self.history.done else ""
-        p.redo_note = self.history.undone[-1].describe() if self.history.undone else ""
+        p.undo_note = self.history.done[-1].brings_back("undo") if self.history.done else ""  # what each puts back
+        p.redo_note = self.history.undone[-1].brings_back("redo") if self.history.undone else ""
         now = self.view_key()
         p.take_differs = [not now or t.view_key != now for t in self.takes.takes]
         shown = [i for i, t in enumerate(self.takes.takes) if t.path == self.take_shown]
@@ -104,29 +116,11 @@ class StudioSync:
         if st.params:
             p.params.update(st.params)
         self._fill_quality(st)
-        self._sync_resumed(st)
+        self._sync_run_lines(st)
         p.device, p.device_name, p.devices = st.device or "", st.device_name, st.devices
         self._sync_setup_note(st)
         self._sync_exports(st)
         self._show_takes_error()
-
-    def _sync_resumed(self, st) -> None:
-        """The status after a resume: of the last session, a saved result's run, or a move or Continue (where it
-        went on, or that it started afresh: stepping, and no state was taken over)."""
-        p = self.panel
-        if st.resumed is not None and st.resumed is not self._resume_seen:
-            self._resume_seen = st.resumed
-            session = self.session_checkpoint()
-            if self._moving is not None:
-                p.status = f"continued on {device_words(self._moving[0])} at step {st.resumed.get('step')}"
-                self._moving = None
-            else:
-                what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
-                    else "the saved result's run"
-                p.status = f"resumed {what} at step {st.resumed.get('step')}"
-        if self._moving is not None and st.reports_received > self._moving[1]:
-            p.status = f"started afresh on {device_words(self._moving[0])}"
-            self._moving = None
 
     def _fill_run(self, st) -> None:
         """Whether the worker steps, why not (``stopped_reason``), the error and the ways on from it, the phase, the
@@ -143,16 +137,36 @@ class StudioSync:
             p.step, p.total_steps = int(rep.get("step", 0)), int(rep.get("total_steps", 0))
             p.eta_seconds = self._eta(st) if st.stepping else None
 
+    def _sync_run_lines(self, st) -> None:
+        """The status lines about the running engine (``say_of_run``): it went on after an error (no longer red,
+        said once as past), resumed a saved run, continued or started afresh on another device."""
+        if st.went_on_after is not None:
+            self.say_of_run(f"the run went on after: {st.went_on_after}")
+            st.went_on_after = None
+        if st.resumed is not None and st.resumed is not self._resume_seen:
+            self._resume_seen = st.resumed
+            session = self.session_checkpoint()
+            if self._moving is not None:
+                self.say_of_run(f"continued on {device_words(self._moving[0])} at step {st.resumed.get('step')}")
+                self._moving = None
+            else:
+                what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
+                    else "the saved result's run"
+                self.say_of_run(f"resumed {what} at step {st.resumed.get('step')}")
+        if self._moving is not None and st.reports_received > self._moving[1]:
+            self.say_of_run(f"started afresh on {device_words(self._moving[0])}")  # no state was taken over
+            self._moving = None
+
     def _eta(self, st) -> float | None:
-        """Seconds left: the run's plan (its steps of each kind) at the measured cost of each kind, the run
-        before a restart's where this one has none yet (``plan.remaining_seconds``); without a plan, the mean step
-        so far times the steps left."""
+        """Seconds left: the run's plan (its steps of each kind) at the session's rate of each kind (the runs
+        before a restart's included), else this run's mean so far (``plan.remaining_seconds``); without a plan, the
+        mean step so far times the steps left."""
         from gstyle_core.pipeline.plan import remaining_seconds
 
         plans = st.plans or {}
         plan = plans.get("run")
         if plan:
-            left = remaining_seconds(plan, st.step_times, int(plans.get("working_width", 256)), st.prior_times)
+            left = remaining_seconds(plan, st.step_times, int(plans.get("working_width", 256)), self.bridge.rates)
             if left is not None:
                 return left
         if not st.reports_received:
@@ -160,7 +174,8 @@ class StudioSync:
         return st.step_seconds / st.reports_received * max(self.panel.total_steps - self.panel.step, 0)
 
     def _fill_quality(self, st) -> None:
-        """The quality section: the preset run, each preset's estimate at this run's step times, the widths."""
+        """The quality section: the preset run, each preset's estimate at the session's step rates on this
+        machine (``MachineRates``: they settle), the widths."""
         from gstyle_core.pipeline.plan import estimate_seconds
 
         p = self.panel
@@ -168,7 +183,7 @@ class StudioSync:
         if plans:
             p.preset = str(plans.get("preset", ""))
             working = int(plans.get("working_width", 256))
-            p.quality_estimates = {name: estimate_seconds(plan, st.step_times, working)
+            p.quality_estimates = {name: estimate_seconds(plan, self.bridge.rates, working)
                                    for name, plan in plans.get("plans", {}).items()}
             p.levels = list(plans.get("levels", []))
             p.next_width = plans.get("next_width")
@@ -176,6 +191,9 @@ class StudioSync:
         p.width = int(rep.get("width") or (p.levels[0] if p.levels else 0))
         p.refine_note = st.refine_note
         p.summary_line = str((st.summary or {}).get("line", ""))
+        display = (st.summary or {}).get("display")
+        ratio = display.get("speckle_ratio") if isinstance(display, dict) else None
+        p.grain = "" if not isinstance(display, dict) else "-" if ratio is None else f"{float(ratio):.2f}"
 
     def _sync_setup_note(self, st) -> None:
         """The engine's one-off setup note to the status when it changes (the build of gsplat's CUDA module on a

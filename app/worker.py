@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from gstyle_core.pipeline.plan import StepTimes
+from gstyle_core.pipeline.plan import MachineRates, StepTimes
 
 from .child_process import interrupts_ignored
 from .engine_host import worker_main
@@ -38,6 +38,8 @@ class WorkerState:
     paused: bool = False
     done: bool = False
     error: str | None = None
+    went_on_after: str | None = None  # an error a step that succeeded since has made stale (the studio's status
+    # shows it once, ``StudioSync``; the red error line is cleared)
     last_report: dict[str, Any] | None = None
     loss_history: list[dict[str, float]] = field(default_factory=list)
     snapshot: dict[str, Any] = field(default_factory=dict)  # merged: geometry kept until a new one arrives
@@ -54,10 +56,10 @@ class WorkerState:
     resumed: dict[str, Any] | None = None  # {"checkpoint": path, "step": n} once a checkpoint was loaded
     started_at: float = 0.0
     plans: dict[str, Any] = field(default_factory=dict)  # every preset's steps, the preset run, its widths (plans)
-    step_times: StepTimes = field(default_factory=StepTimes)  # seconds per step of each kind (the estimates)
-    prior_times: StepTimes | None = None  # the run before a restart's step times (the new run's ETA from its start)
+    step_times: StepTimes = field(default_factory=StepTimes)  # this run's steps of each kind (its ETA)
     summary: dict[str, Any] | None = None  # the finished run's summary (its speckle at a display's size)
-    refine_note: str = ""  # why Refine was refused, or the level it started
+    refine_note: str = ""  # why Refine was refused, or the level it started (while that level runs)
+    refining: bool = False  # a Refine level runs (``refine_note`` says its width until the run is done)
     setup_note: str = ""  # the engine's one-off setup: a build under way (minutes) or how long it took
     device_failed: bool = False  # the GPU failed (no device, out of memory, no rasterizer): the run can go on on
     # the CPU (``WorkerBridge.move_to``)
@@ -81,8 +83,10 @@ class WorkerBridge:
 
     def __init__(self, factory: Callable[..., Any], config: dict[str, Any] | None = None, *,
                  checkpoint_path: str | os.PathLike | None = None, start_paused: bool = False,
-                 resume_from: str | os.PathLike | None = None) -> None:
+                 resume_from: str | os.PathLike | None = None, rates: MachineRates | None = None) -> None:
         self.factory = factory
+        self.rates = rates if rates is not None else MachineRates()  # every step's time goes there too (the studio's
+        # session rates of this scene and device: the quality estimates); the studio may hand it another
         self.config = dict(config or {})
         self.checkpoint_path = str(checkpoint_path) if checkpoint_path else None
         self.resume_from = str(resume_from) if resume_from else None  # used by the next start()
@@ -111,6 +115,7 @@ class WorkerBridge:
             args=(self.factory, self.config, self._commands, self._events, self._credits, self.checkpoint_path,
                   self.start_paused, self.resume_from), kwargs={"in_thread": self.in_thread})
         self.resume_from = None
+        self.rates.new_run()
         with interrupts_ignored():
             self._process.start()
         self.state = WorkerState(alive=True, paused=self.start_paused, started_at=time.monotonic())
@@ -178,10 +183,9 @@ class WorkerBridge:
             return
         self._forget_engine()
         self.state.loss_history.clear()
-        self.state.reports_received, self.state.step_seconds = 0, 0.0
-        if self.state.step_times.mean("stylize") is not None:  # the run before prices the new one's ETA
-            self.state.prior_times = self.state.step_times
-        self.state.step_times = StepTimes()
+        self.state.reports_received, self.state.step_seconds, self.state.last_report = 0, 0.0, None
+        self.state.step_times = StepTimes()  # (the runs before stay in ``rates``, which price the new one's ETA)
+        self.rates.new_run()
         if resume_from:
             self._send("restart_from", (self.config, str(resume_from)))
         else:
@@ -192,7 +196,7 @@ class WorkerBridge:
         summary."""
         st = self.state
         st.error, st.done, st.paused, st.device_failed, st.device = None, False, False, False, None
-        st.decisions, st.resumed, st.summary, st.refine_note = {}, None, None, ""
+        st.decisions, st.resumed, st.summary, st.refine_note, st.refining = {}, None, None, "", False
         st.failed, st.continue_from = False, None
 
     def move_to(self, config: dict[str, Any], device: str) -> None:
@@ -206,7 +210,8 @@ class WorkerBridge:
             self.start()
             return
         self._forget_engine()
-        self.state.step_times, self.state.prior_times = StepTimes(), None
+        self.state.step_times = StepTimes()
+        self.rates.new_run()
         self._send("move_to", self.config)
 
     def continue_run(self) -> None:
@@ -282,14 +287,7 @@ class WorkerBridge:
             st.device, st.device_name = payload.get("device"), str(payload.get("device_name") or "")
             st.devices = tuple(payload.get("devices") or ("cpu",))
         elif kind == "report":
-            st.last_report = payload
-            st.reports_received += 1
-            st.step_times.add(payload)
-            st.step_seconds += float(payload.get("seconds") or 0.0)
-            st.done = bool(payload.get("done"))
-            losses = dict(payload.get("losses") or {})
-            if losses:  # each with the step it was recorded at (the plot's x axis)
-                st.loss_history.append({STEP_KEY: float(payload.get("step", len(st.loss_history))), **losses})
+            self._apply_report(payload)
         elif kind == "snapshot":
             credit, payload = payload
             if credit:
@@ -324,7 +322,7 @@ class WorkerBridge:
         elif kind == "summary":
             st.summary = dict(payload)
         elif kind == "refining":
-            st.done, st.summary = False, None
+            st.done, st.summary, st.refining = False, None, True
             st.refine_note = f"refining at {payload} px"
         elif kind == "refine_refused":
             st.refine_note = str(payload)
@@ -332,6 +330,24 @@ class WorkerBridge:
             st.setup_note = str(payload)
         elif kind == "device_failed":
             st.device_failed = True
+
+    def _apply_report(self, report: dict[str, Any]) -> None:
+        """A step succeeded: its report, step time and losses; an error before it is stale now (``went_on_after``),
+        and a Refine level's note ends with the run."""
+        st = self.state
+        st.last_report = report
+        st.reports_received += 1
+        st.step_times.add(report)
+        self.rates.add(report)
+        st.step_seconds += float(report.get("seconds") or 0.0)
+        st.done = bool(report.get("done"))
+        if st.error is not None:
+            st.went_on_after, st.error, st.device_failed = st.error, None, False
+        if st.done and st.refining:
+            st.refining, st.refine_note = False, ""
+        losses = dict(report.get("losses") or {})
+        if losses:  # each with the step it was recorded at (the plot's x axis)
+            st.loss_history.append({STEP_KEY: float(report.get("step", len(st.loss_history))), **losses})
 
     def wait_until(self, predicate: Callable[[WorkerState], bool], timeout: float = 30.0) -> bool:
         """Poll until ``predicate(state)`` holds (True) or ``timeout`` seconds pass (False). For tests and CLI."""

@@ -23,6 +23,7 @@ class FakeReport:
     colours_changed: bool = True
     geometry_changed: bool = False
     done: bool = False
+    width: int | None = None  # the width the step rendered at (None: the engine does not say)
 
 
 class FakeEngine:
@@ -97,6 +98,33 @@ def make_fake_engine(scene=None, style=None, cameras=None, preset=None, **config
     return FakeEngine(**config)
 
 
+class StylizingEngine(FakeEngine):
+    """A ``FakeEngine`` that says it is stylizing and has settings (a calibrated 360° preview, 256 px), so its exports
+    are results (``app/result_files.py``); ``width``: the width its reports say it works at (None: none)."""
+
+    decisions: dict = {}
+
+    def __init__(self, width: int | None = None, **config) -> None:
+        from gstyle_core.pipeline.settings import resolve_settings
+
+        super().__init__(**config)
+        self.settings, self.width = resolve_settings("preview", "360", 4), width
+
+    def step(self) -> FakeReport:
+        report = super().step()
+        if self.width is not None:
+            report.width = self.width
+        return report
+
+    def snapshot(self) -> dict:
+        return {**super().snapshot(), "phase": "stylize"}
+
+
+def make_stylizing_engine(scene=None, style=None, cameras=None, preset=None, **config) -> StylizingEngine:
+    """``StylizingEngine`` for the studio's factory (ignores the app's scene/style keys)."""
+    return StylizingEngine(**config)
+
+
 class MarkingEngine(FakeEngine):
     """A ``FakeEngine`` that creates the file ``marker`` (if given) after its ``mark_after``-th step: another process
     can then see that the engine has stepped."""
@@ -156,8 +184,10 @@ class OutOfMemoryPull(MeanColourPull):
         return super().__call__(image, content, view, coverage)
 
 
-def make_small_stylizer(n: int = 150, device: str | None = None, objective=MeanColourPull, **_ignored):
-    """The real ``Stylizer`` on a tiny synthetic scene with ``MeanColourPull`` (for bridge integration tests)."""
+def make_small_stylizer(n: int = 150, device: str | None = None, objective=MeanColourPull, kind: str = "forward",
+                        **_ignored):
+    """The real ``Stylizer`` on a tiny synthetic scene with ``MeanColourPull`` (for bridge integration tests);
+    ``kind`` "360": a calibrated 360° preview (its first Refine level takes the weights of runs with levels)."""
     from synthetic import blob_scene, ring_cameras
 
     from gstyle_core.pipeline.settings import resolve_settings
@@ -165,7 +195,7 @@ def make_small_stylizer(n: int = 150, device: str | None = None, objective=MeanC
 
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0
-    settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=3, min_steps=0, refit_iterations=2,
+    settings = resolve_settings("preview", kind, 3, max_views=3, epochs=3, min_steps=0, refit_iterations=2,
                                 split_at=(1 / 3,), working_width=32, preprocess_rounds=1, device=device)
     return Stylizer(blob_scene(n, seed=5), ring_cameras(3), style, settings, objective_factory=objective)
 
@@ -176,6 +206,12 @@ BUILT: list = []  # engines made by keep_small_stylizer (and other test factorie
 def keep_small_stylizer(**config):
     """``make_small_stylizer``, kept in ``BUILT`` for the test to look at (thread mode: the same process)."""
     BUILT.append(make_small_stylizer(**config))
+    return BUILT[-1]
+
+
+def keep_small_360_stylizer(**config):
+    """``keep_small_stylizer`` as a calibrated 360° preview."""
+    BUILT.append(make_small_stylizer(**{**config, "kind": "360"}))
     return BUILT[-1]
 
 

@@ -11,7 +11,7 @@ from typing import Any
 from imgui_bundle import imgui
 
 WIDGETS = ("button", "small_button", "checkbox", "radio_button", "slider_float", "begin_combo", "selectable",
-           "collapsing_header", "input_text_with_hint")
+           "collapsing_header", "input_text_with_hint", "drag_float3")
 
 
 @dataclass
@@ -46,7 +46,7 @@ class Recorder:
             result = fn(label, *args, **kw)
             lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
             right = hi.x
-            if kind == "slider_float":  # the item's rectangle includes the label right of the slider's frame
+            if kind in ("slider_float", "drag_float3"):  # the item's rectangle includes the label right of its frame
                 shown = label.split("##")[0]
                 if shown:
                     right -= imgui.calc_text_size(shown).x + imgui.get_style().item_inner_spacing.x

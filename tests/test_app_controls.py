@@ -87,14 +87,18 @@ def test_a_term_that_starts_at_zero_can_be_turned_on(panel):
     assert [c.args for c in commands] == [{"lambda_content": state.defaults["lambda_content"]}]
 
 
-def test_coarse_substitute_is_named_so_on_slider_tooltip_and_plot(panel):
+def test_coarse_substitute_is_named_so_in_the_sliders_tooltip(panel):
+    """The slider and the plot say "large patterns" whatever the term is; the tooltip says it is the substitute."""
     driver, state = panel
     state.clip_name = COARSE_NAME
     driver.frame()
-    slider = driver.recorder.find(f"lambda_clip/lambda {COARSE_NAME}")
+    slider = driver.recorder.find("lambda_clip/large patterns")
     assert "coarse (CLIP substitute)" in slider.tooltip and "no CLIP ViT-B/32 weights" in slider.tooltip
+    state.clip_name = "CLIP"
+    driver.frame()
+    assert "CLIP ViT-B/32 embeddings" in driver.recorder.find("lambda_clip/large patterns").tooltip
     history = [{"clip": 1.0, "nnfm": 2.0, "multiscale": 3.0, "content": 0.0}]
-    assert [label for label, *_ in loss_series(history, COARSE_NAME)] == [COARSE_NAME, "broad strokes", "NNFM"]
+    assert [label for label, *_ in loss_series(history)] == ["large patterns", "broad strokes", "brush strokes"]
     # (content: weight 0, never computed, no line in the plot)
 
 
@@ -103,14 +107,14 @@ def test_loss_plot_lines_are_named_at_their_steps_and_joined_across_other_steps(
     steps between them) are continuous lines at the steps they were recorded at; a term switched off is left out."""
     history = [{"step": 10.0 + i, **({"refit": 0.5} if i % 3 else {"nnfm": 2.0 + i, "content": 1.0, "clip": 0.3})}
                for i in range(12)]
-    series = {label: (xs, ys) for label, xs, ys in loss_series(history, COARSE_NAME)}
-    assert sorted(series) == sorted([COARSE_NAME, "NNFM", "content", "refit"])
-    xs, ys = series["NNFM"]
+    series = {label: (xs, ys) for label, xs, ys in loss_series(history)}
+    assert sorted(series) == sorted(["large patterns", "brush strokes", "keep the scene", "refit"])
+    xs, ys = series["brush strokes"]
     assert np.array_equal(xs, [10, 13, 16, 19]) and np.array_equal(ys, [2, 5, 8, 11])
     assert len(series["refit"][0]) == 8
-    assert COARSE_NAME not in [label for label, *_ in loss_series(history, COARSE_NAME, frozenset({"clip"}))]
-    relative = {label: ys for label, _, ys in loss_series(history, COARSE_NAME, relative=True)}
-    assert np.allclose(relative["NNFM"], [1, 2.5, 4, 5.5]) and np.allclose(relative["content"], 1)  # over the first
+    assert "large patterns" not in [label for label, *_ in loss_series(history, frozenset({"clip"}))]
+    relative = {label: ys for label, _, ys in loss_series(history, relative=True)}
+    assert np.allclose(relative["brush strokes"], [1, 2.5, 4, 5.5]) and np.allclose(relative["keep the scene"], 1)
 
 
 def test_studio_names_the_clip_term_by_the_weights_found(window, no_clip_weights, tmp_path):

@@ -78,34 +78,18 @@ def test_ctrl_z_takes_a_slider_back_in_the_panel_and_the_engine(studio, window):
         assert cmds == [Command(expected)]
 
 
-def _stylizing_engine(scene=None, style=None, cameras=None, preset=None, **config):
-    """A fake engine that says it is stylizing and has settings, so its exports are results (app/result_files.py)."""
-    from fakes import FakeEngine
-
-    from gstyle_core.pipeline.settings import resolve_settings
-
-    class Engine(FakeEngine):
-        settings = resolve_settings("preview", "360", 4)
-        decisions: dict = {}
-
-        def snapshot(self) -> dict:
-            return {**super().snapshot(), "phase": "stylize"}
-
-    return Engine(**config)
-
-
 def test_a_restart_leaves_its_result_a_step_back_and_redo_brings_the_new_one(window, tmp_path, monkeypatch):
     """Restart throws nothing away: the result it replaced is saved (no take), Ctrl+Z opens it as a result with
     the engine stopped, Ctrl+Shift+Z opens the result the undo left."""
     import numpy as np
-    from fakes import ring_studio
+    from fakes import make_stylizing_engine, ring_studio
 
     from app.panels import Command
     from app.result_undo import history_folder
     from gstyle_core.scene import sh_dc_to_rgb
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
-    app = ring_studio(window, tmp_path, _stylizing_engine, snapshots=3)
+    app = ring_studio(window, tmp_path, make_stylizing_engine, snapshots=3)
     try:
         bridge = app.bridge
         bridge.pause()
@@ -222,13 +206,13 @@ def test_a_painting_choice_is_a_step_of_its_own(window, tmp_path, monkeypatch):
 def test_a_painting_that_replaces_a_result_is_one_step_with_it(window, tmp_path, monkeypatch):
     """A painting chosen while a result is shown: the replaced result is the step (undo brings it back with its
     painting), not a second one."""
-    from fakes import ring_studio
+    from fakes import make_stylizing_engine, ring_studio
 
     from app.edit_history import ResultEdit
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     first, second, _ = _paintings(tmp_path)
-    app = ring_studio(window, tmp_path, _stylizing_engine, snapshots=2)
+    app = ring_studio(window, tmp_path, make_stylizing_engine, snapshots=2)
     try:
         assert app.open_path(first, record=False)
         assert app.bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60)

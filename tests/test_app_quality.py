@@ -11,7 +11,14 @@ pytest.importorskip("moderngl")
 from fakes import BUILT, small_studio  # noqa: E402
 from imgui_driver import paused_studio_driver  # noqa: E402
 
-from gstyle_core.pipeline.plan import StepTimes, estimate_seconds, planned_steps  # noqa: E402
+from gstyle_core.pipeline.plan import (  # noqa: E402
+    MIN_SAMPLES,
+    WARMUP_STEPS,
+    MachineRates,
+    StepTimes,
+    estimate_seconds,
+    planned_steps,
+)
 from gstyle_core.pipeline.settings import resolve_settings  # noqa: E402
 
 W, H = 700, 1300  # tall enough for the whole panel
@@ -32,8 +39,10 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
         driver.frame()
         estimates = app.panel.quality_estimates
         assert 0 < estimates["preview"] < estimates["balanced"] < estimates["final"]  # priced at this run's steps
-        result = [t for t in driver.recorder.texts if t.startswith("Result: speckle at 1024 px")]
-        assert result, driver.recorder.texts
+        result = [t for t in driver.recorder.texts if t.startswith("Fine grain at screen size: ")]
+        assert result and result[0].endswith("(1 = the painting's own)"), driver.recorder.texts
+        ratio = app.bridge.state.summary["display"]["speckle_ratio"]
+        assert app.panel.grain == ("-" if ratio is None else f"{ratio:.2f}") and app.panel.grain in result[0]
         colours = BUILT[-1].c_s.clone()
         assert driver.recorder.find("Refine -> 64 px").tooltip
         commands = driver.click("Refine -> 64 px")
@@ -45,6 +54,7 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
         assert not np.array_equal(engine.c_s.numpy(), colours.numpy())
         driver.frame()
         assert "Width: 64 px (levels 32 px -> 64 px)" in driver.recorder.texts
+        assert app.panel.refine_note == "" and not [t for t in driver.recorder.texts if "refining" in t]  # it ended
         assert all(ord(c) < 256 for text in driver.recorder.texts for c in text)  # the font has Latin-1 only
         commands = driver.click("balanced (~" + [w.path for w in driver.recorder.widgets
                                                  if w.path.endswith("###q_balanced")][0].split("(~", 1)[1])
@@ -52,8 +62,48 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
         driver.frame()
         commands = driver.click("Restart at balanced")
         assert [c.name for c in commands] == ["restart_quality"] and app.engine_config["preset"] == "balanced"
+        driver.frame()  # the runs before price the presets from the restart on: no "measuring" again
+        assert all(v is not None for v in app.panel.quality_estimates.values()), app.panel.quality_estimates
     finally:
         app.close(timeout=60)
+
+
+def test_refine_moves_the_weights_for_its_level_only_and_a_restart_returns_the_panels(window, monkeypatch, tmp_path):
+    """A calibrated 360° preview refined: its first level runs at the weights of runs with levels (the sliders show
+    them meanwhile); Restart goes back to the values before the refine, except one the artist moved since."""
+    from fakes import keep_small_360_stylizer
+
+    from app.panels import Command
+
+    app = small_studio(window, monkeypatch, tmp_path, factory=keep_small_360_stylizer)
+    try:
+        driver = paused_studio_driver(window, monkeypatch, app)
+        before = dict(app.bridge.state.params)
+        assert (before["lambda_nnfm"], before["lambda_edges"]) == (200.0, 0.0)
+        app.bridge.resume()
+        assert app.bridge.wait_until(lambda s: s.done or s.error, 120), app.bridge.state.error
+        app.execute(Command("refine"))
+        assert app.bridge.wait_until(lambda s: s.params.get("lambda_edges") == 4000.0 or s.error, 60)
+        driver.frame()
+        assert (app.panel.params["lambda_nnfm"], app.panel.params["lambda_edges"]) == (400.0, 4000.0)
+        assert BUILT[-1].settings.weights.edges == 4000.0  # the level runs at them
+        app.execute(Command("set_params", {"lambda_multiscale": 250.0}))  # the artist's own, after the refine
+        app.execute(Command("restart"))
+        assert app.bridge.wait_until(lambda s: len(BUILT) == 2 and s.params.get("lambda_edges") == 0.0 or s.error,
+                                     60), app.bridge.state.error
+        driver.frame()
+        kept = {**before, "lambda_multiscale": 250.0}
+        assert {k: app.panel.params[k] for k in kept} == kept
+        w = BUILT[-1].settings.weights
+        assert (w.nnfm, w.edges, w.multiscale, w.chroma_tv) == (200.0, 0.0, 250.0, before["lambda_chroma_tv"])
+    finally:
+        app.close(timeout=60)
+
+
+def _steps(rates: MachineRates, phase: str, seconds, **report) -> None:
+    """Step reports of ``phase`` taking ``seconds`` each (one phase: the first steps are its warm-up)."""
+    for value in seconds:
+        rates.add({"phase": phase, "seconds": value, **report})
 
 
 def test_a_plan_prices_each_kind_of_step_and_grows_with_the_preset():
@@ -61,34 +111,69 @@ def test_a_plan_prices_each_kind_of_step_and_grows_with_the_preset():
              for name in ("preview", "balanced", "final")}
     assert "refine_512" not in plans["preview"] and plans["balanced"]["refine_targets_512"] == 24
     assert set(plans["final"]) >= {"refine_512", "refine_1024", "refine_targets_1024"}
-    times = StepTimes()
-    assert estimate_seconds(plans["preview"], times, 256) is None  # nothing measured: no figure
-    times.add({"phase": "stylize", "seconds": 1.0})
-    times.add({"phase": "ground_truth", "seconds": 0.2})
-    times.add({"phase": "refine", "width": 512, "message": "level 512 px: crops at 512 px", "seconds": 2.0})
-    times.add({"phase": "colour_match", "seconds": 5.0})  # one step, priced as nothing
-    assert times.mean("refine_512") == 2.0 and times.mean("stylize") == 1.0
-    preview, balanced, final = (estimate_seconds(plans[n], times, 256) for n in ("preview", "balanced", "final"))
+    rates = MachineRates()
+    assert estimate_seconds(plans["preview"], rates, 256) is None  # nothing measured: no figure
+    warm = [9.0] * WARMUP_STEPS  # a phase's first steps (builds, caches, the UI's start): not its rate
+    _steps(rates, "stylize", [*warm, *[1.0] * (MIN_SAMPLES - 1)])
+    assert estimate_seconds(plans["preview"], rates, 256) is None  # too few steps past the warm-up yet
+    _steps(rates, "stylize", [1.0])  # (the same phase goes on)
+    _steps(rates, "ground_truth", [*warm, *[0.2] * MIN_SAMPLES])
+    _steps(rates, "refine", [*warm, *[2.0] * MIN_SAMPLES], width=512, message="level 512 px: crops at 512 px")
+    _steps(rates, "colour_match", [5.0] * 9)  # one step each, priced as nothing
+    assert rates.median("refine_512") == 2.0 and rates.median("stylize") == 1.0
+    preview, balanced, final = (estimate_seconds(plans[n], rates, 256) for n in ("preview", "balanced", "final"))
     assert 0 < preview < balanced < final
     p = plans["preview"]
     assert preview == pytest.approx(p["stylize"] * 1.0 + p["ground_truth"] * 0.2 + p["refit"] * 0.15)
 
 
-def test_the_eta_counts_the_steps_of_each_kind_still_to_come_and_a_restart_starts_from_the_run_before():
+def test_the_estimates_settle_a_burst_of_slow_or_fast_steps_moves_them_little():
+    """Issue #48 item 4.4: the quality choice's times swung about 3x in one sitting (preview ~1:02 to ~3:13). At
+    the session's median step times a burst of ten steps at 3x or 0.3x among a hundred moves each preset's estimate
+    by under 5 % (and by less than half as much as the mean step time the estimates used before), and a restart's first
+    steps (slower: builds, the UI's start) count for nothing."""
+    plans = {name: planned_steps(resolve_settings(name, "360", 24, clip_available=False), 24)
+             for name in ("preview", "balanced", "final")}
+    rates, times = MachineRates(), StepTimes()
+    noise = np.random.default_rng(0).uniform(0.9, 1.1, 100)
+    for phase, scale in (("ground_truth", 0.3), ("refit", 0.15), ("stylize", 1.0)):
+        for value in scale * noise:
+            rates.add({"phase": phase, "seconds": value})
+            times.add({"phase": phase, "seconds": value})
+    settled = {n: estimate_seconds(p, rates, 256) for n, p in plans.items()}
+    for burst in (3.0, 0.3):
+        after = MachineRates({k: v.copy() for k, v in rates.samples.items()}, rates.phase)  # the stylize phase goes on
+        _steps(after, "stylize", [burst] * 10)
+        mean_before = times.mean("stylize")
+        moved = StepTimes(dict(times.seconds), dict(times.counts))
+        for _ in range(10):
+            moved.add({"phase": "stylize", "seconds": burst})
+        for name, plan in plans.items():
+            change = estimate_seconds(plan, after, 256) / settled[name] - 1
+            assert abs(change) < 0.05, (burst, name, change)
+        assert abs(moved.mean("stylize") / mean_before - 1) > 2 * abs(change)  # the old figure moved more
+    rates.new_run()  # a restart: its first steps of every phase are slow
+    for phase in ("ground_truth", "refit", "stylize"):
+        _steps(rates, phase, [20.0] * WARMUP_STEPS)
+    assert {n: estimate_seconds(p, rates, 256) for n, p in plans.items()} == settled
+
+
+def test_the_eta_counts_the_steps_of_each_kind_still_to_come_and_a_restart_starts_from_the_runs_before():
     """Early in a run only cheap ground-truth and refit steps are measured: the mean step would promise a fraction of
-    the time (issue #35: 0:34-0:41 shown for runs of ~110 s). The ETA prices each kind's remaining steps, and a
-    restarted run uses the run before's costs until its own are measured."""
+    the time (issue #35: 0:34-0:41 shown for runs of ~110 s). The ETA prices each kind's remaining steps at the
+    session's rates (a restarted run: the runs before's), else at this run's own mean."""
     from gstyle_core.pipeline.plan import remaining_seconds
 
     plan = {"ground_truth": 10.0, "refit": 100.0, "stylize": 40.0}
-    before = StepTimes()
+    before = MachineRates()
     for phase, seconds in (("ground_truth", 0.05), ("refit", 0.1), ("stylize", 2.0)):
-        before.add({"phase": phase, "seconds": seconds})
+        _steps(before, phase, [seconds] * (WARMUP_STEPS + MIN_SAMPLES))
     now = StepTimes()
     for _ in range(10):
         now.add({"phase": "ground_truth", "seconds": 0.04})
     assert remaining_seconds(plan, now, 256) is None  # no stylization step known: no figure rather than a wrong one
-    left = remaining_seconds(plan, now, 256, prior=before)
-    assert left == pytest.approx(100 * 0.1 + 40 * 2.0)  # the ground truth is done; the rest at the run before's costs
+    left = remaining_seconds(plan, now, 256, before)
+    assert left == pytest.approx(100 * 0.1 + 40 * 2.0)  # the ground truth is done; the rest at the session's rates
     now.add({"phase": "stylize", "seconds": 3.0})
-    assert remaining_seconds(plan, now, 256, prior=before) == pytest.approx(100 * 0.1 + 39 * 3.0)  # its own, once seen
+    assert remaining_seconds(plan, now, 256, before) == pytest.approx(100 * 0.1 + 39 * 2.0)  # one step moves no rate
+    assert remaining_seconds(plan, now, 256) == pytest.approx(100 * 0.15 * 3.0 + 39 * 3.0)  # alone: its own mean

@@ -100,6 +100,37 @@ def test_opening_a_result_starts_nothing_and_restart_from_the_original_does(wind
         app.close(timeout=30)
 
 
+def test_a_painting_and_a_slider_chosen_on_a_result_are_what_restart_from_the_original_uses(window, tmp_path,
+                                                                                             monkeypatch):
+    """A result on show (no engine): another painting opened and a slider moved change what *Restart from the
+    original* stylizes with, not only the thumbnail; *Stylize it again* uses them too."""
+    from fakes import ring_studio
+
+    from app.panels import Command
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    out, original, painting, _ = _result(tmp_path, lambda_nnfm=321.0)
+    other = tmp_path / "art" / "other.png"
+    Image.fromarray(np.random.default_rng(1).integers(0, 255, (12, 12, 3), dtype=np.uint8)).save(other)
+    app = ring_studio(window, tmp_path)
+    try:
+        assert app.open_path(str(out)) and app.panel.style_path == str(painting.resolve())
+        assert app.open_path(str(other)) and app.bridge is None and app.result is not None  # still the result
+        app.execute(Command("set_params", {"lambda_nnfm": 123.0}))
+        app.execute(Command("restart_from_original"))
+        assert app.loaded.path == str(original.resolve()) and app.panel.style_path == str(other)
+        assert app.bridge.config["style"] == str(other)  # the engine stylizes with the painting opened on the result
+        assert app.bridge.wait_until(lambda s: (s.snapshot or {}).get("params", {}).get("lambda_nnfm") == 123.0
+                                     or s.error, 30), app.bridge.state.error
+        app.stop_engine()
+        assert app.open_path(str(out)) and app.panel.style_path == str(painting.resolve())
+        assert app.open_path(str(other))
+        app.execute(Command("restart"))  # Stylize it again
+        assert app.bridge.config["style"] == str(other) and app.bridge.config["scene"] == str(out)
+    finally:
+        app.close(timeout=30)
+
+
 def test_the_command_line_opens_a_result_without_starting_an_engine(tmp_path, monkeypatch, capsys):
     from app.main import main
 

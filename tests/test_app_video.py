@@ -21,7 +21,7 @@ from app.video_job import VideoJob  # noqa: E402
 from gstyle_core.io import load_scene  # noqa: E402
 from gstyle_core.render_video import turntable_cameras  # noqa: E402
 
-W, H = 700, 1200  # tall enough for the whole panel (its palette-match slider included)
+W, H = 700, 1300  # tall enough for the whole panel
 
 
 def wait_job(job: VideoJob, timeout: float = 300.0):

@@ -129,10 +129,10 @@ def test_resume_from_a_foreign_checkpoint_is_one_line_and_the_engine_starts_afre
     b = WorkerBridge(make_fake_engine, {"n": 8}, resume_from=path)
     b.start()
     try:
-        assert b.wait_until(lambda s: s.error is not None, 120)
-        assert b.state.error.startswith("resume: ") and "starting afresh" in b.state.error
-        assert "\n" not in b.state.error and b.state.resumed is None
-        assert b.wait_until(lambda s: s.reports_received >= 2, 60)  # the fresh engine runs
+        assert b.wait_until(lambda s: s.reports_received >= 2, 120)  # the fresh engine runs
+        line = b.state.went_on_after  # the steps since made the error stale: the studio says it once, not in red
+        assert b.state.error is None and line.startswith("resume: ") and "starting afresh" in line
+        assert "\n" not in line and b.state.resumed is None
     finally:
         b.quit()
 
@@ -305,13 +305,13 @@ def test_thread_mode_leaves_the_process_environment_alone(monkeypatch):
     assert "NUMBA_NUM_THREADS" not in os.environ
 
 
-def test_a_restart_keeps_the_run_befores_step_times_for_the_new_runs_eta():
+def test_a_restart_keeps_the_sessions_step_rates_for_the_new_runs_eta():
     b = ThreadWorkerBridge(make_fake_engine, {"n": 16})
     b.start()
     try:
-        assert b.wait_until(lambda s: s.step_times.mean("stylize") is not None or s.error, 30), b.state.error
+        assert b.wait_until(lambda s: b.rates.median("stylize") is not None or s.error, 30), b.state.error
         b.restart({"n": 16})
-        assert b.state.prior_times is not None and b.state.prior_times.mean("stylize") is not None
+        assert b.rates.median("stylize") is not None and b.rates.phase == (None, 0)  # kept; a new run's phases
         assert b.state.step_times.counts == {}  # the new run counts its own
     finally:
         b.quit(timeout=5)
@@ -391,7 +391,8 @@ def test_a_paused_run_moved_to_another_device_stays_paused_where_it_was():
     b = ThreadWorkerBridge(keep_small_stylizer, {"n": 80})
     b.start()
     try:
-        assert b.wait_until(lambda s: (s.last_report or {}).get("phase") == "stylize" or s.error, 120)
+        # (a stylize step reported: the last report alone may be past the phase, its steps drained in one poll)
+        assert b.wait_until(lambda s: s.step_times.counts.get("stylize") or s.error, 120)
         b.pause()
         assert b.wait_until(lambda s: s.paused, 30)
         step = b.state.last_report["step"]

@@ -40,8 +40,9 @@ def param_rows() -> tuple[Param, ...]:
 
 
 COARSE_CLIP_TOOLTIP = (
-    "Weight of the coarse (CLIP substitute) term: no CLIP ViT-B/32 weights were found, so the style's large-scale "
-    "colour and texture statistics (VGG features of 4x smaller images) are matched instead of CLIP's embedding.")
+    "Large patterns: the painting's large-scale colour and texture. The engine's coarse (CLIP substitute) term "
+    "(lambda_clip, --lambda-clip): no CLIP ViT-B/32 weights were found, so the style's large-scale colour and "
+    "texture statistics (VGG features of 4x smaller images) are matched instead of CLIP's embedding.")
 
 
 def switch_rows() -> tuple[Param, ...]:

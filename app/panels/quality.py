@@ -54,7 +54,8 @@ def refine_button(state: PanelState, out: list[Command]) -> None:
     its tooltip saying so."""
     tip = (f"Carry the current colours on at {state.next_width} px without a restart: a finer level, then the final "
            "colour match again. Works during a run and after it. On a 360-degree scene a preview's first level keeps "
-           "edges (lambda edges 4000, NNFM 400) unless you moved them.")
+           "edges (edges kept 4000, brush strokes 400) unless you moved them; a restart goes back to the values "
+           "before.")
     if state.failed:
         tip = "The run stopped at an error: Continue it (or Restart) first, then refine."
     imgui.begin_disabled(state.failed)
@@ -72,25 +73,29 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
         label = f"{name} ({'~' + format_eta(estimate) if estimate is not None else 'time: measuring'})###q_{name}"
         if imgui.radio_button(label, state.quality == name):
             out.append(Command("set_quality", {"preset": name}))
-        tooltip(f"{tip} The time is this scene's on this machine, priced at the step times of the run so far.")
-        if name != "final":
-            imgui.same_line()
+        tooltip(f"{tip} The time is this scene's on this machine, priced at the median step times measured in "
+                "this session's runs of it (a phase's first steps left out).")
     if state.quality != state.preset and state.preset:
         if button(f"Restart at {state.quality}", f"Start the stylization again from the input scene at the "
                                                  f"{state.quality} quality (the run now is {state.preset})."):
             out.append(Command("restart_quality", {"preset": state.quality}))
-    levels = " -> ".join(f"{w} px" for w in state.levels)  # the panel's font has Latin-1 glyphs only
-    imgui.text_wrapped(f"Width: {state.width} px" + (f" (levels {levels})" if len(state.levels) > 1 else ""))
-    tooltip("The width the engine renders at now. Finer levels go on from the colours at twice the pixels, so the "
-            "strokes hold up at a display's size (docs/tradeoffs.md).")
+    if state.width:  # (nothing to say before a run or a result gives one)
+        levels = " -> ".join(f"{w} px" for w in state.levels)  # the panel's font has Latin-1 glyphs only
+        imgui.text_wrapped(f"Width: {state.width} px" + (f" (levels {levels})" if len(state.levels) > 1 else ""))
+        tooltip("The width of what is on show: the engine's now, or a result's last level. Finer levels go on from "
+                "the colours at twice the pixels, so the strokes hold up at a display's size (docs/tradeoffs.md).")
     if state.next_width:
         refine_button(state, out)
     if state.refine_note:
         imgui.same_line()
         imgui.text_wrapped(state.refine_note)
     device_line(state, out)
-    if state.summary_line:
-        imgui.text_wrapped(font_safe(f"Result: {state.summary_line}"))  # sigma spelled out
-        tooltip("Measured on three of the scene's views rendered at a display's size: how much of the colour the "
-                "stylization added is finer than sigma 4 px, against the painting's own share at the size its strokes "
-                "are matched (1: the painting's grain; well above 1: single-splat confetti).")
+    if state.grain:
+        imgui.text_wrapped(f"Fine grain at screen size: {state.grain} (1 = the painting's own)")
+        tooltip("How fine the colour detail the stylization added is, seen at a display's size: measured on three of "
+                "the scene's views rendered at a display's width, the share of the added colour finer than sigma 4 px "
+                "against the painting's own share at the size its strokes are matched (1: the painting's grain; well "
+                "above 1: single-splat confetti; the speckle ratio of docs/display-size.md). "
+                + font_safe(f"The engine's line: {state.summary_line}"))  # sigma spelled out
+    elif state.summary_line:  # no figure (its measurement failed): the engine's line as it is
+        imgui.text_wrapped(font_safe(f"Result: {state.summary_line}"))

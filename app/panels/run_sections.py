@@ -168,16 +168,11 @@ def format_eta(seconds: float | None) -> str:
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
 
 
-def term_name(key: str, clip_name: str = "CLIP") -> str:
-    """A loss key as labels show it: ``clip`` by what the term is (``clip_name``), the others by their λ row's label
-    (``multiscale``: "broad strokes")."""
-    return clip_name if key == "clip" else term_label(key)
-
-
-def loss_series(history: list[dict[str, float]], clip_name: str = "CLIP", off: frozenset[str] = frozenset(),
+def loss_series(history: list[dict[str, float]], off: frozenset[str] = frozenset(),
                 relative: bool = False) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """(legend label, steps, values) per loss term in ``history``, only the points where the term was recorded
-    (positive: a log axis), at their steps (an entry's ``"step"``, else its index). Terms never computed or in
+    """(legend label: the term's slider label, ``term_label``; steps, values) per loss term in ``history``, only the
+    points where the term was recorded (positive: a log axis), at their steps (an entry's ``"step"``, else its
+    index). Terms never computed or in
     ``off`` (switched off now) have no series. ``relative``: each term over its first recorded value, so terms
     thousands of times apart share one axis and each one's fall shows."""
     steps = np.array([h.get("step", i) for i, h in enumerate(history)], np.float64)
@@ -187,7 +182,7 @@ def loss_series(history: list[dict[str, float]], clip_name: str = "CLIP", off: f
         recorded = np.isfinite(ys) & (ys > 0)
         if recorded.any():
             values = ys[recorded] / ys[recorded][0] if relative else ys[recorded]
-            series.append((term_name(key, clip_name), steps[recorded], values))
+            series.append((term_label(key), steps[recorded], values))
     return series
 
 
@@ -199,19 +194,21 @@ def switched_off_terms(state: PanelState) -> frozenset[str]:
 
 def loss_plot(state: PanelState) -> None:
     """The losses so far against the step, each over its first value on a log axis (one named line per term, its
-    fall visible whatever its size), the legend below the plot (nothing without implot or history)."""
-    series = loss_series(state.loss_history, state.clip_name, switched_off_terms(state), relative=True)
+    fall visible whatever its size), the legend below the plot, a term a line (nothing without implot or history)."""
+    series = loss_series(state.loss_history, switched_off_terms(state), relative=True)
     if not series:
         return
     try:
         from imgui_bundle import implot
     except ImportError:
         return
-    legend_rows = (len(series) + 2) // 3
-    if implot.begin_plot("Losses", imgui.ImVec2(-1, 150 + 18 * legend_rows)):
+    # One term a line, in room made for them: in one row they did not fit, and the legend then scrolled itself,
+    # keeping the mouse wheel from the panel.
+    legend = len(series) * imgui.get_text_line_height_with_spacing()
+    if implot.begin_plot("Losses", imgui.ImVec2(-1, 150 + legend)):
         implot.setup_axes("step", "loss / first", implot.AxisFlags_.auto_fit, implot.AxisFlags_.auto_fit)
         implot.setup_axis_scale(implot.ImAxis_.y1, implot.Scale_.log10)
-        implot.setup_legend(implot.Location_.south, implot.LegendFlags_.outside | implot.LegendFlags_.horizontal)
+        implot.setup_legend(implot.Location_.south, implot.LegendFlags_.outside)
         for label, xs, ys in series:
             implot.plot_line(label, xs, ys)
         implot.end_plot()

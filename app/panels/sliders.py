@@ -15,13 +15,9 @@ def default_value(state: PanelState, p: Param) -> float:
     return float(state.defaults.get(p.key, p.default))
 
 
-def param_label(state: PanelState, p: Param) -> str:
-    """The slider's label (the CLIP term by what it is)."""
-    return f"lambda {state.clip_name}" if p.key == "lambda_clip" else p.label
-
-
 def param_tooltip(state: PanelState, p: Param) -> str:
-    """The slider's tooltip (the coarse substitute's own when there are no CLIP weights)."""
+    """The slider's tooltip (the coarse substitute's own when there are no CLIP weights: the label stays "large
+    patterns", the tooltip says which term it is)."""
     return COARSE_CLIP_TOOLTIP if p.key == "lambda_clip" and state.clip_name != "CLIP" else p.tooltip
 
 
@@ -70,14 +66,14 @@ def param_row(state: PanelState, p: Param, out: list[Command]) -> None:
     off = p.is_term and value <= 0
     if p.is_term:
         changed, on = imgui.checkbox("##on", not off)
-        tooltip(f"Turn the {param_label(state, p)[len('lambda '):]} term on or off (off: weight 0, never computed).")
+        tooltip(f"Turn {p.label} on or off (off: weight 0, never computed).")
         if changed:
             out.append(switch_command(state, p, on))
         imgui.same_line()
     imgui.begin_disabled(off)
     imgui.set_next_item_width(96)  # room for the longest label, its reset button and the panel's scrollbar
     shown = state.switched_off.get(p.key, default_value(state, p)) if off else value
-    changed, new = param_slider(param_label(state, p), shown, p.low, p.high, p.fmt, p.log)
+    changed, new = param_slider(p.label, shown, p.low, p.high, p.fmt, p.log)
     tooltip(param_tooltip(state, p))
     if changed and not off:
         out.append(Command("set_params", {p.key: float(new)}))

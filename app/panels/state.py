@@ -104,4 +104,5 @@ class PanelState:
     levels: list[int] = field(default_factory=list)  # the widths of the run, coarse to fine
     next_width: int | None = None  # Refine's width (None: no finer level possible)
     refine_note: str = ""
-    summary_line: str = ""  # the finished run's result (its speckle at a display's size)
+    summary_line: str = ""  # the finished run's result (its speckle at a display's size), as the engine words it
+    grain: str = ""  # its speckle ratio at that size ("0.61"; "-" without detail to compare; "" without a figure)

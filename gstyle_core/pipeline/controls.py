@@ -142,37 +142,45 @@ def _term(term: str, label: str, default: float, low: float, high: float, toolti
 
 
 CONTROLS: tuple[Control, ...] = (
-    _term("clip", "lambda CLIP", 10.0, 1e-2, 1e3,
-          "Weight of the CLIP term: matches the style's large-scale patterns and layout of colour.",
+    _term("clip", "large patterns", 10.0, 1e-2, 1e3,
+          "Large patterns: the painting's large-scale patterns and layout of colour. The engine's CLIP term "
+          "(lambda_clip, --lambda-clip: CLIP ViT-B/32 embeddings of the render and the painting).",
           "CLIP (or substitute) large-pattern term"),
-    _term("nnfm", "lambda NNFM", 100.0, 1e-1, 1e4,
-          "Weight of the nearest-neighbour feature matching term: brush strokes and local texture (VGG).",
+    _term("nnfm", "brush strokes", 100.0, 1e-1, 1e4,
+          "Brush strokes: the painting's strokes and local texture. The engine's NNFM term (lambda_nnfm, "
+          "--lambda-nnfm: nearest-neighbour feature matching of VGG features).",
           "NNFM brush-stroke term"),
-    _term("multiscale", "lambda broad strokes", 100.0, 1e-1, 1e4,
-          "Weight of the broad-strokes term: the painting's larger strokes and shapes, matched on the render and the "
-          "painting both shrunk 2x, 4x and 8x (multi-scale NNFM). On by default, at lambda NNFM, when no CLIP weights "
-          "are found; follows the stroke size and the style strength.",
+    _term("multiscale", "broad strokes", 100.0, 1e-1, 1e4,
+          "Broad strokes: the painting's larger strokes and shapes. The engine's multi-scale NNFM term "
+          "(lambda_multiscale, --lambda-multiscale: matched on the render and the painting both shrunk 2x, 4x and "
+          "8x). On by default, at the brush strokes' weight, when no CLIP weights are found; follows the stroke size "
+          "and the style strength.",
           "broad-strokes term (multi-scale NNFM: the painting's larger strokes and shapes; default λ_NNFM "
           "without CLIP weights, 0 with them)"),
-    _term("content", "lambda content", 0.05, 1e-4, 10.0,
-          "Weight of content preservation: keeps the scene recognisable (VGG features of the photo).",
+    _term("content", "keep the scene", 0.05, 1e-4, 10.0,
+          "Keep the scene: keeps it recognisable. The engine's content term (lambda_content, --lambda-content: VGG "
+          "features of the render held to the scene's own).",
           "content preservation"),
-    _term("tv", "lambda TV", 1e-4, 1e-7, 1e-1, "Weight of total variation: smooths noisy pixels.",
+    _term("tv", "smoothness", 1e-4, 1e-7, 1e-1,
+          "Smoothness: smooths noisy pixels. The engine's TV term (lambda_tv, --lambda-tv: total variation of the "
+          "render).",
           "total-variation smoothness"),
-    _term("chroma_tv", "lambda colour smoothness", 1500.0, 1.0, 1e5,
-          "Weight of colour smoothness: the total variation of the render's colour (not its light and dark) at the "
+    _term("chroma_tv", "colour smoothness", 1500.0, 1.0, 1e5,
+          "Colour smoothness (the engine's chroma TV term, lambda_chroma_tv, --lambda-chroma-tv): the total "
+          "variation of the render's colour (not its light and dark) at the "
           "pixels each level renders, so single splats do not each take a hue of their own (confetti at the "
           "display's size) while edges and shading stay. Strongest at the finer levels (Refine), whose pixels are "
           "the display's.",
           "colour-smoothness term (total variation of the render's chroma, per pixel)"),
-    _term("edges", "lambda edges", 0.0, 1.0, 1e5,
-          "Weight of edge keeping: the render's light-and-dark edges (luminance gradients, pixel to pixel) held to "
+    _term("edges", "edges kept", 0.0, 1.0, 1e5,
+          "Edges kept (the engine's edges term, lambda_edges, --lambda-edges): the render's light-and-dark edges "
+          "(luminance gradients, pixel to pixel) held to "
           "the scene's, so faces, outlines and shapes stay legible under the strokes while colours and texture "
           "change; more keeps more structure and lets less of the painting's texture in. At every level's pixels.",
           "edge-keeping term (luminance gradients held to the scene's, per pixel)"),
     Control("strength", "style strength", 1.0, 0.1, 100.0, True,
-            "Style strength: multiplies the style terms (CLIP, NNFM, broad strokes) against content preservation; "
-            "1 keeps the lambda values as they are, more paints harder, less keeps more of the scene.",
+            "Style strength: multiplies the style terms (large patterns, brush strokes, broad strokes) against keep "
+            "the scene; 1 keeps their weights as they are, more paints harder, less keeps more of the scene.",
             Effect.REWEIGHT, read=lambda s: s.strength, write=_write_strength,
             cli=CliOption("style strength: scales the style terms (CLIP, NNFM, broad strokes) against content; "
                           "default 1")),
@@ -237,8 +245,8 @@ def control(name: str) -> Control:
 
 
 def term_label(term: str) -> str:
-    """A loss term (a ``StyleWeights`` field, e.g. ``multiscale``) as people read it: its λ row's label without
-    "lambda" ("broad strokes"); the term's own name when it has no row."""
+    """A loss term (a ``StyleWeights`` field, e.g. ``multiscale``) as people read it: its λ row's label ("broad
+    strokes", "keep the scene"; an older "lambda " prefix left out); the term's own name when it has no row."""
     try:
         return control(f"lambda_{term}").label.removeprefix("lambda ")
     except KeyError:

@@ -1,16 +1,19 @@
-"""What a preset would cost on this scene and this machine: its steps per kind, priced at this run's step times.
+"""What a preset would cost on this scene and this machine: its steps per kind, priced at measured step times.
 
 ``planned_steps`` counts a preset's steps from its settings alone (as the phases plan them; pre-processing as many
 rounds as the settings ask, since whether the sizes are even is known only when it starts). ``estimate_seconds``
-prices them with seconds per step of each kind measured in the running engine (``StepTimes``, fed by the step
-reports); a kind not measured yet is priced from a measured one by the ratios in ``FALLBACK`` (measured on the demo,
-2-core AMD EPYC, docs/tradeoffs.md), and a level's steps by its width. Torch-free: the studio prices the presets in
-its own process.
+prices them with this machine's seconds per step of each kind over the studio session (``MachineRates``, fed by the
+step reports: a median that settles); ``remaining_seconds`` prices a run's steps still to come. A kind not measured
+yet is priced from a measured one by the ratios in ``FALLBACK`` (measured on the demo, 2-core AMD EPYC,
+docs/tradeoffs.md), and a level's steps by its width. Torch-free: the studio prices the presets in its own process.
 """
 
 from __future__ import annotations
 
 import math
+import statistics
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from .levels import MAX_LEVEL_VIEWS
@@ -61,6 +64,39 @@ class StepTimes:
         return self.seconds[kind] / self.counts[kind] if self.counts.get(kind) else None
 
 
+WARMUP_STEPS = 2  # a phase's first steps (the run's start with the UI's own, a split's, a level's: builds, caches)
+RATE_SAMPLES = 400  # the newest step times kept of each kind (more than a preview run's steps)
+MIN_SAMPLES = 5  # a kind's rate is known from this many steps past their phases' first
+
+
+@dataclass
+class MachineRates:
+    """This machine's seconds per step of each kind over a studio session (every run of a scene on a device, restarts
+    included), as the quality choice prices the presets: the median of the newest ``RATE_SAMPLES`` steps of a kind,
+    each phase's first ``WARMUP_STEPS`` left out, so that neither a phase's start nor a slow or fast burst (other
+    work on the machine, the UI busy) moves it much."""
+
+    samples: dict[str, deque] = field(default_factory=dict)
+    phase: tuple[str | None, int] = (None, 0)  # the kind of the steps now and how many of them in a row
+
+    def add(self, report: dict) -> None:
+        """Count one step report (as ``StepTimes.add``): a kind other than the step before's starts a phase."""
+        kind = step_kind(report)
+        into = self.phase[1] + 1 if kind == self.phase[0] else 1
+        self.phase = (kind, into)
+        if kind is not None and into > WARMUP_STEPS:
+            self.samples.setdefault(kind, deque(maxlen=RATE_SAMPLES)).append(float(report.get("seconds") or 0.0))
+
+    def new_run(self) -> None:
+        """A run starts (a restart): its first steps are a phase's first whatever kind they are."""
+        self.phase = (None, 0)
+
+    def median(self, kind: str) -> float | None:
+        """The seconds of a step of ``kind`` (None: fewer than ``MIN_SAMPLES`` measured past their phases' start)."""
+        values = self.samples.get(kind)
+        return statistics.median(values) if values is not None and len(values) >= MIN_SAMPLES else None
+
+
 STYLIZED_PHASES = ("stylize", "refit", "refine", "finish", "done")  # the phases whose colours are stylized ones
 
 
@@ -78,43 +114,49 @@ def step_kind(report: dict) -> str | None:
     return None
 
 
-def estimate_seconds(plan: dict[str, float], times: StepTimes, working_width: int) -> float | None:
-    """Seconds ``plan`` takes at ``times``' step costs; None until a stylization step has been measured (every other
-    kind falls back on it)."""
-    return _priced(plan, {}, times, working_width, None)
+def estimate_seconds(plan: dict[str, float], rates: MachineRates, working_width: int) -> float | None:
+    """Seconds ``plan`` takes at the session's step rates (``MachineRates``); None until a stylization step's rate is
+    known (every other kind falls back on it)."""
+    return _priced(plan, {}, rates.median, working_width)
 
 
 def remaining_seconds(plan: dict[str, float], times: StepTimes, working_width: int,
-                      prior: StepTimes | None = None) -> float | None:
+                      rates: MachineRates | None = None) -> float | None:
     """Seconds left of a run planned as ``plan`` whose steps so far are ``times`` (counted per kind): each kind's
-    steps still to come at its measured cost, else at ``prior``'s (the run before, on a restart), else priced from
-    the stylization step (``fallback_cost``). None while no stylization step is known from either (early in a
-    first run: the ground-truth and refit steps are 10-20x cheaper and would promise far too little)."""
-    return _priced(plan, times.counts, times, working_width, prior)
+    steps still to come at the session's rate of its kind (``rates``: the runs before a restart's included), else at
+    this run's mean so far, else priced from the stylization step (``fallback_cost``). None while no stylization
+    step's cost is known (early in a first run: the ground-truth and refit steps are 10-20x cheaper and would promise
+    far too little)."""
+    def cost(kind: str) -> float | None:
+        known = rates.median(kind) if rates is not None else None
+        return known if known is not None else times.mean(kind)
+
+    return _priced(plan, times.counts, cost, working_width)
 
 
-def _priced(plan: dict[str, float], done: dict[str, int], times: StepTimes, working_width: int,
-            prior: StepTimes | None) -> float | None:
-    """Seconds of ``plan``'s steps beyond ``done`` (per kind), each at ``times``' cost of its kind, else
-    ``prior``'s, else ``fallback_cost``; None without a stylization step's cost from either."""
-    stylize = times.mean("stylize") or (prior.mean("stylize") if prior is not None else None)
+def _priced(plan: dict[str, float], done: dict[str, int], cost: Callable[[str], float | None],
+            working_width: int) -> float | None:
+    """Seconds of ``plan``'s steps beyond ``done`` (per kind), each at ``cost`` of its kind, else ``fallback_cost``;
+    None without a stylization step's cost."""
+    stylize = cost("stylize")
     if stylize is None:
         return None
     total = 0.0
     for kind, steps in plan.items():
         left = max(0.0, steps - done.get(kind, 0))
-        cost = times.mean(kind) or (prior.mean(kind) if prior is not None else None)
-        total += left * (cost if cost is not None else fallback_cost(kind, stylize, working_width, times))
+        known = cost(kind)
+        total += left * (known if known is not None else fallback_cost(kind, stylize, working_width, cost))
     return total
 
 
-def fallback_cost(kind: str, stylize: float, working_width: int, times: StepTimes) -> float:
-    """A step of ``kind`` not measured in this run, priced from the stylization step (``FALLBACK``)."""
+def fallback_cost(kind: str, stylize: float, working_width: int, cost: Callable[[str], float | None]) -> float:
+    """A step of ``kind`` not measured, priced from the stylization step (``FALLBACK``; a level's ground-truth view
+    from the measured ground-truth view's ``cost`` when there is one)."""
     if kind in FALLBACK:
         return FALLBACK[kind] * stylize
     width = int(kind.rsplit("_", 1)[1])
     scale = width / max(1, working_width)
     if kind.startswith("refine_targets_"):
-        gt = times.mean("ground_truth") or FALLBACK["ground_truth"] * stylize
+        gt = cost("ground_truth") or FALLBACK["ground_truth"] * stylize
         return gt * scale * scale
     return stylize * (1.0 + LEVEL_STEP_GROWTH * (scale - 1.0))
