@@ -14,10 +14,12 @@ if TYPE_CHECKING:
 
 
 def stopped_reason(st: WorkerState) -> str:
-    """Why Pause / Resume and Step cannot work now ("" when they can): a worker that is gone, or a run an error
-    stopped (the panel names the ways on: Continue, the CPU, Restart)."""
+    """Why Pause / Resume and Step cannot work now ("" when they can): a worker that is gone, a finished run, or a run
+    an error stopped (the panel names the ways on: Refine, Continue, the CPU, Restart)."""
     if not st.alive:
         return "The engine is not running: Restart starts it again."
+    if st.done and not st.failed:
+        return "The run is done: Refine carries it on at a finer width; Restart starts it again."
     if not st.failed:
         return ""
     if st.continue_from is not None:

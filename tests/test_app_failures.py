@@ -168,3 +168,18 @@ def test_space_does_nothing_while_pause_and_resume_cannot_work():
     space = KeyPress("space")
     assert [c.name for c in _shortcut(PanelState(paused=True), space)] == ["resume"]
     assert _shortcut(PanelState(paused=True, stopped="The run stopped at an error (above): ..."), space) == []
+
+
+def test_a_finished_run_offers_no_pause_or_step_and_says_why():
+    from fakes import make_fake_engine
+
+    from app.studio_sync import stopped_reason
+
+    b = ThreadWorkerBridge(make_fake_engine, {"n": 8, "total_steps": 3})
+    b.start()
+    try:
+        assert b.wait_until(lambda s: s.done or s.error, 30), b.state.error
+        assert b.state.alive and not b.state.stepping
+        assert stopped_reason(b.state).startswith("The run is done: Refine carries it on")
+    finally:
+        b.quit(timeout=5)
