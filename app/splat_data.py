@@ -93,14 +93,21 @@ def back_to_front_order(means: np.ndarray, world_to_cam: np.ndarray, near: float
     return order.astype(np.int32)
 
 
-def importance_ranks(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.ndarray:
-    """int32 rank of each Gaussian by opacity × area of its two largest axes (0 = most important).
+def importance_order(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.ndarray:
+    """int32 Gaussian indices by opacity × area of their two largest axes, most important first.
 
-    The view-independent order in which a reduced-detail frame keeps Gaussians: small faint ones go first."""
+    The view-independent order in which a reduced-detail frame keeps Gaussians: small faint ones go first; the
+    ``keep`` most important are its first ``keep`` entries."""
     s = np.sort(np.nan_to_num(np.asarray(log_scales, np.float64), nan=-30.0, posinf=30.0, neginf=-30.0), axis=1)
     score = (s[:, 1] + s[:, 2]) + np.log(sigmoid(np.asarray(opacity_logits, np.float64)) + 1e-12)
-    ranks = np.empty(score.shape[0], np.int32)
-    ranks[np.argsort(-score, kind="stable")] = np.arange(score.shape[0], dtype=np.int32)
+    return np.argsort(-score, kind="stable").astype(np.int32)
+
+
+def importance_ranks(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.ndarray:
+    """int32 rank of each Gaussian in ``importance_order`` (0 = most important)."""
+    order = importance_order(log_scales, opacity_logits)
+    ranks = np.empty(order.shape[0], np.int32)
+    ranks[order] = np.arange(order.shape[0], dtype=np.int32)
     return ranks
 
 

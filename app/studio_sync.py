@@ -185,5 +185,5 @@ class StudioSync:
         sorts = sum(r.sort_count for r in renderers)
         colours = sum(r.uploads["colors"] for r in renderers)
         geometry = sum(r.uploads["geometry"] for r in renderers)
-        return [sh, f"viewer work: {sorts} depth sorts (view changes only), {colours} colour and {geometry} "
-                    "geometry uploads (changes only)"]
+        return [sh, f"viewer work: {sorts} depth sorts (view changes only, off the UI thread), {colours} colour and "
+                    f"{geometry} geometry uploads (changes only)"]
