@@ -245,7 +245,7 @@ class SceneView:
         if not all(p.renderer.has_order for p in passes):
             self.stats.no_order += 1
             return False
-        detail = max(p.renderer.order_detail for p in passes)  # what the newest finished orders draw
+        drawn = max(p.renderer.order_detail for p in passes)  # the detail of the newest finished orders
         name = "low" if scale < 1.0 else self._spare_full()
         fbo = self._fbo(name, (cam.width, cam.height))
         fbo.use()
@@ -254,13 +254,13 @@ class SceneView:
         self._draw_passes(fbo, cam, passes, detail=detail)
         self.ctx.finish()
         if self.progressive:
-            self.governor.observe((self.clock() - t0) * 1e3, scale, detail)
+            self.governor.observe((self.clock() - t0) * 1e3, scale, drawn)
         self._shown = name
         self._shown_key = key
         self.stats.immediate += 1
         self.stats.last_scale = scale
-        self.stats.last_detail = detail
-        self.stats.shown_full = scale >= 1.0 and detail >= 1.0 and exact  # else a build follows
+        self.stats.last_detail = drawn
+        self.stats.shown_full = scale >= 1.0 and drawn >= 1.0 and exact  # else a build follows
         return True
 
     def _fbo_name(self, fbo: moderngl.Framebuffer) -> str:

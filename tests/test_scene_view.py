@@ -293,3 +293,15 @@ def test_a_first_frame_without_an_order_keeps_the_background_until_the_sort_land
     assert view.stats.immediate == 1 and view.stats.shown_full and np.array_equal(img, one_pass(ctx, r, cam))
     assert not view.building  # the exact full image is on screen: no build of the same image follows
     r.release()
+
+
+def test_moving_frames_sort_for_the_governors_detail(ctx, scene):
+    clock = FakeClock()
+    view = SceneView(ctx, budget_ms=1e-6, clock=clock)  # every frame over budget: detail down to its floor
+    scene.prepare(camera(0.0))  # all Gaussians sorted
+    for i in range(1, 8):
+        clock.t += 0.02
+        shown(ctx, view, camera(0.1 * i), [ViewPass(scene, "diffuse")])
+        assert scene.sorter.idle(30)
+    assert view.governor.detail == view.governor.min_detail
+    assert scene.order_detail < 0.1 and view.stats.last_detail < 0.1  # the orders followed the governor down
