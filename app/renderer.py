@@ -21,9 +21,9 @@ nothing. Uploads are split: ``update_colors`` rewrites one colour texture, ``upd
 textures.
 
 Colour layers: any name -> [N, 3] RGB. The special layer ``"sh"`` (present when the scene was given SH
-coefficients that are not all zero; all-zero bands are dropped) is view dependent: evaluated on the CPU with the
-rasterizer's own SH code when the camera position changed (the original scene in the viewer); the stylized scene
-uses plain diffuse layers.
+coefficients that are not all zero; all-zero bands are dropped) is view dependent: its coefficients are uploaded
+once into a texture array (``sh_texture_layers``) and the projection pass evaluates them for each camera with the
+rasterizer's conventions (the original scene in the viewer); the stylized scene uses plain diffuse layers.
 """
 
 from __future__ import annotations
@@ -47,15 +47,17 @@ from .splat_data import (
     geometry_textures,
     importance_order,
     pack_rgba,
-    sh_colors,
+    sh_texture_layers,
+    texture_rows,
 )
 
 SH_LAYER = "sh"
 DIFFUSE_LAYER = "diffuse"
 SELECTION_LAYER = "__selection__"  # the highlighted Gaussians (r = 1), see ``set_selection``
 NEAR = 0.01
-PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes")  # 2 + 4 + 4 floats per Gaussian
-PROJECTED_STRIDE = 40  # bytes per projected Gaussian
+PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes", "out_rgb")  # 2 + 4 + 4 + 3 floats per Gaussian
+PROJECTED_STRIDE = 52  # bytes per projected Gaussian
+SH_UNIT = 4  # texture unit of the SH coefficients in the projection pass (0-3: geometry)
 
 
 class SplatRenderer:
@@ -68,16 +70,18 @@ class SplatRenderer:
                                            varyings=list(PROJECTED_VARYINGS))
         self._index_buffer = ctx.buffer(reserve=4)
         self._projected = ctx.buffer(reserve=PROJECTED_STRIDE)
-        self._vao = ctx.vertex_array(self.program, [(self._projected, "2f 4f 4f", "in_center", "in_conic", "in_axes"),
-                                                    (self._index_buffer, "1i", "in_index")])
+        self._vao = ctx.vertex_array(self.program, [(self._projected, "2f 4f 4f 3f", "in_center", "in_conic", "in_axes",
+                                                     "in_rgb"), (self._index_buffer, "1i", "in_index")])
         self._project_vao = ctx.vertex_array(self.project_program, [(self._index_buffer, "1i", "in_index")])
         self._projected_for: tuple | None = None
         self._geometry: list[moderngl.Texture] = []
         self._layers: dict[str, moderngl.Texture] = {}
         self._means = np.zeros((0, 3), np.float32)
         self._by_importance = np.zeros(0, np.int32)  # Gaussians most important first (reduced detail keeps a prefix)
-        self._sh: np.ndarray | None = None
-        self._sh_camera: np.ndarray | None = None
+        self._sh: moderngl.TextureArray | None = None  # SH coefficients (layer "sh"), see sh_texture_layers
+        self._sh_degree = -1
+        self._sh_count = 0
+        self._no_sh = ctx.texture_array((1, 1, 1), 4, dtype="f4")  # bound when there is none (never read)
         self._sorter = sorter if sorter is not None else DepthSorter()
         self._requested: tuple | None = None  # key of the last sort submitted: (depth row, keep, geometry, bits)
         self._order_key: tuple | None = None  # key of the order in the index buffer (None: no usable order)
@@ -89,7 +93,6 @@ class SplatRenderer:
         self.last_wait_ms = 0.0  # how long the last ``prepare`` waited for a sort (0 unless asked to wait)
         self.projection_count = 0  # how many projection passes ran (one per new camera/target/geometry)
         self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
-        self.sh_evaluations = 0  # view-dependent SH evaluations (one per camera position, original scene only)
         self.highlight = False  # a selection is drawn highlighted (the Gaussians outside it dimmed)
 
     # ----------------------------------------------------------------- data
@@ -114,13 +117,12 @@ class SplatRenderer:
         for tex in self._layers.values():
             tex.release()
         self._layers = {}
-        self._sh = None
+        self._drop_sh()
         if "sh_dc" in arrays:
             rest = np.asarray(arrays.get("sh_rest", np.zeros((n, 0, 3))), np.float32).reshape(n, -1, 3)
             degree = used_sh_degree(rest)  # all-zero bands add nothing: no SH layer for a scene without real SH
             if degree > 0:
-                rest = rest[:, : (degree + 1) ** 2 - 1]
-                self._sh = np.concatenate([np.asarray(arrays["sh_dc"], np.float32)[:, None], rest], axis=1)
+                self._upload_sh(np.asarray(arrays["sh_dc"], np.float32), rest[:, : (degree + 1) ** 2 - 1], degree)
         self.update_geometry(arrays)
         self.update_colors(colors, DIFFUSE_LAYER)
 
@@ -139,13 +141,12 @@ class SplatRenderer:
             self._order_key, self._instances = None, 0  # new geometry's order arrives (as after a camera move)
         self._means = np.asarray(arrays["means"], np.float32).copy()  # replaced, never written: the sorter reads it
         self._by_importance = importance_order(arrays["log_scales"], arrays["opacity_logits"])
-        if self._sh is not None and self._sh.shape[0] != n:
-            self._sh = None
+        if self._sh is not None and self._sh_count != n:
+            self._drop_sh()
         for name in [k for k, v in self._layers.items() if getattr(v, "extra", None) != n]:
             self._layers.pop(name).release()
         if SELECTION_LAYER not in self._layers:
             self.highlight = False
-        self._sh_camera = None
         self.geometry_version += 1
         self.uploads["geometry"] += 1
         self.content_version += 1
@@ -207,7 +208,7 @@ class SplatRenderer:
         if clear:
             fbo.clear(*[float(c) for c in background[:3]], 1.0)
         if self.count:
-            self.prepare(camera, layer, detail, wait)
+            self.prepare(camera, detail, wait)
             colour_tex = self._colour_texture(layer)
             self._project(camera)
             self._bind(width, height, colour_tex)
@@ -223,10 +224,10 @@ class SplatRenderer:
         self.ctx.scissor = None
         return self._instances if self.count else 0
 
-    def prepare(self, camera: Camera, layer: str = DIFFUSE_LAYER, detail: float = 1.0, wait: bool = True) -> bool:
-        """Bring the draw order and view-dependent colours up to date for ``camera``: submit a sort when the view's
-        depth row, the detail or the geometry changed, and use the newest finished order (``wait``: the order of
-        this request, waiting for it). True when the order in use is this request's."""
+    def prepare(self, camera: Camera, detail: float = 1.0, wait: bool = True) -> bool:
+        """Bring the draw order up to date for ``camera``: submit a sort when the view's depth row, the detail or
+        the geometry changed, and use the newest finished order (``wait``: the order of this request, waiting for
+        it). True when the order in use is this request's."""
         if not self.count:
             return True
         want = self._request_order(camera, detail)
@@ -237,7 +238,6 @@ class SplatRenderer:
             self.last_wait_ms = (time.perf_counter() - t0) * 1e3
         else:
             self.last_wait_ms = 0.0
-        self._prepare_sh(camera, layer)
         return self._order_key == want
 
     @property
@@ -254,6 +254,13 @@ class SplatRenderer:
         """The draw order in use (int32 Gaussian indices, back to front), read back from the index buffer."""
         return np.frombuffer(self._index_buffer.read(size=4 * self._instances), np.int32).copy()
 
+    def projected(self) -> dict[str, np.ndarray]:
+        """The last projection pass's output in draw order: ``center`` [M, 2] (pixels), ``conic`` [M, 4] (a, b, c,
+        opacity), ``axes`` [M, 4] (the quad's half axes; zero = culled), ``rgb`` [M, 3] (SH colour, zero without)."""
+        m = self._instances
+        data = np.frombuffer(self._projected.read(size=PROJECTED_STRIDE * m), np.float32).reshape(m, -1)
+        return {"center": data[:, 0:2], "conic": data[:, 2:6], "axes": data[:, 6:10], "rgb": data[:, 10:13]}
+
     @property
     def sorter(self) -> DepthSorter:
         """The thread that sorts this renderer's Gaussians."""
@@ -262,7 +269,8 @@ class SplatRenderer:
     def release(self) -> None:
         """Stop the sorter and free all GL objects."""
         self._sorter.stop()
-        for obj in [*self._geometry, *self._layers.values(), self._vao, self._project_vao,
+        self._drop_sh()
+        for obj in [*self._geometry, *self._layers.values(), self._no_sh, self._vao, self._project_vao,
                     self._index_buffer, self._projected, self.program, self.project_program]:
             obj.release()
         self._geometry, self._layers = [], {}
@@ -294,15 +302,20 @@ class SplatRenderer:
         prog["u_image_size"].value = (float(camera.width), float(camera.height))
         prog["u_viewport_origin"].value = (0.0, 0.0)
         prog["u_near"].value = NEAR
+        (self._sh if self._sh is not None else self._no_sh).use(SH_UNIT)
+        prog["u_sh"].value = SH_UNIT
+        prog["u_sh_degree"].value = self._sh_degree if self._sh is not None else -1
+        prog["u_camera_pos"].value = tuple(float(v) for v in camera.position)
         self._project_vao.transform(self._projected, mode=moderngl.POINTS, vertices=self._instances)
         self._projected_for = key
         self.projection_count += 1
 
-    def _colour_texture(self, layer: str) -> moderngl.Texture:
+    def _colour_texture(self, layer: str) -> moderngl.Texture | None:
+        """The layer's colour texture; None for the SH layer (its colours come from the projection pass)."""
         if layer == SH_LAYER:
             if self._sh is None:
                 raise ValueError("this scene has no SH coefficients (layer 'sh')")
-            return self._layers["__sh__"]
+            return None
         if layer not in self._layers:
             raise ValueError(f"unknown colour layer {layer!r}; have {', '.join(self.layers) or 'none'}")
         return self._layers[layer]
@@ -331,24 +344,30 @@ class SplatRenderer:
         self._instances = int(order.size)
         self.sort_count += 1
 
-    def _prepare_sh(self, camera: Camera, layer: str) -> None:
-        """Evaluate view-dependent SH colours when the camera position moved (a turn in place keeps them)."""
-        if layer == SH_LAYER and self._sh is not None:
-            position = camera.position
-            moved = self._sh_camera is None or np.abs(position - self._sh_camera).max() > 1e-7 * max(
-                1.0, float(np.abs(position).max()))  # a turn in place (position equal up to rounding) keeps SH
-            if moved:
-                rgb = sh_colors(self._sh, self._means, position)
-                self.sh_evaluations += 1
-                self.update_colors(rgb, "__sh__")
-                self._sh_camera = position
+    def _upload_sh(self, sh_dc: np.ndarray, sh_rest: np.ndarray, degree: int) -> None:
+        """Upload the coefficients of the SH layer once: a texture array written one layer at a time."""
+        n = sh_dc.shape[0]
+        layers = -(-3 * (degree + 1) ** 2 // 4)
+        tex = self.ctx.texture_array((TEXTURE_WIDTH, texture_rows(n), layers), 4, dtype="f4")
+        tex.filter = moderngl.NEAREST, moderngl.NEAREST
+        for j, content in enumerate(sh_texture_layers(sh_dc, sh_rest)):
+            tex.write(content.tobytes(), viewport=(0, 0, j, TEXTURE_WIDTH, content.shape[0], 1))
+        self._sh, self._sh_degree, self._sh_count = tex, degree, n
+        self.uploads["colors"] += 1
 
-    def _bind(self, width: int, height: int, colour_tex: moderngl.Texture) -> None:
-        colour_tex.use(0)
+    def _drop_sh(self) -> None:
+        if self._sh is not None:
+            self._sh.release()
+        self._sh, self._sh_degree, self._sh_count = None, -1, 0
+
+    def _bind(self, width: int, height: int, colour_tex: moderngl.Texture | None) -> None:
+        colour = colour_tex if colour_tex is not None else self._layers[DIFFUSE_LAYER]  # (not read for SH)
+        colour.use(0)
         prog = self.program
         prog["u_color"].value = 0
+        prog["u_projected_rgb"].value = int(colour_tex is None)
         highlight = self.highlight and SELECTION_LAYER in self._layers
-        (self._layers[SELECTION_LAYER] if highlight else colour_tex).use(1)
+        (self._layers[SELECTION_LAYER] if highlight else colour).use(1)
         prog["u_select"].value = 1
         prog["u_highlight"].value = int(highlight)
         prog["u_tex_width"].value = TEXTURE_WIDTH

@@ -219,7 +219,7 @@ class SceneView:
     def _orders_ready(self, camera: Camera, passes: Sequence[ViewPass], detail: float = 1.0) -> bool:
         """Every pass's renderer draws with the order of ``camera`` at ``detail`` (each one not sorted yet is asked
         for; nothing waits)."""
-        return all([p.renderer.prepare(camera, p.layer, detail, wait=False) for p in passes])
+        return all([p.renderer.prepare(camera, detail, wait=False) for p in passes])
 
     def _draw_passes(self, fbo: moderngl.Framebuffer, camera: Camera, passes: Sequence[ViewPass],
                      instances: tuple[int, int] | None = None, only: int | None = None, detail: float = 1.0) -> int:
@@ -240,8 +240,8 @@ class SceneView:
         scale = self.governor.scale if self.progressive else 1.0
         detail = self.governor.detail if self.progressive else 1.0
         cam = camera if scale >= 1.0 else camera.scaled(scale)
-        # sorts are asked for (and colours evaluated) here, outside the raster's measured time
-        exact = all([p.renderer.prepare(cam, p.layer, detail, wait=not self.progressive) for p in passes])
+        # sorts are asked for here, outside the raster's measured time
+        exact = all([p.renderer.prepare(cam, detail, wait=not self.progressive) for p in passes])
         if not all(p.renderer.has_order for p in passes):
             self.stats.no_order += 1
             return False

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -109,6 +109,24 @@ def importance_ranks(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.n
     ranks = np.empty(order.shape[0], np.int32)
     ranks[order] = np.arange(order.shape[0], dtype=np.int32)
     return ranks
+
+
+def sh_texture_layers(sh_dc: np.ndarray, sh_rest: np.ndarray) -> Iterator[np.ndarray]:
+    """Texture contents ([rows, TEXTURE_WIDTH, 4] float32) of SH coefficients, one texture-array layer at a time.
+
+    A Gaussian's coefficients are laid out coefficient-major, ``dc.rgb, rest[0].rgb, rest[1].rgb, ...`` (3 (d+1)^2
+    floats, zero-padded to a multiple of 4); layer j holds floats 4j..4j+3 (``shaders/splat_project.vert``)."""
+    sh_dc = np.asarray(sh_dc, np.float32)
+    sh_rest = np.asarray(sh_rest, np.float32).reshape(sh_dc.shape[0], -1, 3)
+    floats = 3 * (sh_rest.shape[1] + 1)
+    for j in range(-(-floats // 4)):
+        columns = np.zeros((sh_dc.shape[0], 4), np.float32)
+        for c in range(4):
+            f = 4 * j + c
+            if f < floats:
+                k, channel = divmod(f, 3)
+                columns[:, c] = sh_dc[:, channel] if k == 0 else sh_rest[:, k - 1, channel]
+        yield pack_rgba(columns)
 
 
 def sh_colors(sh: np.ndarray, means: np.ndarray, camera_position: np.ndarray) -> np.ndarray:

@@ -178,8 +178,8 @@ class StudioSync:
         """What the viewer evaluates and skips (panel "Decisions"): view-dependent SH, sorts, uploads."""
         renderers = (self.original, self.stylized)
         if SH_LAYER in self.original.layers:
-            sh = (f"viewer SH: evaluated for the original scene only, when the camera position changes "
-                  f"({self.original.sh_evaluations} evaluations so far); the stylized scene is diffuse")
+            sh = ("viewer SH: evaluated for the original scene only, on the GPU once per camera from coefficients "
+                  "uploaded once; the stylized scene is diffuse")
         else:
             sh = "viewer SH: none evaluated (the scene has no view-dependent SH)"
         sorts = sum(r.sort_count for r in renderers)

@@ -216,9 +216,9 @@ class SortCostsClock(SplatRenderer):
         super().__init__(ctx, sorter)
         self.clock, self.cost = clock, cost
 
-    def prepare(self, camera, layer="diffuse", detail=1.0, wait=True):
+    def prepare(self, camera, detail=1.0, wait=True):
         before = self.sorter.stats.submitted
-        ready = super().prepare(camera, layer, detail, wait)
+        ready = super().prepare(camera, detail, wait)
         if self.sorter.stats.submitted > before:
             self.clock.t += self.cost
         return ready
