@@ -148,6 +148,7 @@ def test_moving_camera_renders_at_once_and_refines_when_still(ctx, scene):
     cam = camera(0.3)
     for _ in range(300):
         clock.t += 0.05
+        assert scene.sorter.idle(30)  # the frames are quicker than a thread's wake-up on a busy machine
         img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
         if view.stats.shown_full:
             break
@@ -267,6 +268,7 @@ def test_a_build_starts_once_its_order_is_sorted(ctx):
     sort.gate.set()
     for _ in range(300):
         clock.t += 0.05
+        assert r.sorter.idle(30)  # the frames are quicker than a thread's wake-up on a busy machine
         img = shown(ctx, view, cam, [ViewPass(r, "diffuse")])
         if view.stats.shown_full:
             break
