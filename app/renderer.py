@@ -12,19 +12,24 @@ Per-Gaussian data lives in RGBA32F textures (4096 Gaussians per row). Drawing ta
   amount per instance on llvmpipe; what remains is fill (every splat covers at least ~18 pixels after the
   0.3 px^2 dilation): ``bench/gl_frame_parts.py`` splits a moving frame's time into its parts.
 
-The order is re-sorted (numpy argsort of view-space depth) only when the view matrix or the geometry changed, so a
-static camera costs no CPU work per frame. Uploads are split: ``update_colors`` rewrites one colour texture,
-``update_geometry`` the four geometry textures.
+The back-to-front order comes from a sorter thread (``app/depth_sort.py``: a counting sort of quantised depth keys
+in a numba kernel that releases the GIL). A new view (its depth row) or detail submits a sort and returns at once;
+a frame draws with the newest finished order, uploading only the index buffer when a new one arrives (the data
+textures do not move). ``render(wait=True)`` (the default: screenshots, exports, tests) waits for the order of its
+own view; the studio's paced view (``app/scene_view.py``) never waits. A still camera submits nothing and uploads
+nothing. Uploads are split: ``update_colors`` rewrites one colour texture, ``update_geometry`` the four geometry
+textures.
 
 Colour layers: any name -> [N, 3] RGB. The special layer ``"sh"`` (present when the scene was given SH
-coefficients that are not all zero; all-zero bands are dropped) is view dependent: evaluated on the CPU with the
-rasterizer's own SH code when the camera position changed (the original scene in the viewer); the stylized scene
-uses plain diffuse layers.
+coefficients that are not all zero; all-zero bands are dropped) is view dependent: its coefficients are uploaded
+once into a texture array (``sh_texture_layers``) and the projection pass evaluates them for each camera with the
+rasterizer's conventions (the original scene in the viewer); the stylized scene uses plain diffuse layers.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping, Sequence
 
 import moderngl
@@ -33,56 +38,61 @@ import numpy as np
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.scene import used_sh_degree
 
+from .depth_sort import DEFAULT_BITS, DepthSorter, SortRequest, SortResult
 from .shader_loader import program_sources, shader_source
 from .splat_data import (
     TEXTURE_WIDTH,
-    back_to_front_order,
     check_geometry,
     colors_from_arrays,
     geometry_textures,
-    importance_ranks,
+    importance_order,
     pack_rgba,
-    sh_colors,
+    sh_texture_layers,
+    texture_rows,
 )
 
 SH_LAYER = "sh"
 DIFFUSE_LAYER = "diffuse"
 SELECTION_LAYER = "__selection__"  # the highlighted Gaussians (r = 1), see ``set_selection``
 NEAR = 0.01
-PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes")  # 2 + 4 + 4 floats per Gaussian
-PROJECTED_STRIDE = 40  # bytes per projected Gaussian
+PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes", "out_rgb")  # 2 + 4 + 4 + 3 floats per Gaussian
+PROJECTED_STRIDE = 52  # bytes per projected Gaussian
+SH_UNIT = 4  # texture unit of the SH coefficients in the projection pass (0-3: geometry)
 
 
 class SplatRenderer:
     """Draw Gaussians into a moderngl framebuffer, matching ``gstyle_core.raster.rasterize``'s maths."""
 
-    def __init__(self, ctx: moderngl.Context) -> None:
+    def __init__(self, ctx: moderngl.Context, sorter: DepthSorter | None = None) -> None:
         self.ctx = ctx
         self.program = ctx.program(**program_sources("splat"))
         self.project_program = ctx.program(vertex_shader=shader_source("splat_project.vert"),
                                            varyings=list(PROJECTED_VARYINGS))
         self._index_buffer = ctx.buffer(reserve=4)
         self._projected = ctx.buffer(reserve=PROJECTED_STRIDE)
-        self._vao = ctx.vertex_array(self.program, [(self._projected, "2f 4f 4f", "in_center", "in_conic", "in_axes"),
-                                                    (self._index_buffer, "1i", "in_index")])
+        self._vao = ctx.vertex_array(self.program, [(self._projected, "2f 4f 4f 3f", "in_center", "in_conic", "in_axes",
+                                                     "in_rgb"), (self._index_buffer, "1i", "in_index")])
         self._project_vao = ctx.vertex_array(self.project_program, [(self._index_buffer, "1i", "in_index")])
         self._projected_for: tuple | None = None
         self._geometry: list[moderngl.Texture] = []
         self._layers: dict[str, moderngl.Texture] = {}
         self._means = np.zeros((0, 3), np.float32)
-        self._ranks = np.zeros(0, np.int32)
-        self._subset: tuple[int, np.ndarray] | None = None  # (keep, indices of the `keep` most important)
-        self._sh: np.ndarray | None = None
-        self._sh_camera: np.ndarray | None = None
-        self._sorted_for: np.ndarray | None = None
-        self._sorted_keep = 0
+        self._by_importance = np.zeros(0, np.int32)  # Gaussians most important first (reduced detail keeps a prefix)
+        self._sh: moderngl.TextureArray | None = None  # SH coefficients (layer "sh"), see sh_texture_layers
+        self._sh_degree = -1
+        self._sh_count = 0
+        self._no_sh = ctx.texture_array((1, 1, 1), 4, dtype="f4")  # bound when there is none (never read)
+        self._sorter = sorter if sorter is not None else DepthSorter()
+        self._requested: tuple | None = None  # key of the last sort submitted: (depth row, keep, geometry, bits)
+        self._order_key: tuple | None = None  # key of the order in the index buffer (None: no usable order)
         self._instances = 0
+        self.sort_bits = DEFAULT_BITS  # depth key bits (app/depth_sort.py)
         self.geometry_version = 0
         self.content_version = 0  # bumped by every geometry or colour upload (the view cache's key)
-        self.sort_count = 0  # how many times the depth order was recomputed (for tests and stats)
+        self.sort_count = 0  # orders received from the sorter and uploaded (for tests and stats)
+        self.last_wait_ms = 0.0  # how long the last ``prepare`` waited for a sort (0 unless asked to wait)
         self.projection_count = 0  # how many projection passes ran (one per new camera/target/geometry)
         self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
-        self.sh_evaluations = 0  # view-dependent SH evaluations (one per camera position, original scene only)
         self.highlight = False  # a selection is drawn highlighted (the Gaussians outside it dimmed)
 
     # ----------------------------------------------------------------- data
@@ -107,13 +117,12 @@ class SplatRenderer:
         for tex in self._layers.values():
             tex.release()
         self._layers = {}
-        self._sh = None
+        self._drop_sh()
         if "sh_dc" in arrays:
             rest = np.asarray(arrays.get("sh_rest", np.zeros((n, 0, 3))), np.float32).reshape(n, -1, 3)
             degree = used_sh_degree(rest)  # all-zero bands add nothing: no SH layer for a scene without real SH
             if degree > 0:
-                rest = rest[:, : (degree + 1) ** 2 - 1]
-                self._sh = np.concatenate([np.asarray(arrays["sh_dc"], np.float32)[:, None], rest], axis=1)
+                self._upload_sh(np.asarray(arrays["sh_dc"], np.float32), rest[:, : (degree + 1) ** 2 - 1], degree)
         self.update_geometry(arrays)
         self.update_colors(colors, DIFFUSE_LAYER)
 
@@ -128,17 +137,16 @@ class SplatRenderer:
             for tex in self._geometry:
                 tex.release()
             self._geometry = [self._texture(content) for content in data]
-        self._means = np.asarray(arrays["means"], np.float32).copy()
-        self._ranks = importance_ranks(arrays["log_scales"], arrays["opacity_logits"])
-        self._subset = None  # (keep, indices of the `keep` most important): recomputed for the new ranks
-        if self._sh is not None and self._sh.shape[0] != n:
-            self._sh = None
+        if n != self.count:  # the old order's indices mean nothing now; with the same count it is drawn until the
+            self._order_key, self._instances = None, 0  # new geometry's order arrives (as after a camera move)
+        self._means = np.asarray(arrays["means"], np.float32).copy()  # replaced, never written: the sorter reads it
+        self._by_importance = importance_order(arrays["log_scales"], arrays["opacity_logits"])
+        if self._sh is not None and self._sh_count != n:
+            self._drop_sh()
         for name in [k for k, v in self._layers.items() if getattr(v, "extra", None) != n]:
             self._layers.pop(name).release()
         if SELECTION_LAYER not in self._layers:
             self.highlight = False
-        self._sorted_for = None
-        self._sh_camera = None
         self.geometry_version += 1
         self.uploads["geometry"] += 1
         self.content_version += 1
@@ -182,15 +190,17 @@ class SplatRenderer:
     # ----------------------------------------------------------------- drawing
     def render(self, camera: Camera, fbo: moderngl.Framebuffer, background: Sequence[float] = (0.0, 0.0, 0.0),
                layer: str = DIFFUSE_LAYER, scissor: tuple[int, int, int, int] | None = None,
-               clear: bool = True, instances: tuple[int, int] | None = None, detail: float = 1.0) -> int:
+               clear: bool = True, instances: tuple[int, int] | None = None, detail: float = 1.0,
+               wait: bool = True) -> int:
         """Draw with ``camera`` into ``fbo``'s viewport (whose size should be camera.width x camera.height).
 
         ``scissor`` = (x, y, width, height) in GL framebuffer pixels (y up) limits drawing (and clearing).
         ``instances`` = (first, count) draws only that slice of the back-to-front order (progressive rendering:
         slices drawn in order, without clearing in between, add up to the whole image). ``detail`` < 1 draws only
-        that fraction of the Gaussians, the most important first (opacity × area, ``importance_ranks``): the quick
-        preview of a moving camera. Returns the number of Gaussians in the order drawn from (those in front of the
-        camera).
+        that fraction of the Gaussians, the most important first (opacity × area, ``importance_order``): the quick
+        preview of a moving camera. ``wait``: draw with the order of this view and detail (waiting for its sort);
+        False: with the newest finished order (nothing is drawn before the first one). Returns the number of
+        Gaussians in the order drawn from (those in front of the camera).
         """
         fbo.use()
         width, height = target_size(fbo)
@@ -198,7 +208,7 @@ class SplatRenderer:
         if clear:
             fbo.clear(*[float(c) for c in background[:3]], 1.0)
         if self.count:
-            self._prepare_view(camera, layer, detail)
+            self.prepare(camera, detail, wait)
             colour_tex = self._colour_texture(layer)
             self._project(camera)
             self._bind(width, height, colour_tex)
@@ -214,9 +224,53 @@ class SplatRenderer:
         self.ctx.scissor = None
         return self._instances if self.count else 0
 
+    def prepare(self, camera: Camera, detail: float = 1.0, wait: bool = True) -> bool:
+        """Bring the draw order up to date for ``camera``: submit a sort when the view's depth row, the detail or
+        the geometry changed, and use the newest finished order (``wait``: the order of this request, waiting for
+        it). True when the order in use is this request's."""
+        if not self.count:
+            return True
+        want = self._request_order(camera, detail)
+        self._use_order(self._sorter.take())
+        if wait and self._order_key != want:
+            t0 = time.perf_counter()
+            self._use_order(self._sorter.wait(want))
+            self.last_wait_ms = (time.perf_counter() - t0) * 1e3
+        else:
+            self.last_wait_ms = 0.0
+        return self._order_key == want
+
+    @property
+    def has_order(self) -> bool:
+        """An order of the current geometry's Gaussians is loaded (perhaps of an older view)."""
+        return self._order_key is not None or not self.count
+
+    @property
+    def order_detail(self) -> float:
+        """Fraction of the Gaussians the loaded order was sorted from (the detail it draws)."""
+        return self._order_key[1] / self.count if self._order_key is not None and self.count else 1.0
+
+    def order(self) -> np.ndarray:
+        """The draw order in use (int32 Gaussian indices, back to front), read back from the index buffer."""
+        return np.frombuffer(self._index_buffer.read(size=4 * self._instances), np.int32).copy()
+
+    def projected(self) -> dict[str, np.ndarray]:
+        """The last projection pass's output in draw order: ``center`` [M, 2] (pixels), ``conic`` [M, 4] (a, b, c,
+        opacity), ``axes`` [M, 4] (the quad's half axes; zero = culled), ``rgb`` [M, 3] (SH colour, zero without)."""
+        m = self._instances
+        data = np.frombuffer(self._projected.read(size=PROJECTED_STRIDE * m), np.float32).reshape(m, -1)
+        return {"center": data[:, 0:2], "conic": data[:, 2:6], "axes": data[:, 6:10], "rgb": data[:, 10:13]}
+
+    @property
+    def sorter(self) -> DepthSorter:
+        """The thread that sorts this renderer's Gaussians."""
+        return self._sorter
+
     def release(self) -> None:
-        """Free all GL objects."""
-        for obj in [*self._geometry, *self._layers.values(), self._vao, self._project_vao,
+        """Stop the sorter and free all GL objects."""
+        self._sorter.stop()
+        self._drop_sh()
+        for obj in [*self._geometry, *self._layers.values(), self._no_sh, self._vao, self._project_vao,
                     self._index_buffer, self._projected, self.program, self.project_program]:
             obj.release()
         self._geometry, self._layers = [], {}
@@ -248,56 +302,72 @@ class SplatRenderer:
         prog["u_image_size"].value = (float(camera.width), float(camera.height))
         prog["u_viewport_origin"].value = (0.0, 0.0)
         prog["u_near"].value = NEAR
+        (self._sh if self._sh is not None else self._no_sh).use(SH_UNIT)
+        prog["u_sh"].value = SH_UNIT
+        prog["u_sh_degree"].value = self._sh_degree if self._sh is not None else -1
+        prog["u_camera_pos"].value = tuple(float(v) for v in camera.position)
         self._project_vao.transform(self._projected, mode=moderngl.POINTS, vertices=self._instances)
         self._projected_for = key
         self.projection_count += 1
 
-    def _colour_texture(self, layer: str) -> moderngl.Texture:
+    def _colour_texture(self, layer: str) -> moderngl.Texture | None:
+        """The layer's colour texture; None for the SH layer (its colours come from the projection pass)."""
         if layer == SH_LAYER:
             if self._sh is None:
                 raise ValueError("this scene has no SH coefficients (layer 'sh')")
-            return self._layers["__sh__"]
+            return None
         if layer not in self._layers:
             raise ValueError(f"unknown colour layer {layer!r}; have {', '.join(self.layers) or 'none'}")
         return self._layers[layer]
 
-    def _prepare_view(self, camera: Camera, layer: str, detail: float = 1.0) -> None:
-        """Re-sort and re-evaluate SH only when the view, the detail level (or the geometry) changed."""
-        view = np.asarray(camera.world_to_cam, np.float64)
+    def _request_order(self, camera: Camera, detail: float) -> tuple:
+        """Submit a sort of the view's depth row at this detail unless it is the last one submitted; its key."""
         keep = self.count if detail >= 1.0 else max(1, int(math.ceil(float(detail) * self.count)))
-        if (self._sorted_for is None or keep != self._sorted_keep
-                or not np.array_equal(view, self._sorted_for)):
-            if keep < self.count:  # sort only the kept Gaussians (a moving camera re-sorts every frame)
-                if self._subset is None or self._subset[0] != keep:
-                    self._subset = (keep, np.flatnonzero(self._ranks < keep).astype(np.int32))
-                subset = self._subset[1]
-                order = subset[back_to_front_order(self._means[subset], view, NEAR)]
-            else:
-                order = back_to_front_order(self._means, view, NEAR)
-            self._sorted_keep = keep
-            self._instances = int(order.size)
-            if order.nbytes > self._index_buffer.size:
-                self._index_buffer.orphan(max(order.nbytes, 4))
-            if order.size:
-                self._index_buffer.write(order.tobytes())
-            self._sorted_for = view.copy()
-            self.sort_count += 1
-        if layer == SH_LAYER and self._sh is not None:
-            position = camera.position
-            moved = self._sh_camera is None or np.abs(position - self._sh_camera).max() > 1e-7 * max(
-                1.0, float(np.abs(position).max()))  # a turn in place (position equal up to rounding) keeps SH
-            if moved:
-                rgb = sh_colors(self._sh, self._means, position)
-                self.sh_evaluations += 1
-                self.update_colors(rgb, "__sh__")
-                self._sh_camera = position
+        row = np.array(np.asarray(camera.world_to_cam, np.float64)[2], np.float64)
+        want = (row.tobytes(), keep, self.geometry_version, self.sort_bits)
+        if want != self._requested:
+            subset = self._by_importance[:keep] if keep < self.count else None
+            self._sorter.submit(SortRequest(want, self._means, row, NEAR, self.sort_bits, subset))
+            self._requested = want
+        return want
 
-    def _bind(self, width: int, height: int, colour_tex: moderngl.Texture) -> None:
-        colour_tex.use(0)
+    def _use_order(self, result: SortResult | None) -> None:
+        """Upload a finished order into the index buffer (one of an older geometry is dropped)."""
+        if result is None or result.order is None or result.key[2] != self.geometry_version:
+            return
+        order = result.order
+        if order.nbytes > self._index_buffer.size:
+            self._index_buffer.orphan(max(order.nbytes, 4))
+        if order.size:
+            self._index_buffer.write(order.tobytes())
+        self._order_key = result.key
+        self._instances = int(order.size)
+        self.sort_count += 1
+
+    def _upload_sh(self, sh_dc: np.ndarray, sh_rest: np.ndarray, degree: int) -> None:
+        """Upload the coefficients of the SH layer once: a texture array written one layer at a time."""
+        n = sh_dc.shape[0]
+        layers = -(-3 * (degree + 1) ** 2 // 4)
+        tex = self.ctx.texture_array((TEXTURE_WIDTH, texture_rows(n), layers), 4, dtype="f4")
+        tex.filter = moderngl.NEAREST, moderngl.NEAREST
+        for j, content in enumerate(sh_texture_layers(sh_dc, sh_rest)):
+            tex.write(content.tobytes(), viewport=(0, 0, j, TEXTURE_WIDTH, content.shape[0], 1))
+        self._sh, self._sh_degree, self._sh_count = tex, degree, n
+        self.uploads["colors"] += 1
+
+    def _drop_sh(self) -> None:
+        if self._sh is not None:
+            self._sh.release()
+        self._sh, self._sh_degree, self._sh_count = None, -1, 0
+
+    def _bind(self, width: int, height: int, colour_tex: moderngl.Texture | None) -> None:
+        colour = colour_tex if colour_tex is not None else self._layers[DIFFUSE_LAYER]  # (not read for SH)
+        colour.use(0)
         prog = self.program
         prog["u_color"].value = 0
+        prog["u_projected_rgb"].value = int(colour_tex is None)
         highlight = self.highlight and SELECTION_LAYER in self._layers
-        (self._layers[SELECTION_LAYER] if highlight else colour_tex).use(1)
+        (self._layers[SELECTION_LAYER] if highlight else colour).use(1)
         prog["u_select"].value = 1
         prog["u_highlight"].value = int(highlight)
         prog["u_tex_width"].value = TEXTURE_WIDTH

@@ -9,11 +9,15 @@ On llvmpipe a splat frame costs its fragments: 40k Gaussians at 800×600 cover e
 2. The camera moved -> the scene is drawn at once at a reduced resolution chosen by ``ResolutionGovernor`` from
    the measured cost of earlier frames (fill cost ∝ pixels, so scale ∝ sqrt(budget / cost)), and upscaled; when
    even the smallest scale is over budget, only the most important fraction of the Gaussians is drawn (every
-   splat covers ~18 pixels at any resolution, so below that scale the cost follows the count).
+   splat covers ~18 pixels at any resolution, so below that scale the cost follows the count). The cost measured
+   is the raster's alone (projection and draw): the depth sort runs on the renderers' sorter threads, and a moving
+   frame draws with the newest order they finished (a renderer with no order yet keeps the last image on screen).
 3. Once the camera has been still for ``still_delay`` seconds, or when only colours/geometry changed (the worker
    streaming), the full-resolution image is built progressively: consecutive slices of the back-to-front order
    are blended into an accumulation texture, as many per frame as fit the budget (the slice size adapts to the
-   measured time). Back-to-front slices drawn in order without clearing compose to exactly the one-pass image.
+   measured time). Back-to-front slices drawn in order without clearing compose to exactly the one-pass image;
+   a build starts once the order of its view is sorted (requested as soon as the camera stops), and starts over
+   if the order changes under it.
    It is shown when complete; a newer change waits for the running build to finish, so streaming never starves it,
    and streamed changes start at most one build per ``rebuild_interval`` seconds, and only when builds so far took
    at most ``build_duty`` of the wall time (a build of a large scene costs hundreds of ms of both cores: the
@@ -93,6 +97,7 @@ class _Build:
     pass_index: int = 0
     first: int = 0
     started: bool = False
+    orders: tuple = ()  # the renderers' order versions (sort_count) the build draws with
 
 
 @dataclass
@@ -101,6 +106,7 @@ class ViewStats:
 
     frames: int = 0
     reused: int = 0  # frames that drew no splat
+    no_order: int = 0  # moving frames that kept the last image because a renderer had no order yet
     immediate: int = 0  # reduced-resolution renders after a camera move
     last_detail: float = 1.0  # fraction of the Gaussians the last immediate render drew
     slices: int = 0  # progressive slices drawn
@@ -164,7 +170,10 @@ class SceneView:
                 drew = self._immediate(camera, passes, key)
             if self._shown_key != key or not self.stats.shown_full:
                 self._queue(key, camera, passes, cancel=moved)
-        if (self._build is None and self._pending is not None and now - self._last_move >= self.still_delay
+            elif self._pending is not None and self._pending[0] == key:  # queued by a frame that had no order yet
+                self._pending = None
+        ready = self._pending is not None and not moved and self._orders_ready(*self._pending[1:])  # sorts early
+        if (self._build is None and ready and now - self._last_move >= self.still_delay
                 and (not self.stats.shown_full or now - self._last_build_start >= self._streamed_gap())):
             self._build = _Build(*self._pending)
             self._pending = None
@@ -207,6 +216,11 @@ class SceneView:
             self._fbos[name] = fbo
         return fbo
 
+    def _orders_ready(self, camera: Camera, passes: Sequence[ViewPass], detail: float = 1.0) -> bool:
+        """Every pass's renderer draws with the order of ``camera`` at ``detail`` (each one not sorted yet is asked
+        for; nothing waits)."""
+        return all([p.renderer.prepare(camera, detail, wait=False) for p in passes])
+
     def _draw_passes(self, fbo: moderngl.Framebuffer, camera: Camera, passes: Sequence[ViewPass],
                      instances: tuple[int, int] | None = None, only: int | None = None, detail: float = 1.0) -> int:
         width = camera.width
@@ -219,13 +233,19 @@ class SceneView:
             if scissor is not None and scissor[2] == 0:
                 continue
             total += p.renderer.render(camera, fbo, self._background, p.layer, scissor=scissor, clear=False,
-                                       instances=instances, detail=detail)
+                                       instances=instances, detail=detail, wait=not self.progressive)
         return total
 
     def _immediate(self, camera: Camera, passes: list[ViewPass], key: tuple) -> bool:
         scale = self.governor.scale if self.progressive else 1.0
         detail = self.governor.detail if self.progressive else 1.0
         cam = camera if scale >= 1.0 else camera.scaled(scale)
+        # sorts are asked for here, outside the raster's measured time
+        exact = all([p.renderer.prepare(cam, detail, wait=not self.progressive) for p in passes])
+        if not all(p.renderer.has_order for p in passes):
+            self.stats.no_order += 1
+            return False
+        drawn = max(p.renderer.order_detail for p in passes)  # the detail of the newest finished orders
         name = "low" if scale < 1.0 else self._spare_full()
         fbo = self._fbo(name, (cam.width, cam.height))
         fbo.use()
@@ -234,13 +254,13 @@ class SceneView:
         self._draw_passes(fbo, cam, passes, detail=detail)
         self.ctx.finish()
         if self.progressive:
-            self.governor.observe((self.clock() - t0) * 1e3, scale, detail)
+            self.governor.observe((self.clock() - t0) * 1e3, scale, drawn)
         self._shown = name
         self._shown_key = key
         self.stats.immediate += 1
         self.stats.last_scale = scale
-        self.stats.last_detail = detail
-        self.stats.shown_full = scale >= 1.0 and detail >= 1.0
+        self.stats.last_detail = drawn
+        self.stats.shown_full = scale >= 1.0 and drawn >= 1.0 and exact  # else a build follows
         return True
 
     def _fbo_name(self, fbo: moderngl.Framebuffer) -> str:
@@ -260,10 +280,14 @@ class SceneView:
     def _advance_build(self) -> bool:
         b = self._build
         fbo = self._fbo(self._spare_full(), (b.camera.width, b.camera.height))
-        if not b.started:
+        orders = tuple(p.renderer.sort_count for p in b.passes)
+        if not b.started or orders != b.orders:  # a new order (new geometry) under the build: it starts over
+            if not self._orders_ready(b.camera, b.passes):
+                b.started = False
+                return False
             fbo.use()
             fbo.clear(*self._background, 1.0)
-            b.started = True
+            b.started, b.orders, b.pass_index, b.first = True, orders, 0, 0
             self._build_ms = 0.0
         spent = 0.0
         drew = False

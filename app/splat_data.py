@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -93,15 +93,40 @@ def back_to_front_order(means: np.ndarray, world_to_cam: np.ndarray, near: float
     return order.astype(np.int32)
 
 
-def importance_ranks(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.ndarray:
-    """int32 rank of each Gaussian by opacity × area of its two largest axes (0 = most important).
+def importance_order(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.ndarray:
+    """int32 Gaussian indices by opacity × area of their two largest axes, most important first.
 
-    The view-independent order in which a reduced-detail frame keeps Gaussians: small faint ones go first."""
+    The view-independent order in which a reduced-detail frame keeps Gaussians: small faint ones go first; the
+    ``keep`` most important are its first ``keep`` entries."""
     s = np.sort(np.nan_to_num(np.asarray(log_scales, np.float64), nan=-30.0, posinf=30.0, neginf=-30.0), axis=1)
     score = (s[:, 1] + s[:, 2]) + np.log(sigmoid(np.asarray(opacity_logits, np.float64)) + 1e-12)
-    ranks = np.empty(score.shape[0], np.int32)
-    ranks[np.argsort(-score, kind="stable")] = np.arange(score.shape[0], dtype=np.int32)
+    return np.argsort(-score, kind="stable").astype(np.int32)
+
+
+def importance_ranks(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.ndarray:
+    """int32 rank of each Gaussian in ``importance_order`` (0 = most important)."""
+    order = importance_order(log_scales, opacity_logits)
+    ranks = np.empty(order.shape[0], np.int32)
+    ranks[order] = np.arange(order.shape[0], dtype=np.int32)
     return ranks
+
+
+def sh_texture_layers(sh_dc: np.ndarray, sh_rest: np.ndarray) -> Iterator[np.ndarray]:
+    """Texture contents ([rows, TEXTURE_WIDTH, 4] float32) of SH coefficients, one texture-array layer at a time.
+
+    A Gaussian's coefficients are laid out coefficient-major, ``dc.rgb, rest[0].rgb, rest[1].rgb, ...`` (3 (d+1)^2
+    floats, zero-padded to a multiple of 4); layer j holds floats 4j..4j+3 (``shaders/splat_project.vert``)."""
+    sh_dc = np.asarray(sh_dc, np.float32)
+    sh_rest = np.asarray(sh_rest, np.float32).reshape(sh_dc.shape[0], -1, 3)
+    floats = 3 * (sh_rest.shape[1] + 1)
+    for j in range(-(-floats // 4)):
+        columns = np.zeros((sh_dc.shape[0], 4), np.float32)
+        for c in range(4):
+            f = 4 * j + c
+            if f < floats:
+                k, channel = divmod(f, 3)
+                columns[:, c] = sh_dc[:, channel] if k == 0 else sh_rest[:, k - 1, channel]
+        yield pack_rgba(columns)
 
 
 def sh_colors(sh: np.ndarray, means: np.ndarray, camera_position: np.ndarray) -> np.ndarray:

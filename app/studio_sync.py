@@ -235,12 +235,12 @@ class StudioSync:
         """What the viewer evaluates and skips (panel "Decisions"): view-dependent SH, sorts, uploads."""
         renderers = (self.original, self.stylized)
         if SH_LAYER in self.original.layers:
-            sh = (f"viewer SH: evaluated for the original scene only, when the camera position changes "
-                  f"({self.original.sh_evaluations} evaluations so far); the stylized scene is diffuse")
+            sh = ("viewer SH: evaluated for the original scene only, on the GPU once per camera from coefficients "
+                  "uploaded once; the stylized scene is diffuse")
         else:
             sh = "viewer SH: none evaluated (the scene has no view-dependent SH)"
         sorts = sum(r.sort_count for r in renderers)
         colours = sum(r.uploads["colors"] for r in renderers)
         geometry = sum(r.uploads["geometry"] for r in renderers)
-        return [sh, f"viewer work: {sorts} depth sorts (view changes only), {colours} colour and {geometry} "
-                    "geometry uploads (changes only)"]
+        return [sh, f"viewer work: {sorts} depth sorts (view changes only, off the UI thread), {colours} colour and "
+                    f"{geometry} geometry uploads (changes only)"]

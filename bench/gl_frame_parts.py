@@ -1,6 +1,6 @@
-"""Where a moving splat frame's time goes on llvmpipe: depth sort of all Gaussians, projection pass, draw, and the
-draw with a 1×1 scissor (no fill), at full and reduced detail (fraction of the Gaussians drawn, most important
-first).
+"""Where a moving splat frame's time goes on llvmpipe: depth sort of all Gaussians (``app/depth_sort.py``'s kernel,
+which runs on the renderer's sorter thread, not in the frame), projection pass, draw, and the draw with a 1×1
+scissor (no fill), at full and reduced detail (fraction of the Gaussians drawn, most important first).
 
     .venv/bin/python bench/gl_frame_parts.py [--scene PATH] [--size 200x150] [--frames 16]
 
@@ -24,9 +24,9 @@ sys.path.insert(0, str(ROOT / "tests"))
 import moderngl  # noqa: E402
 from synthetic import look_at_camera  # noqa: E402
 
+from app.depth_sort import depth_order  # noqa: E402
 from app.main import parse_size  # noqa: E402
 from app.renderer import PROJECTED_STRIDE, SplatRenderer  # noqa: E402
-from app.splat_data import back_to_front_order  # noqa: E402
 from app.studio import scene_arrays  # noqa: E402
 from gstyle_core.assets import DEMO_SCENE  # noqa: E402
 from gstyle_core.io import load_scene  # noqa: E402
@@ -65,9 +65,9 @@ def main() -> None:
         pixels = 0.0
         for cam in cams:
             t0 = time.perf_counter()
-            back_to_front_order(renderer._means, np.asarray(cam.world_to_cam), 0.01)
+            depth_order(renderer._means, np.asarray(cam.world_to_cam), 0.01)
             t["sort"] += time.perf_counter() - t0
-            renderer._prepare_view(cam, "diffuse", detail)
+            renderer.prepare(cam, detail)
             t0 = time.perf_counter()
             renderer._project(cam)
             ctx.finish()

@@ -4,7 +4,9 @@
 // clamped to the field of view widened by 30 %, +0.3 px^2 on the 2D covariance diagonal, 3-sigma cut-off.
 // Pixel convention (OpenCV, as gsplat): means2d = (fx X/Z + cx, fy Y/Z + cy), image y down.
 // The draw pass (splat.vert) only places the 4 corners of each projected splat's quad; colours stay out of this
-// pass, so streamed colours and the compare view's second colour layer reuse one projection.
+// pass (streamed colours and the compare view's second colour layer reuse one projection), except the original
+// scene's view-dependent colour: with SH coefficients (uploaded once) it is evaluated here, once per camera, with
+// gstyle_core/raster/sh.py's conventions (3DGS order and constants, +0.5, clamp at 0).
 
 uniform sampler2D u_geom0;   // mean.xyz, opacity
 uniform sampler2D u_geom1;   // columns of M = R S (rotation times scales): Sigma_3D = M M^T
@@ -16,12 +18,16 @@ uniform vec4 u_intrinsics;    // fx, fy, cx, cy
 uniform vec2 u_image_size;    // width, height in pixels (of the camera)
 uniform vec2 u_viewport_origin;  // pixel offset of the camera image in the framebuffer (x right, y down)
 uniform float u_near;
+uniform sampler2DArray u_sh;  // SH coefficients, coefficient-major (c0.rgb c1.rgb ...): layer j = floats 4j..4j+3
+uniform int u_sh_degree;      // 0-3; -1: no SH (out_rgb unused)
+uniform vec3 u_camera_pos;    // world position of the camera (view direction = mean - camera)
 
 in int in_index;      // Gaussian index, in back-to-front order
 
 out vec2 out_center;   // means2d in framebuffer pixels, y down
 out vec4 out_conic;    // inverse 2D covariance (a, b, c), opacity
 out vec4 out_axes;     // the quad's half axes in pixels: major * extent, minor * extent; zero = culled
+out vec3 out_rgb;      // view-dependent colour from SH (zero without SH)
 
 const float LOW_PASS = 0.3;
 const float FOV_MARGIN = 0.3;
@@ -29,7 +35,49 @@ const float FOV_MARGIN = 0.3;
 ivec2 texel(int i) { return ivec2(i % u_tex_width, i / u_tex_width); }
 
 void cull() {
-    out_center = vec2(0.0); out_conic = vec4(0.0); out_axes = vec4(0.0);
+    out_center = vec2(0.0); out_conic = vec4(0.0); out_axes = vec4(0.0); out_rgb = vec3(0.0);
+}
+
+const float C0 = 0.28209479177387814;
+const float C1 = 0.4886025119029199;
+const float C2[5] = float[5](1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792,
+                             0.5462742152960396);
+const float C3[7] = float[7](-0.5900435899266435, 2.890611442640554, -0.4570457994644658, 0.3731763325901154,
+                             -0.4570457994644658, 1.445305721320277, -0.5900435899266435);
+
+// The SH basis (3DGS order) at unit direction d, degree 0-3; unused entries are zero.
+void sh_basis(vec3 d, int degree, out float b[16]) {
+    float x = d.x, y = d.y, z = d.z;
+    for (int k = 0; k < 16; ++k) b[k] = 0.0;
+    b[0] = C0;
+    if (degree >= 1) { b[1] = -C1 * y; b[2] = C1 * z; b[3] = -C1 * x; }
+    if (degree >= 2) {
+        float xx = x * x, yy = y * y, zz = z * z;
+        b[4] = C2[0] * x * y; b[5] = C2[1] * y * z; b[6] = C2[2] * (2.0 * zz - xx - yy);
+        b[7] = C2[3] * x * z; b[8] = C2[4] * (xx - yy);
+        if (degree >= 3) {
+            b[9] = C3[0] * y * (3.0 * xx - yy); b[10] = C3[1] * x * y * z; b[11] = C3[2] * y * (4.0 * zz - xx - yy);
+            b[12] = C3[3] * z * (2.0 * zz - 3.0 * xx - 3.0 * yy); b[13] = C3[4] * x * (4.0 * zz - xx - yy);
+            b[14] = C3[5] * z * (xx - yy); b[15] = C3[6] * x * (xx - 3.0 * yy);
+        }
+    }
+}
+
+// max(0, sum_k basis_k(dir) coeff_k + 0.5) of Gaussian i seen from u_camera_pos (sh.py's eval_sh_colors).
+vec3 sh_colour(int i, vec3 mean) {
+    int count = (u_sh_degree + 1) * (u_sh_degree + 1);
+    float c[48];
+    for (int j = 0; j < (3 * count + 3) / 4; ++j) {
+        vec4 t = texelFetch(u_sh, ivec3(texel(i), j), 0);
+        c[4 * j] = t.x; c[4 * j + 1] = t.y; c[4 * j + 2] = t.z; c[4 * j + 3] = t.w;
+    }
+    vec3 offset = mean - u_camera_pos;
+    vec3 dir = offset / sqrt(max(dot(offset, offset), 1e-24));
+    float b[16];
+    sh_basis(dir, u_sh_degree, b);
+    vec3 rgb = vec3(0.5);
+    for (int k = 0; k < count; ++k) rgb += b[k] * vec3(c[3 * k], c[3 * k + 1], c[3 * k + 2]);
+    return max(rgb, vec3(0.0));
 }
 
 void main() {
@@ -82,4 +130,5 @@ void main() {
     out_center = vec2(fx * p.x * inv_z + cx, fy * p.y * inv_z + cy) + u_viewport_origin;
     out_conic = vec4(vec3(c, -b, a) / det, g0.w);
     out_axes = vec4(half_extent.x * major, half_extent.y * minor);
+    out_rgb = u_sh_degree >= 0 ? sh_colour(in_index, g0.xyz) : vec3(0.0);
 }

@@ -306,3 +306,22 @@ def ring_studio(window, tmp_path, factory=make_fake_engine, snapshots: int = 1):
     app.start_engine()
     assert app.bridge.wait_until(lambda s: s.snapshots_received >= snapshots or s.error, 60), app.bridge.state.error
     return app
+
+
+class GatedSort:
+    """The viewer's real depth sort (``app.depth_sort.sort_request``) behind a gate: ``started`` is set when a sort
+    begins, which ends only once the test sets ``gate``; ``keys`` lists the requests sorted."""
+
+    def __init__(self) -> None:
+        import threading
+
+        self.gate, self.started = threading.Event(), threading.Event()
+        self.keys: list = []
+
+    def __call__(self, request, scratch):
+        from app.depth_sort import sort_request
+
+        self.keys.append(request.key)
+        self.started.set()
+        assert self.gate.wait(30), "the test never opened the gate"
+        return sort_request(request, scratch)

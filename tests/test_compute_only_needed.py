@@ -330,34 +330,29 @@ def test_renderer_unchanged_frame_does_no_sort_or_upload_and_colours_upload_alon
     r.release()
 
 
-def test_renderer_evaluates_sh_only_for_real_sh_and_only_when_the_position_moves(ctx):
-    from app.renderer import SH_LAYER, SplatRenderer
+def test_renderer_evaluates_sh_on_the_gpu_for_real_sh_only_and_uploads_nothing_when_the_camera_moves(ctx):
+    from app.renderer import SH_LAYER, SplatRenderer, read_rgb_float
     from app.splat_data import sh_colors
 
     fbo = ctx.framebuffer([ctx.texture((64, 48), 4, dtype="f4")])
     r = SplatRenderer(ctx)
-    r.set_scene(viewer_arrays(sh_degree=3))
-    assert SH_LAYER in r.layers
-    cam = look_at_camera((0.2, -0.5, -3.0), (0, 0, 0), 64, 48)
-    r.render(cam, fbo, layer=SH_LAYER)
-    r.render(look_at_camera((0.2, -0.5, -3.0), (0.3, 0, 0), 64, 48), fbo, layer=SH_LAYER)  # turned, not moved
-    assert (r.sh_evaluations, r.sort_count) == (1, 2)
-    r.render(look_at_camera((0.5, -0.5, -3.0), (0, 0, 0), 64, 48), fbo, layer=SH_LAYER)
-    assert r.sh_evaluations == 2
-    # a degree-3 scene whose higher bands are all zero has no SH to show: no layer, no evaluation, same image
     arrays = viewer_arrays(sh_degree=3)
+    r.set_scene(arrays)
+    assert SH_LAYER in r.layers
+    uploads = dict(r.uploads)  # geometry, diffuse colours and the SH coefficients: once
+    sh = np.concatenate([arrays["sh_dc"][:, None], arrays["sh_rest"]], 1)
+    for eye in ((0.2, -0.5, -3.0), (0.5, -0.5, -3.0), (-1.0, 0.3, -2.5)):
+        cam = look_at_camera(eye, (0, 0, 0), 64, 48)
+        r.render(cam, fbo, layer=SH_LAYER)
+        on_gpu = read_rgb_float(fbo)
+        r.update_colors(sh_colors(sh, arrays["means"], cam.position), "evaluated")  # the CPU's evaluation
+        r.render(cam, fbo, layer="evaluated")
+        np.testing.assert_allclose(on_gpu, read_rgb_float(fbo), atol=2e-5)
+    assert r.uploads["colors"] == uploads["colors"] + 3  # only this test's own layer "evaluated"
+    # a degree-3 scene whose higher bands are all zero has no SH to show: no layer, no coefficients uploaded
     arrays["sh_rest"] = np.zeros_like(arrays["sh_rest"])
     r.set_scene(arrays)
-    assert SH_LAYER not in r.layers
-    from app.renderer import read_rgb_float
-
-    r.render(cam, fbo)
-    diffuse = read_rgb_float(fbo)
-    sh = np.concatenate([arrays["sh_dc"][:, None], arrays["sh_rest"]], 1)
-    r.update_colors(sh_colors(sh, arrays["means"], cam.position), "evaluated")
-    r.render(cam, fbo, layer="evaluated")
-    np.testing.assert_allclose(read_rgb_float(fbo), diffuse, atol=1e-6)
-    assert r.sh_evaluations == 2
+    assert SH_LAYER not in r.layers and r.uploads["colors"] == uploads["colors"] + 4  # + the diffuse layer
     r.release()
 
 

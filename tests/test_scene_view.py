@@ -108,6 +108,7 @@ def test_progressive_slices_compose_to_the_one_pass_image(ctx, scene):
     view.first_slice = 700
     view.governor.scale = 0.5
     cam = camera(0.3)
+    scene.prepare(cam)  # its order sorted (a moving frame draws with the newest finished order, never waits)
     img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
     assert view.stats.immediate == 1 and view.stats.last_scale == 0.5 and not view.stats.shown_full
     for _ in range(200):
@@ -139,6 +140,7 @@ def test_moving_camera_renders_at_once_and_refines_when_still(ctx, scene):
     clock = FakeClock()
     view = SceneView(ctx, budget_ms=1e-6, still_delay=0.15, clock=clock)
     view.governor.scale = 0.5
+    scene.prepare(camera(0.0))  # an order to draw with from the first frame on (later ones may be a frame old)
     for i in range(4):  # moving: a reduced-resolution render every frame, no progressive slice
         clock.t += 0.02
         shown(ctx, view, camera(0.1 * i), [ViewPass(scene, "diffuse")])
@@ -146,6 +148,7 @@ def test_moving_camera_renders_at_once_and_refines_when_still(ctx, scene):
     cam = camera(0.3)
     for _ in range(300):
         clock.t += 0.05
+        assert scene.sorter.idle(30)  # the frames are quicker than a thread's wake-up on a busy machine
         img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
         if view.stats.shown_full:
             break
@@ -204,3 +207,103 @@ def test_compare_passes_split_the_view(ctx, scene):
     assert np.array_equal(img[:, : W // 2], left[:, : W // 2])
     assert np.array_equal(img[:, W // 2:], right[:, W // 2:])
     other.release()
+
+
+class SortCostsClock(SplatRenderer):
+    """A renderer whose every new sort request costs ``cost`` seconds of the view's clock where it is asked for
+    (as the old sort on the frame did): the governor must not see it."""
+
+    def __init__(self, ctx, clock, cost, sorter=None):
+        super().__init__(ctx, sorter)
+        self.clock, self.cost = clock, cost
+
+    def prepare(self, camera, detail=1.0, wait=True):
+        before = self.sorter.stats.submitted
+        ready = super().prepare(camera, detail, wait)
+        if self.sorter.stats.submitted > before:
+            self.clock.t += self.cost
+        return ready
+
+
+def test_moving_frames_never_wait_for_a_sort_and_only_the_raster_sets_the_detail(ctx):
+    from fakes import GatedSort
+
+    from app.depth_sort import DepthSorter
+
+    clock, sort = FakeClock(), GatedSort()
+    sort.gate.set()
+    r = SortCostsClock(ctx, clock, 0.5, DepthSorter(sort))
+    r.set_scene(scene_arrays(blob_scene(3000, seed=1)))
+    r.prepare(camera(0.0))
+    sort.gate.clear()  # from now on every sort is held until the end of the test
+    view = SceneView(ctx, budget_ms=20.0, clock=clock)
+    for i in range(1, 6):
+        clock.t += 0.02
+        shown(ctx, view, camera(0.1 * i), [ViewPass(r, "diffuse")])
+    assert view.stats.immediate == 5 and r.sort_count == 1  # all drawn with the first order, none waited
+    assert r.sorter.stats.submitted == 6 and r.last_wait_ms == 0.0
+    assert (view.governor.scale, view.governor.detail) == (1.0, 1.0)  # 500 ms per sort: not the raster's
+    sort.gate.set()
+    r.release()
+
+
+def test_a_build_starts_once_its_order_is_sorted(ctx):
+    from fakes import GatedSort
+
+    from app.depth_sort import DepthSorter
+
+    clock, sort = FakeClock(), GatedSort()
+    sort.gate.set()
+    r = SplatRenderer(ctx, DepthSorter(sort))
+    r.set_scene(scene_arrays(blob_scene(3000, seed=1)))
+    r.prepare(camera(0.0))
+    sort.gate.clear()
+    view = SceneView(ctx, budget_ms=1e-6, clock=clock)
+    view.governor.scale = 0.5
+    cam = camera(0.4)
+    for _ in range(10):  # still for 0.5 s: the build waits for the order of its view
+        clock.t += 0.05
+        shown(ctx, view, cam, [ViewPass(r, "diffuse")])
+    assert view.stats.slices == 0 and view.building and view.stats.immediate == 1
+    sort.gate.set()
+    for _ in range(300):
+        clock.t += 0.05
+        assert r.sorter.idle(30)  # the frames are quicker than a thread's wake-up on a busy machine
+        img = shown(ctx, view, cam, [ViewPass(r, "diffuse")])
+        if view.stats.shown_full:
+            break
+    assert view.stats.slices > 0 and np.array_equal(img, one_pass(ctx, r, cam))
+    r.release()
+
+
+def test_a_first_frame_without_an_order_keeps_the_background_until_the_sort_lands(ctx):
+    from fakes import GatedSort
+
+    from app.depth_sort import DepthSorter
+
+    clock, sort = FakeClock(), GatedSort()
+    r = SplatRenderer(ctx, DepthSorter(sort))
+    r.set_scene(scene_arrays(blob_scene(3000, seed=1)))
+    view = SceneView(ctx, clock=clock)
+    cam = camera(0.2)
+    first = shown(ctx, view, cam, [ViewPass(r, "diffuse")])  # its sort is held: nothing to draw with, no wait
+    assert view.stats.no_order == 1 and view.stats.immediate == 0 and first.max() == 0
+    sort.gate.set()
+    assert r.sorter.idle(30)
+    clock.t += 0.02
+    img = shown(ctx, view, cam, [ViewPass(r, "diffuse")])
+    assert view.stats.immediate == 1 and view.stats.shown_full and np.array_equal(img, one_pass(ctx, r, cam))
+    assert not view.building  # the exact full image is on screen: no build of the same image follows
+    r.release()
+
+
+def test_moving_frames_sort_for_the_governors_detail(ctx, scene):
+    clock = FakeClock()
+    view = SceneView(ctx, budget_ms=1e-6, clock=clock)  # every frame over budget: detail down to its floor
+    scene.prepare(camera(0.0))  # all Gaussians sorted
+    for i in range(1, 8):
+        clock.t += 0.02
+        shown(ctx, view, camera(0.1 * i), [ViewPass(scene, "diffuse")])
+        assert scene.sorter.idle(30)
+    assert view.governor.detail == view.governor.min_detail
+    assert scene.order_detail < 0.1 and view.stats.last_detail < 0.1  # the orders followed the governor down
