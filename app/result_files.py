@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from gstyle_core.pipeline.kept_runs import find_result_state
-from gstyle_core.pipeline.settings import StylizeSettings, ui_params
+from gstyle_core.pipeline.settings import StylizeSettings, refined_level_weights, ui_params
 
 from .export import summary_path
 from .takes import widths_text
@@ -31,6 +31,8 @@ class ResultInfo:
     state: Path | None = None  # the run kept with it (``pipeline/kept_runs.py``) while the file is still as written
     state_config: dict[str, Any] = field(default_factory=dict)  # the engine config that run was built from
     levels: list[int] = field(default_factory=list)  # its widths, coarse to fine (the last: the result's width)
+    level_weights: dict[str, tuple[float, float]] = field(default_factory=dict)  # controls a Refine's level set:
+    # (the level's value, the preset's: what a restart at the preset goes back to; ``refined_level_weights``)
 
 
 def read_result(scene_path: str | Path) -> ResultInfo | None:
@@ -59,6 +61,10 @@ def read_result(scene_path: str | Path) -> ResultInfo | None:
     info.line = _describe(data, path)
     info.preset = str(data["settings"].get("preset") or "")
     info.levels = level_widths(data["settings"])
+    try:
+        info.level_weights = refined_level_weights(StylizeSettings.from_dict(data["settings"]))
+    except (ValueError, TypeError):
+        info.level_weights = {}
     for entry in data.get("styles") or []:
         found = _found(Path(str(entry.get("path", ""))), summary.parent) if isinstance(entry, dict) else None
         if found is not None:

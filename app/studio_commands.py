@@ -105,7 +105,8 @@ class StudioCommands:
 
     def restart_from_original(self) -> None:
         """A result is on show: open the scene it came from and stylize it with the result's preset and the
-        painting(s) and controls shown (the result's, ``show_result_painting``, or what the artist chose since)."""
+        painting(s) and controls shown (the result's, ``show_result_painting``, or what the artist chose since); the
+        weights a studio Refine's level set go back to the preset's unless the artist moved them."""
         info = self.result
         if info is None or info.source is None:
             self.panel.status = "the original scene of this result was not found"
@@ -113,6 +114,9 @@ class StudioCommands:
         if info.preset:
             self.engine_config["preset"] = info.preset
         shown = {k: v for k, v in self.panel.params.items() if k in info.params}  # the original resets the panel
+        for name, (level, preset) in info.level_weights.items():  # a Refine's level set these: not the preset's
+            if shown.get(name) == level:  # (the artist's own value, moved since, stays)
+                shown[name] = preset
         if self.open_path(str(info.source)) and self.bridge is None:
             self.start_engine()
         self._apply_params({k: v for k, v in shown.items() if k in self.panel.params})  # from the first step

@@ -208,3 +208,36 @@ def test_a_saved_result_reopens_and_continues_its_run_on_its_original(window, tm
         assert copy.is_file() and find_result_state(copy) is not None  # the copy can be continued too
     finally:
         app.close(timeout=30)
+
+
+def test_restart_from_the_original_of_a_refined_preview_goes_back_to_the_presets_weights(window, tmp_path,
+                                                                                         monkeypatch):
+    """A calibrated 360° preview refined in the studio to 512 px: its level raised brush strokes 200 -> 400 and edges
+    kept 0 -> 4000 (``level_weight_changes``). Reopened and restarted from its original at its preset, those go back
+    to the preset's; a slider the artist moved on the result keeps the artist's value."""
+    from fakes import ring_studio
+
+    from app.panels import Command
+    from gstyle_core.pipeline.settings import level_weight_changes
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    out, original, painting = tmp_path / "out" / "refined.ply", tmp_path / "original.ply", tmp_path / "p.png"
+    out.parent.mkdir()
+    save_scene(blob_scene(60, seed=4), original)
+    Image.fromarray(np.random.default_rng(0).integers(0, 255, (16, 16, 3), dtype=np.uint8)).save(painting)
+    settings = resolve_settings("preview", "360", 8, clip_available=False)
+    preset = ui_params(settings)
+    changes = level_weight_changes(settings)
+    settings = resolve_settings("preview", "360", 8, clip_available=False, refine_widths=(512,), **changes)
+    export_engine(_Finished(settings), out, None, ui_params(settings), str(painting), str(original))
+    info = read_result(out)
+    assert info.level_weights["lambda_nnfm"] == (400.0, 200.0) and info.level_weights["lambda_edges"] == (4000.0, 0.0)
+    app = ring_studio(window, tmp_path)
+    try:
+        assert app.open_path(str(out)) and app.panel.params["lambda_nnfm"] == 400.0
+        app.execute(Command("set_params", {"lambda_edges": 1234.0}))  # the artist's own value
+        app.execute(Command("restart_from_original"))
+        assert app.panel.params["lambda_nnfm"] == preset["lambda_nnfm"] == 200.0
+        assert app.panel.params["lambda_edges"] == 1234.0
+    finally:
+        app.close(timeout=30)

@@ -264,6 +264,18 @@ def level_weight_changes(s: StylizeSettings) -> dict[str, float]:
     return changes
 
 
+def refined_level_weights(s: StylizeSettings) -> dict[str, tuple[float, float]]:
+    """For the settings of a run that a Refine carried past its preset's levels (a calibrated 360° preview refined in
+    the studio): each control the first added level set (``level_weight_changes``), as (the level's value, the
+    preset's value). A restart at the preset goes back to the preset's values. Empty for other runs."""
+    own = tuple(PRESETS.get(s.preset, {}).get("refine_widths", ()))
+    if s.defaults != "calibrated" or s.scene_kind != "360" or own or not s.refine_widths:
+        return {}
+    plain = resolve_settings(s.preset, s.scene_kind, clip_available=s.weights.clip > 0 and s.weights.multiscale == 0)
+    preset = read_controls(plain)
+    return {name: (float(value), float(preset[name])) for name, value in level_weight_changes(plain).items()}
+
+
 def tied_to_nnfm(nnfm: float) -> dict[str, float]:
     """The λ weights that follow λ_NNFM by default: the broad strokes (where they stand in for CLIP,
     ``BROAD_STROKES``) and the colour smoothness (``DISPLAY``), at ``nnfm``."""
