@@ -283,6 +283,6 @@ def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):
     words = factor_words(DEFAULT_FACTORS)  # what the run and the panel say is what the term does
     assert f"shrunk {words}," in engine.decisions["broad_strokes"]
     tooltip = next(c.tooltip for c in CONTROLS if c.name == "lambda_multiscale")
-    assert f"shrunk {words} (" in tooltip
+    assert f"shrunk {words})" in tooltip  # the panel names the same factors
     report = engine.step()
     assert report.losses["clip"] == 0.0 and report.losses["nnfm"] > 0.0
