@@ -44,7 +44,7 @@ def csv_rows(jobs: list[Job]) -> list[dict]:
         figures = job_figures(job) if job.status != "failed" else {}
         seconds = job.seconds if job.seconds is not None else figures.get("seconds_total")
         row = {"scene": job.scene, "painting": job.painting, "status": job.status, "out": str(job.out),
-               "seconds": None if seconds is None else round(seconds, 1), **figures}
+               "seconds": None if seconds is None else round(seconds, 2), **figures}
         rows.append({key: ("" if row.get(key) is None else _rounded(row[key])) for key in CSV_COLUMNS})
     return rows
 
