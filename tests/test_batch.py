@@ -89,7 +89,7 @@ def test_every_scene_after_every_painting_then_a_rerun_skips_them_all(inputs, mo
     assert run(batch_args(inputs, "--jobs", "1")) == 0
     assert time.perf_counter() - t0 < 5 and len(built) == 4  # nothing was built again
     err = capsys.readouterr().err
-    assert "4 jobs, 4 done already; 0 to run" in err
+    assert "4 jobs, 4 done already; nothing to run" in err
     assert [r["status"] for r in rows_of(out)] == ["done already"] * 4
 
 
@@ -142,7 +142,8 @@ def test_an_interrupted_job_resumes_and_force_runs_all_again(inputs):
 
 
 @pytest.mark.parametrize("cores, gpus, jobs, threads, pending, expected", [
-    (4, 0, None, None, 10, (2, 2, 0)),  # two threads a job by default
+    (4, 0, None, None, 10, (4, 1, 0)),  # one thread a job by default
+    (4, 0, None, 2, 10, (2, 2, 0)),
     (4, 0, None, 1, 10, (4, 1, 0)),
     (4, 0, 1, None, 10, (1, 4, 0)),
     (16, 0, None, None, 3, (3, 5, 0)),  # no more slots than jobs

@@ -22,7 +22,7 @@ from ..errors import GStyleError
 from ..outputs import companion, output_base
 from .checkpoint import stylize_checkpoint_path
 
-DEFAULT_THREADS_PER_JOB = 2  # jobs = cores // threads (measured on 2 cores: docs/batch.md)
+DEFAULT_THREADS_PER_JOB = 1  # jobs = cores // threads; a 2-thread job slowed 12x on a shared machine (docs/batch.md)
 WORKER = [sys.executable, "-m", "gstyle_core.cli"]  # the command a pool job runs: ``WORKER + job.argv``
 POLL_SECONDS = 0.2
 
@@ -126,14 +126,14 @@ def batch_command(args: argparse.Namespace) -> int:
     out_dir = Path(args.out)
     jobs = plan_jobs(args, out_dir)
     pending = [job for job in jobs if job.status == "pending"]
-    slots, threads, gpus = pool_size(args, len(pending))
+    slots, threads, gpus = pool_size(args, len(pending)) if pending else (1, 0, 0)
     for job in pending:
         job.argv += ["--threads", str(threads)]
     (out_dir / "logs").mkdir(parents=True, exist_ok=True)
     already = len(jobs) - len(pending)
     where = "in this process" if slots == 1 else f"{slots} at a time" + (f" over {gpus} GPUs" if gpus else "")
-    print(f"batch: {len(jobs)} jobs, {already} done already; {len(pending)} to run {where}, {threads} threads each",
-          file=sys.stderr)
+    plan = f"{len(pending)} to run {where}, {threads} threads each" if pending else "nothing to run"
+    print(f"batch: {len(jobs)} jobs, {already} done already; {plan}", file=sys.stderr)
     if slots == 1:
         run_in_process(jobs, pending)
     else:
