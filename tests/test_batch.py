@@ -116,6 +116,34 @@ def test_a_failed_job_is_one_line_the_others_finish_and_a_rerun_does_the_rest(in
     assert [r["status"] for r in rows_of(out)] == ["done already", "done", "done already", "done"]
 
 
+def test_a_rerun_after_ctrl_c_resumes_the_stopped_job_and_keeps_the_finished_one(inputs, monkeypatch, capsys):
+    import os
+    import signal
+
+    from test_outputs_stylize import TinyEngine
+
+    built, step = [], TinyEngine.step
+
+    def ctrl_c_in_the_second_job(engine):
+        if len(built) == 2 and engine.global_step == 4:
+            os.kill(os.getpid(), signal.SIGINT)  # as Ctrl+C: the step ends, the checkpoint is written
+        return step(engine)
+
+    use_tiny_engine(monkeypatch.setattr, built)
+    out = inputs["out"]
+    with monkeypatch.context() as patch:
+        patch.setattr(TinyEngine, "step", ctrl_c_in_the_second_job)
+        assert run(batch_args(inputs, "--jobs", "1")) == 130
+    assert sorted(p.name for p in out.glob("*.ply")) == ["scene1__red.ply"]
+    assert stylize_checkpoint_path(out / "scene1__blue.ply").exists()
+    capsys.readouterr()
+    assert run(batch_args(inputs, "--jobs", "1")) == 0
+    assert "4 jobs, 1 done already; 3 to run" in capsys.readouterr().err
+    assert "resumed from" in (out / "logs" / "scene1__blue.log").read_text() and len(built) == 2 + 3
+    assert [r["status"] for r in rows_of(out)] == ["done already", "done", "done", "done"]
+    assert not stylize_checkpoint_path(out / "scene1__blue.ply").exists()
+
+
 def test_an_interrupted_job_resumes_and_force_runs_all_again(inputs):
     from gstyle_core.cli import build_parser
 
