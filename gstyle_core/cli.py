@@ -1,4 +1,4 @@
-"""The ``gstyle`` command line: info, convert, render, fit, stylize, cache.
+"""The ``gstyle`` command line: info, convert, render, fit, stylize, batch, cache.
 
 Every error a user can cause (bad file, missing cameras, missing weights, an output that cannot be written: a full
 disk, a read-only or forbidden folder) is a ``GStyleError`` and is printed as one line without a traceback; the exit
@@ -65,6 +65,12 @@ def _cmd_stylize(args: argparse.Namespace) -> int:
     return stylize_command(args)
 
 
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from .pipeline.batch import batch_command
+
+    return batch_command(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``gstyle``."""
     p = argparse.ArgumentParser(prog="gstyle", description="G-Style Studio command line tools.")
@@ -114,6 +120,12 @@ def build_parser() -> argparse.ArgumentParser:
         s = sub.add_parser("stylize", help="stylize a scene after a painting (G-Style)")
         add_stylize_arguments(s)
         s.set_defaults(func=_cmd_stylize)
+        from .pipeline.batch import add_batch_arguments
+
+        s = sub.add_parser("batch", conflict_handler="resolve", allow_abbrev=False,
+                           help="stylize every scene after every painting (gstyle stylize's options for each job)")
+        add_batch_arguments(s)
+        s.set_defaults(func=_cmd_batch)
 
     from .cache_cli import add_cache_arguments
 

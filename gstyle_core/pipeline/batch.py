@@ -1,0 +1,241 @@
+"""``gstyle batch``: every scene after every painting, each pair one ``gstyle stylize`` job with its own OUT.ply,
+OUT.json and pictures in the output folder; jobs already finished are skipped, an interrupted one resumes, a failed
+one is one line and the others go on. Ends with ``batch.csv`` (a row per job) and ``contact_sheet.png``.
+
+Jobs run in the calling process one after another (``--jobs 1``) or as ``python -m gstyle_core.cli stylize``
+subprocesses, at most ``--jobs`` at a time (one per CUDA GPU, each seeing only its own, when torch sees GPUs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import statistics
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import GStyleError
+from ..outputs import companion, output_base
+from .checkpoint import stylize_checkpoint_path
+
+DEFAULT_THREADS_PER_JOB = 1  # jobs = cores // threads; a 2-thread job slowed 12x on a shared machine (docs/batch.md)
+WORKER = [sys.executable, "-m", "gstyle_core.cli"]  # the command a pool job runs: ``WORKER + job.argv``
+POLL_SECONDS = 0.2
+
+
+@dataclass
+class Job:
+    """One scene after one painting: its ``gstyle stylize`` arguments and how it went."""
+
+    scene: str
+    painting: str
+    out: Path
+    argv: list[str]
+    status: str = "pending"  # pending, running, done, done already, failed
+    seconds: float | None = None
+    line: str = ""  # a failed job's last line (its error or crash line)
+
+    @property
+    def log(self) -> Path:
+        """The job's stdout and stderr."""
+        return self.out.parent / "logs" / (self.out.stem + ".log")
+
+
+def add_batch_arguments(p: argparse.ArgumentParser) -> None:
+    """Arguments of ``gstyle batch``: those of ``gstyle stylize`` (given to every job) and the batch's own; ``p``
+    resolves conflicts (``--out`` and ``--threads`` are the batch's)."""
+    from .cli import add_stylize_arguments
+
+    add_stylize_arguments(p)
+    p.add_argument("--scenes", nargs="+", required=True, metavar="SCENE", help="scene files, one row each")
+    p.add_argument("--styles", nargs="+", required=True, metavar="IMAGE", help="paintings, one column each")
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="jobs at a time (default: one per CUDA GPU, else cores // --threads); 1 runs them in this "
+                        "process")
+    p.add_argument("--threads", type=int, default=None,
+                   help=f"torch threads per job (default: cores // --jobs, or {DEFAULT_THREADS_PER_JOB} without it)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="folder of the results: DIR/SCENE__PAINTING.ply with its .json and pictures, batch.csv, "
+                        "contact_sheet.png, logs/")
+
+
+def stylize_options(argv: list[str]) -> list[str]:
+    """The ``gstyle stylize`` options among ``gstyle batch``'s arguments ``argv`` (the batch's own taken out)."""
+    pre = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
+    pre.add_argument("--scenes", nargs="+")
+    pre.add_argument("--styles", nargs="+")
+    for name in ("--jobs", "--threads", "--out"):
+        pre.add_argument(name)
+    pre.add_argument("--resume", action="store_true")
+    args = argv[1:] if argv and argv[0] == "batch" else argv
+    return pre.parse_known_args(args)[1]
+
+
+def plan_jobs(args: argparse.Namespace, out_dir: Path) -> list[Job]:
+    """A job per scene and painting, named ``SCENE__PAINTING.ply`` (stems); finished ones (OUT.ply exists, written
+    last) are marked done already unless ``--force``; an interrupted one (its checkpoint exists) gets ``--resume``."""
+    if args.scene is not None or args.style:
+        raise GStyleError("give the scenes with --scenes and the paintings with --styles")
+    options = stylize_options(getattr(args, "argv", []))
+    jobs, names = [], set()
+    for scene in args.scenes:
+        for painting in args.styles:
+            name = f"{output_base(Path(scene).name).name}__{Path(painting).stem}"
+            if name in names:
+                raise GStyleError(f"two jobs would both write {out_dir / name}.ply: give scenes and paintings "
+                                  "different names")
+            names.add(name)
+            out = out_dir / f"{name}.ply"
+            argv = ["stylize", scene, "--style", painting, *options, "--out", str(out)]
+            if stylize_checkpoint_path(out).exists() and not args.force:
+                argv.append("--resume")
+            done = out.exists() and not args.force
+            jobs.append(Job(scene, painting, out, argv, "done already" if done else "pending"))
+    return jobs
+
+
+def pool_size(args: argparse.Namespace, pending: int) -> tuple[int, int, int]:
+    """Jobs at a time, torch threads per job and CUDA GPUs to spread them over (0: none)."""
+    from ..machine import usable_cores
+
+    cores, gpus = usable_cores(), cuda_gpus(args)
+    if args.jobs is not None and args.jobs < 1 or args.threads is not None and args.threads < 1:
+        raise GStyleError("--jobs and --threads must be at least 1")
+    jobs = args.jobs or gpus or max(1, cores // (args.threads or DEFAULT_THREADS_PER_JOB))
+    jobs = max(1, min(jobs, pending))
+    return jobs, args.threads or max(1, cores // jobs), gpus
+
+
+def cuda_gpus(args: argparse.Namespace) -> int:
+    """The CUDA GPUs torch sees, unless the jobs are asked to run elsewhere (0 then)."""
+    if getattr(args, "device", None) in ("cpu", "mps"):
+        return 0
+    import torch
+
+    return torch.cuda.device_count()
+
+
+def batch_command(args: argparse.Namespace) -> int:
+    """Run ``gstyle batch``: the jobs, a progress line per change, then batch.csv and contact_sheet.png."""
+    from .batch_report import write_contact_sheet, write_csv
+
+    out_dir = Path(args.out)
+    jobs = plan_jobs(args, out_dir)
+    pending = [job for job in jobs if job.status == "pending"]
+    slots, threads, gpus = pool_size(args, len(pending)) if pending else (1, 0, 0)
+    for job in pending:
+        job.argv += ["--threads", str(threads)]
+    (out_dir / "logs").mkdir(parents=True, exist_ok=True)
+    already = len(jobs) - len(pending)
+    where = "in this process" if slots == 1 else f"{slots} at a time" + (f" over {gpus} GPUs" if gpus else "")
+    plan = f"{len(pending)} to run {where}, {threads} threads each" if pending else "nothing to run"
+    print(f"batch: {len(jobs)} jobs, {already} done already; {plan}", file=sys.stderr)
+    if slots == 1:
+        run_in_process(jobs, pending)
+    else:
+        run_in_pool(jobs, pending, slots, gpus, threads)
+    written = [write_csv(jobs, out_dir / "batch.csv"), write_contact_sheet(jobs, args.scenes, args.styles,
+                                                                            out_dir / "contact_sheet.png")]
+    failed = sum(job.status == "failed" for job in jobs)
+    print(f"batch: {len(jobs) - failed} done, {failed} failed; wrote {', '.join(map(str, written))}")
+    return 1 if failed else 0
+
+
+def run_in_process(jobs: list[Job], pending: list[Job]) -> None:
+    """Each job through ``gstyle_core.cli.run`` here, its output to its log; Ctrl+C stops the batch (the job
+    keeps its checkpoint: a rerun resumes it)."""
+    from ..cli import run
+
+    for job in pending:
+        job.status, t0 = "running", time.perf_counter()
+        progress(jobs, 1)
+        with open(job.log, "w", encoding="utf-8") as log, contextlib.redirect_stdout(log), \
+                contextlib.redirect_stderr(log):
+            code = run(job.argv)
+        finish(job, code, time.perf_counter() - t0)
+        if code == 130:
+            raise KeyboardInterrupt
+        progress(jobs, 1)
+
+
+def run_in_pool(jobs: list[Job], pending: list[Job], slots: int, gpus: int, threads: int) -> None:
+    """The jobs as subprocesses, ``slots`` at a time (slot k sees GPU k % gpus alone), each with ``threads`` threads
+    in every thread pool; Ctrl+C lets the running ones save their checkpoints before the batch stops."""
+    queue, running = list(pending), {}
+    try:
+        while queue or running:
+            for slot in [s for s in range(slots) if s not in running][: len(queue)]:
+                running[slot] = start(queue.pop(0), slot, gpus, threads)
+                progress(jobs, slots)
+            for slot, (job, proc, t0, log) in list(running.items()):
+                if proc.poll() is not None:
+                    log.close()
+                    finish(job, proc.returncode, time.perf_counter() - t0)
+                    del running[slot]
+                    progress(jobs, slots)
+            time.sleep(POLL_SECONDS)
+    except KeyboardInterrupt:
+        for _job, proc, _, log in running.values():
+            proc.wait()
+            log.close()
+        raise
+
+
+def start(job: Job, slot: int, gpus: int, threads: int) -> tuple[Job, subprocess.Popen, float, object]:
+    """Start ``job`` as a subprocess writing to its log; numba's and OpenMP's pools get ``threads`` threads too, as
+    torch does (``--threads``), so that jobs side by side do not oversubscribe the cores."""
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS=str(threads))
+    if gpus:
+        env["CUDA_VISIBLE_DEVICES"] = str(slot % gpus)
+    log = open(job.log, "w", encoding="utf-8")  # noqa: SIM115 - closed when the job ends
+    job.status = "running"
+    proc = subprocess.Popen([*WORKER, *job.argv], stdout=log, stderr=subprocess.STDOUT, env=env)
+    return job, proc, time.perf_counter(), log
+
+
+def finish(job: Job, code: int, seconds: float) -> None:
+    """Record how ``job`` ended; a failure is one line on stderr."""
+    job.seconds = seconds
+    if code == 0:
+        job.status = "done"
+        return
+    job.status, job.line = "failed", failure_line(job.log, code)
+    print(f"batch: {Path(job.scene).name} after {Path(job.painting).name} failed: {job.line}", file=sys.stderr)
+
+
+def failure_line(log: Path, code: int) -> str:
+    """The last ``gstyle ...`` line of a failed job's log (its one-line error), else its last line."""
+    try:
+        text = log.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        text = ""
+    lines = [line.strip() for line in text.replace("\r", "\n").splitlines() if line.strip()]
+    said = [line for line in lines if line.startswith("gstyle ")]
+    return (said or lines or [f"exit status {code}"])[-1]
+
+
+def progress(jobs: list[Job], slots: int) -> None:
+    """The batch's line: jobs done, running, failed, and the time left from the median of the jobs finished now."""
+    count = {s: sum(job.status == s for job in jobs) for s in ("done", "done already", "running", "failed", "pending")}
+    times = [job.seconds for job in jobs if job.status == "done" and job.seconds is not None]
+    left = count["pending"] + count["running"]
+    eta = "-" if not times or not left else duration(statistics.median(times) * -(-left // slots))
+    print(f"batch: {count['done'] + count['done already']} of {len(jobs)} done ({count['done already']} already), "
+          f"{count['running']} running, {count['failed']} failed, ETA {eta}", file=sys.stderr)
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` as ``1 h 02 min``, ``3 min 05 s`` or ``42 s``."""
+    s = int(round(seconds))
+    if s >= 3600:
+        return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    return f"{s // 60} min {s % 60:02d} s" if s >= 60 else f"{s} s"
+
+
+def summary_path(job: Job) -> Path:
+    """The job's OUT.json."""
+    return companion(job.out, ".json")
