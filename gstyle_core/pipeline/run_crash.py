@@ -23,13 +23,12 @@ def where_the_run_is(engine: Any) -> str:
 def _preset_controls(engine: Any) -> dict[str, float]:
     """The controls' values the run's preset gives its scene and its levels (a calibrated 360° run with finer levels
     has weights of its own)."""
-    from .controls import read_controls
-    from .settings import resolve_settings
+    from .settings import preset_values
 
     s = engine.settings
-    return read_controls(resolve_settings(s.preset, s.scene_kind, engine.camera_count, defaults=s.defaults,
-                                         clip_available=engine.clip_name == "CLIP", working_width=s.working_width,
-                                         refine_widths=s.refine_widths))
+    return preset_values(s.preset, s.scene_kind, engine.camera_count, defaults=s.defaults,
+                         clip_available=engine.clip_name == "CLIP", working_width=s.working_width,
+                         refine_widths=s.refine_widths)
 
 
 def controls_in_force(engine: Any) -> str:
