@@ -50,6 +50,19 @@ def shown(ctx, view, cam, passes, key=("stylized",)):
     return read_rgb(fbo)
 
 
+def shown_built(ctx, view, clock, cam, renderer, frames=300):
+    """Frames of a still camera ``cam`` until ``view`` shows its build whole (at most ``frames``), the sorter idle
+    before each (the frames are quicker than a thread's wake-up on a busy machine); the last image shown."""
+    img = None
+    for _ in range(frames):
+        clock.t += 0.05
+        assert renderer.sorter.idle(30)
+        img = shown(ctx, view, cam, [ViewPass(renderer, "diffuse")])
+        if view.stats.shown_full:
+            break
+    return img
+
+
 def test_governor_lowers_scale_for_slow_frames_and_recovers():
     g = ResolutionGovernor(budget_ms=20.0, min_scale=0.25)
     for _ in range(10):
@@ -146,12 +159,7 @@ def test_moving_camera_renders_at_once_and_refines_when_still(ctx, scene):
         shown(ctx, view, camera(0.1 * i), [ViewPass(scene, "diffuse")])
     assert view.stats.immediate == 4 and view.stats.slices == 0
     cam = camera(0.3)
-    for _ in range(300):
-        clock.t += 0.05
-        assert scene.sorter.idle(30)  # the frames are quicker than a thread's wake-up on a busy machine
-        img = shown(ctx, view, cam, [ViewPass(scene, "diffuse")])
-        if view.stats.shown_full:
-            break
+    img = shown_built(ctx, view, clock, cam, scene)
     assert view.stats.slices > 0 and np.array_equal(img, one_pass(ctx, scene, cam))
 
 
@@ -266,12 +274,7 @@ def test_a_build_starts_once_its_order_is_sorted(ctx):
         shown(ctx, view, cam, [ViewPass(r, "diffuse")])
     assert view.stats.slices == 0 and view.building and view.stats.immediate == 1
     sort.gate.set()
-    for _ in range(300):
-        clock.t += 0.05
-        assert r.sorter.idle(30)  # the frames are quicker than a thread's wake-up on a busy machine
-        img = shown(ctx, view, cam, [ViewPass(r, "diffuse")])
-        if view.stats.shown_full:
-            break
+    img = shown_built(ctx, view, clock, cam, r)
     assert view.stats.slices > 0 and np.array_equal(img, one_pass(ctx, r, cam))
     r.release()
 
