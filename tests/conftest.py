@@ -123,3 +123,21 @@ def vgg():
 
     torch.manual_seed(0)
     return VGGFeatures().eval()
+
+
+@pytest.fixture
+def started_bridges():
+    """``start(bridge_class, factory, config, quit_timeout)``: a worker bridge of that class (the spawned process's
+    ``WorkerBridge`` or the thread's ``ThreadWorkerBridge``) on the engine ``factory`` builds from ``config``,
+    started; every bridge started is quit at the test's end."""
+    bridges = []
+
+    def start(bridge_class, factory, config: dict, quit_timeout: float = 5):
+        bridge = bridge_class(factory, config)
+        bridge.start()
+        bridges.append((bridge, quit_timeout))
+        return bridge
+
+    yield start
+    for bridge, timeout in bridges:
+        bridge.quit(timeout=timeout)

@@ -16,18 +16,9 @@ from gstyle_core.errors import one_line_error
 
 
 @pytest.fixture
-def bridge_factory():
-    bridges = []
-
-    def make(**config):
-        b = WorkerBridge(make_fake_engine, config)
-        b.start()
-        bridges.append(b)
-        return b
-
-    yield make
-    for b in bridges:
-        b.quit(timeout=5)
+def bridge_factory(started_bridges):
+    """A started ``WorkerBridge`` (a spawned process) on the fake engine built from the keywords."""
+    return lambda **config: started_bridges(WorkerBridge, make_fake_engine, config)
 
 
 def test_pause_really_stops_colour_updates_and_resume_continues(bridge_factory):

@@ -59,18 +59,11 @@ def DEMO_PATH():
 
 
 @pytest.fixture
-def worker():
-    bridges = []
-
-    def start(**config):
-        bridge = ThreadWorkerBridge(make_stylizer, {"style": str(DEFAULT_STYLE), **SMALL, **config})
-        bridge.start()
-        bridges.append(bridge)
-        return bridge
-
-    yield start
-    for bridge in bridges:
-        bridge.quit(timeout=30)
+def worker(started_bridges):
+    """A started studio worker (a thread) on the studio's own engine factory: the demo after the bundled painting at
+    ``SMALL`` settings, with the keywords' controls."""
+    return lambda **config: started_bridges(ThreadWorkerBridge, make_stylizer,
+                                            {"style": str(DEFAULT_STYLE), **SMALL, **config}, quit_timeout=30)
 
 
 class StylizeSteps:
