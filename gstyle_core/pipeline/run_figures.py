@@ -24,7 +24,7 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
                  display_width: int = 0) -> dict:
     """Quality figures on fixed evaluation views, before (input scene) and after (stylized scene); a list of
     paintings is measured with the engine's mix weights (``Evaluator``). ``display_width`` > 0 adds ``display``, the
-    speckle figure of the same views rendered that wide (``run_display_speckle``)."""
+    speckle figure of the same views rendered that wide (``run_display_speckle``) and the structure kept there."""
     from ..render_cli import render_scene_image
     from .evaluate import structure_kept
 
@@ -52,7 +52,9 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     if final_width > width:  # the run ended at a finer level: its figures there too
         out["at_final_width"] = width_figures(engine, scene, after_scene, style, vgg, n_views, final_width)
     if display_width and display_width > 0:
-        out["display"] = run_display_speckle(engine, scene, after_scene, style, n_views, display_width).to_dict()
+        renders = display_renders(engine, scene, after_scene, n_views, display_width)
+        display = run_display_speckle(engine, scene, after_scene, style, n_views, display_width, renders).to_dict()
+        out["display"] = {**display, "structure": structure_kept(*renders)}
     out["images"] = (np.concatenate(before, axis=1), np.concatenate(after, axis=1))
     return out
 
@@ -111,20 +113,28 @@ def run_texture_scale(engine, style, before, after, alpha, width: int):
     return texture_scale(before, after, [np.asarray(a) for a in alpha], paintings, side, weights)
 
 
-def run_display_speckle(engine, scene, after_scene, style, n_views: int, width: int):
-    """The speckle figure (``style/speckle.py``) of the evaluation views rendered ``width`` px wide: the fine share of
-    the chroma stylization added inside the scene against the painting's own at its matched size in those pixels (its
-    luminance with keep colours, where only that pattern is transferred)."""
+def display_renders(engine, scene, after_scene, n_views: int, width: int) -> tuple[list, list, list]:
+    """The evaluation views rendered ``width`` px wide: before (with its coverage, alpha) and after stylization."""
     from ..render_cli import render_scene_image
+
+    cams = evaluation_cameras(engine, n_views, width)
+    before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
+    return list(before), [render_scene_image(after_scene, c) for c in cams], list(alpha)
+
+
+def run_display_speckle(engine, scene, after_scene, style, n_views: int, width: int,
+                        renders: tuple[list, list, list] | None = None):
+    """The speckle figure (``style/speckle.py``) of the evaluation views rendered ``width`` px wide (``renders``:
+    those of ``display_renders`` when already made): the fine share of the chroma stylization added inside the scene
+    against the painting's own at its matched size in those pixels (its luminance with keep colours, where only that
+    pattern is transferred)."""
     from ..style.speckle import display_speckle
     from ..style.texture_scale import matched_side
 
     s = engine.settings
-    cams = evaluation_cameras(engine, n_views, width)
-    before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
-    after = [render_scene_image(after_scene, c) for c in cams]
+    before, after, alpha = renders or display_renders(engine, scene, after_scene, n_views, width)
     paintings = [style] if isinstance(style, np.ndarray) else list(style)
-    return display_speckle(list(before), after, [np.asarray(a) for a in alpha], paintings,
+    return display_speckle(before, after, [np.asarray(a) for a in alpha], paintings,
                            matched_side(s.working_width, s.style_scale, width),
                            None if len(paintings) == 1 else s.style_weights,
                            channels="luminance" if s.keep_colours else "chroma")
