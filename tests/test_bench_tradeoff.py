@@ -1,70 +1,104 @@
-"""Smoke test of ``bench/tradeoff.py --quick``: two tiny points on a tiny scene, CSV and RESULT line (seconds)."""
+"""The atlas (``bench/tradeoff.py``): end to end through ``gstyle batch`` on a tiny scene and painting (every column of
+its row filled), its fronts, merges and README markers (``bench/tradeoff_report.py``)."""
 
 from __future__ import annotations
 
 import csv
 import math
-import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
-from bench_cli import load_bench
-from synthetic import blob_scene
+from bench_cli import load_bench, tiny_bench_inputs
 
-from gstyle_core.io import save_scene
-
-TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 2, "refit_iterations": 2, "preprocess_rounds": 1}
+ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture
-def tradeoff(tmp_path, monkeypatch, vgg, no_clip_weights):
-    """The bench module on a 150-Gaussian scene, a 16 px style and a random VGG (no weights needed)."""
-    from PIL import Image
+@pytest.fixture(scope="module")
+def report():
+    return load_bench("tradeoff_report")
 
-    from gstyle_core.style import vgg as vgg_module
 
-    module = load_bench("tradeoff")
-    scene, style = tmp_path / "tiny.ply", tmp_path / "style.png"
-    save_scene(blob_scene(150, seed=2), scene)
-    Image.fromarray((np.random.default_rng(0).uniform(size=(16, 16, 3)) * 255).astype(np.uint8)).save(style)
-    monkeypatch.setattr(module, "SCENES", {"demo": (str(scene), None)})
-    monkeypatch.setattr(module, "STYLES", {"starry": style})
-    monkeypatch.setattr(module, "QUICK_SWEEP", [("w32", "preview", {**TINY, "working_width": 32}),
-                                                ("w48", "preview", {**TINY, "working_width": 48})])
-    monkeypatch.setattr(module, "EVAL_WIDTH", 48)
-    monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: vgg)
+def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_weights, monkeypatch, tmp_path,
+                                                                  capsys):
+    from gstyle_core.pipeline import cli
+
+    tradeoff = load_bench("tradeoff")
+    style = np.random.default_rng(0).uniform(size=(16, 16, 3)).astype(np.float32)
+    scene, painting = tiny_bench_inputs(cli, vgg, style, tmp_path, monkeypatch)  # every job: TINY settings
+    monkeypatch.setattr(tradeoff, "SCENES", {"tiny": (scene, None)})
+    monkeypatch.setattr(tradeoff, "PAINTINGS", {"noise": painting})
+    monkeypatch.setattr(tradeoff, "DISPLAY_WIDTH", 64)
+    out, work = tmp_path / "atlas.csv", tmp_path / "work"
+    argv = ["--tiers", "preview", "--devices", "cpu-fp32", "--scenes", "tiny", "--paintings", "noise",
+            "--repeats", "2", "--threads", "1", "--work", str(work), "--out", str(out)]
     threads = torch.get_num_threads()
-    yield module
-    torch.set_num_threads(threads)  # main() sets the process' torch threads
-
-
-def test_quick_sweep_writes_both_points_and_the_result_line(tradeoff, tmp_path, monkeypatch, capsys):
-    out = tmp_path / "tradeoff"
-    monkeypatch.setattr(sys, "argv", ["tradeoff.py", "--quick", "--threads", "1", "--out", str(out)])
-    tradeoff.main()
-    printed = capsys.readouterr().out
-    with out.with_suffix(".csv").open(newline="") as fh:
+    try:
+        assert tradeoff.main(argv) == 0
+    finally:
+        torch.set_num_threads(threads)
+    printed = capsys.readouterr().out.strip().splitlines()
+    assert printed[-1] == "RESULT points=1 pareto=1 groups=1"
+    for k in (1, 2):  # one batch per repeat, each with its job's outputs and batch.csv
+        folder = work / "preview_cpu-fp32_as_shipped" / f"repeat{k}"
+        assert (folder / "batch.csv").is_file() and (folder / "tiny__style.ply").is_file()
+    with out.open(newline="") as fh:
         rows = list(csv.DictReader(fh))
-    assert [r["label"] for r in rows] == ["w32", "w48"]
-    assert {r["group"] for r in rows} == {"demo / starry"}
-    assert [int(r["working_width"]) for r in rows] == [32, 48]
-    for r in rows:
-        assert float(r["seconds"]) > 0 and int(r["steps"]) > 0
-        assert math.isfinite(float(r["nnfm_drop"])) and math.isfinite(float(r["consistency"]))
-        assert 0.0 <= float(r["coarse_added"]) <= 1.0 and float(r["coarse_ratio"]) >= 0.0
-    assert any(r["pareto"] == "True" for r in rows)
-    assert printed.strip().splitlines()[-1].startswith("RESULT points=2 pareto=")
-    monkeypatch.setattr(sys, "argv", ["tradeoff.py", "--table", "--out", str(out)])
-    tradeoff.main()
+    assert len(rows) == 1
+    row = rows[0]
+    assert [k for k, v in row.items() if v == ""] == []  # every column filled
+    assert (row["tier"], row["device"], row["scene"], row["painting"], row["knob"]) == (
+        "preview", "cpu-fp32", "tiny", "noise", "as shipped")
+    assert int(row["repeats"]) == 2 and int(row["working_width"]) == 32 and int(row["end_width"]) == 256
+    assert 0 < float(row["seconds_min"]) <= float(row["seconds"]) <= float(row["seconds_max"])
+    for key in ("nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "speckle_1024", "structure_1024",
+                "coarse_ratio", "colour", "consistency", "consistency_input", "load_before", "load_after"):
+        assert math.isfinite(float(row[key])), key
+    assert row["nnfm_drop"] == row["nnfm_drop_end"]  # a preview ends at the width it is measured at
+    assert "cores" in row["machine"] and row["torch"] == torch.__version__
+    try:  # the plot needs the bench extra (matplotlib); without it the atlas says so and writes the CSV all the same
+        import matplotlib  # noqa: F401
+    except ImportError:
+        assert "matplotlib not installed (pip install -e .[bench]): no plot" in printed
+    else:
+        assert (tmp_path / "atlas_cpu-fp32.png").is_file()
+    assert tradeoff.main(["--table", "--out", str(out)]) == 0
     table = capsys.readouterr().out.strip().splitlines()
-    assert [line.split(" | ")[1] for line in table] == ["w32", "w48"]
-    assert all(line.startswith("| demo / starry |") and line.count("|") == 12 for line in table)  # 11 columns
+    assert len(table) == 3 and table[2].startswith("| preview | cpu-fp32 | tiny / noise |")
 
 
-def test_a_point_that_loses_the_structure_is_never_on_the_front(tradeoff):
-    points = [{"seconds": 10.0, "nnfm_drop": 0.30, "structure": 0.8},
-              {"seconds": 10.0, "nnfm_drop": 0.45, "structure": 0.3},  # more style, scene lost
-              {"seconds": 20.0, "nnfm_drop": 0.35, "structure": 0.6},
-              {"seconds": 30.0, "nnfm_drop": 0.32}]  # measured before the structure figure: dominated on time
-    assert tradeoff.pareto(points) == [True, False, True, False]
+def test_a_point_that_loses_the_structure_at_1024_px_is_never_on_the_front(report):
+    points = [{"seconds": 10.0, "nnfm_drop_end": 0.30, "structure_1024": 0.8},
+              {"seconds": 10.0, "nnfm_drop_end": 0.45, "structure_1024": 0.3},  # more style, scene lost
+              {"seconds": 20.0, "nnfm_drop_end": 0.35, "structure_1024": 0.6},
+              {"seconds": 30.0, "nnfm_drop_end": 0.32, "structure_1024": 0.7}]  # slower and less than the third
+    assert report.pareto(points) == [True, False, True, False]
+
+
+def test_merge_replaces_the_points_measured_again_and_keeps_the_others(report):
+    def point(tier, device, seconds):
+        return {"tier": tier, "device": device, "scene": "s", "painting": "p", "knob": "as shipped",
+                "seconds": seconds}
+
+    old = [point("preview", "cpu-fp32", 30.0), point("balanced", "cpu-fp32", 90.0)]
+    new = [point("preview", "cpu-fp32", 28.0), point("preview", "cpu-bf16", 22.0)]
+    assert [(r["tier"], r["device"], r["seconds"]) for r in report.merged(old, new)] == [
+        ("balanced", "cpu-fp32", 90.0), ("preview", "cpu-fp32", 28.0), ("preview", "cpu-bf16", 22.0)]
+
+
+def test_a_readme_marker_reads_its_row_min_max_and_percent(report):
+    rows = [{"tier": "preview", "device": "cpu-fp32", "scene": s, "painting": "starry", "knob": "as shipped",
+             "seconds": t, "nnfm_drop": d} for s, t, d in (("a", 31.4, 0.3312), ("b", 44.6, 0.291))]
+    text = "takes 31 s<!-- atlas preview cpu-fp32 a starry seconds --> and 29.1<!-- atlas preview cpu-fp32 * * " \
+           "nnfm_drop min -->–33 %<!-- atlas preview cpu-fp32 * * nnfm_drop max --> up to 45 s<!-- atlas preview " \
+           "cpu-fp32 * starry seconds max -->"
+    found = report.readme_figures(text)
+    assert [n for n, _ in found] == ["31", "29.1", "33", "45"]
+    assert [report.atlas_figure(rows, words, len(n.partition(".")[2])) for n, words in found] == [
+        "31", "29.1", "33", "45"]
+    with pytest.raises(ValueError, match="say min or max"):
+        report.atlas_figure(rows, ["preview", "cpu-fp32", "*", "starry", "seconds"], 0)
+    with pytest.raises(ValueError, match="no row"):
+        report.atlas_figure(rows, ["final", "cpu-fp32", "a", "starry", "seconds"], 0)
+

@@ -81,6 +81,7 @@ def plan_jobs(args: argparse.Namespace, out_dir: Path) -> list[Job]:
     if args.scene is not None or args.style:
         raise GStyleError("give the scenes with --scenes and the paintings with --styles")
     options = stylize_options(getattr(args, "argv", []))
+    own_cameras = getattr(args, "scene_cameras", None) or {}  # a caller's hook (bench/tradeoff.py): scene -> cameras
     jobs, names = [], set()
     for scene in args.scenes:
         for painting in args.styles:
@@ -90,7 +91,8 @@ def plan_jobs(args: argparse.Namespace, out_dir: Path) -> list[Job]:
                                   "different names")
             names.add(name)
             out = out_dir / f"{name}.ply"
-            argv = ["stylize", scene, "--style", painting, *options, "--out", str(out)]
+            cameras = ["--cameras", own_cameras[scene]] if scene in own_cameras else []
+            argv = ["stylize", scene, "--style", painting, *cameras, *options, "--out", str(out)]
             if stylize_checkpoint_path(out).exists() and not args.force:
                 argv.append("--resume")
             done = out.exists() and not args.force

@@ -1,0 +1,207 @@
+"""The atlas's CSV, Pareto fronts, plots and tables (``bench/tradeoff.py`` writes and reads them through this), and the
+README's figures marked as coming from it (``readme_figures``, checked by ``tests/test_bench_tradeoff.py``).
+
+A README figure is marked by an HTML comment right after it, which Markdown does not show:
+``30 s<!-- atlas preview cpu-fp32 fountain starry seconds -->``: the point's tier, device, scene, painting (``*``:
+any; the knob is "as shipped") and column, then optionally ``min`` or ``max`` over the rows it matches. A figure is
+written with the decimals the README gives it, an NNFM drop (``PERCENT``) as a percentage.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from pathlib import Path
+
+KEY = ("tier", "device", "scene", "painting", "knob")  # a point; rows of the same key replace each other (--merge)
+FIGURES = ("seconds", "seconds_min", "seconds_max", "repeats", "gaussians", "working_width", "end_width",
+           "nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "speckle_1024", "structure_1024",
+           "coarse_ratio", "colour", "consistency", "consistency_input")
+CONTEXT = ("machine", "torch", "measured", "load_before", "load_after", "pareto")
+COLUMNS = KEY + FIGURES + CONTEXT
+INTEGERS = ("repeats", "gaussians", "working_width", "end_width")
+PERCENT = ("nnfm_drop", "nnfm_drop_end")  # README figures written as percentages
+MIN_STRUCTURE = 0.5  # edge correlation (at 1024 px) below which the scene is considered lost (issue #14's threshold)
+SHIPPED = "as shipped"
+MARK = re.compile(r"(\d+(?:\.\d+)?)\s*(?:%|s)?\s*<!-- atlas ([^>]*?) -->")
+
+
+def keeps_structure(point: dict) -> bool:
+    """Whether the run kept the scene's structure at the display's size (1024 px; rows without it count)."""
+    value = point.get("structure_1024")
+    return value in (None, "") or float(value) >= MIN_STRUCTURE
+
+
+def pareto(points: list[dict]) -> list[bool]:
+    """True for points that keep the structure and that no such point beats on both time (lower) and NNFM drop
+    where the run ends (higher): a stronger style bought by losing the scene is not a trade-off."""
+    kept = [p for p in points if keeps_structure(p)]
+
+    def beats(q: dict, p: dict) -> bool:
+        t_q, t_p, d_q, d_p = (float(q["seconds"]), float(p["seconds"]), float(q["nnfm_drop_end"]),
+                              float(p["nnfm_drop_end"]))
+        return q is not p and t_q <= t_p and d_q >= d_p and (t_q < t_p or d_q > d_p)
+
+    return [keeps_structure(p) and not any(beats(q, p) for q in kept) for p in points]
+
+
+def group_name(row: dict) -> str:
+    """The front a point belongs to: its device, scene and painting (tiers and knobs are its points)."""
+    return f"{row['device']}: {row['scene']} / {row['painting']}"
+
+
+def mark_fronts(rows: list[dict]) -> None:
+    """Set each row's ``pareto`` flag within its group (``group_name``)."""
+    for name in {group_name(r) for r in rows}:
+        points = [r for r in rows if group_name(r) == name]
+        for r, flag in zip(points, pareto(points), strict=True):
+            r["pareto"] = flag
+
+
+def read_rows(path: Path) -> list[dict]:
+    """The CSV's rows, numbers back to numbers ({} cells left out); [] when there is no CSV yet."""
+    if not path.is_file():
+        return []
+    rows = []
+    with path.open(newline="", encoding="utf-8") as fh:
+        for raw in csv.DictReader(fh):
+            row: dict = {}
+            for k, v in raw.items():
+                if v in ("", None):
+                    continue
+                if k in FIGURES or k in ("load_before", "load_after"):
+                    row[k] = int(v) if k in INTEGERS else float(v)
+                else:
+                    row[k] = v == "True" if k == "pareto" else v
+            rows.append(row)
+    return rows
+
+
+def merged(old: list[dict], new: list[dict]) -> list[dict]:
+    """``old`` with the points ``new`` measured again replaced, the new ones added (in their order)."""
+    keys = {tuple(r[k] for k in KEY) for r in new}
+    return [r for r in old if tuple(r[k] for k in KEY) not in keys] + new
+
+
+def write_rows(rows: list[dict], path: Path) -> None:
+    """Mark the fronts and write the CSV atomically (every column, empty where a row has nothing)."""
+    from gstyle_core.atomic import atomic_write_text
+
+    mark_fronts(rows)
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({k: (f"{r[k]:.5g}" if isinstance(r.get(k), float) else r.get(k, "")) for k in COLUMNS})
+    atomic_write_text(path, buf.getvalue())
+
+
+def plot(rows: list[dict], folder: Path, stem: str) -> list[Path]:
+    """A plot per device (``folder/STEM_DEVICE.png``): NNFM drop where the run ends against wall time, a panel per
+    scene / painting, the Pareto front in red, points that lose the structure at 1024 px as ×. [] without
+    matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib not installed (pip install -e .[bench]): no plot")
+        return []
+    from gstyle_core.atomic import atomic_write
+
+    written = []
+    for device in sorted({r["device"] for r in rows}):
+        mine = [r for r in rows if r["device"] == device]
+        groups = sorted({(r["scene"], r["painting"]) for r in mine})
+        cols = min(3, len(groups))
+        nrows = -(-len(groups) // cols)
+        fig, axes = plt.subplots(nrows, cols, figsize=(5.0 * cols, 3.8 * nrows), squeeze=False)
+        for ax in axes.flat[len(groups):]:
+            ax.set_visible(False)
+        for ax, (scene, painting) in zip(axes.flat, groups, strict=False):
+            draw_group(ax, [r for r in mine if (r["scene"], r["painting"]) == (scene, painting)])
+            ax.set_title(f"{scene} / {painting}", fontsize=10)
+        fig.suptitle(f"{device}: {mine[0].get('machine', '')}", fontsize=9)
+        fig.tight_layout()
+        path = folder / f"{stem}_{device}.png"
+        with atomic_write(path, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=100)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
+def point_label(r: dict) -> str:
+    """A point's name on a plot and in the table: its tier, and its knob where it is not as shipped."""
+    return r["tier"] if r["knob"] == SHIPPED else f"{r['tier']}, {r['knob']}"
+
+
+def draw_group(ax, points: list[dict]) -> None:
+    """One panel: the points (× where the structure is lost), their names, the front."""
+    kept = [r for r in points if keeps_structure(r)]
+    lost = [r for r in points if not keeps_structure(r)]
+    ax.scatter([r["seconds"] for r in kept], [100 * r["nnfm_drop_end"] for r in kept], c="tab:blue", s=22)
+    if lost:
+        ax.scatter([r["seconds"] for r in lost], [100 * r["nnfm_drop_end"] for r in lost], c="tab:gray", s=30,
+                   marker="x", label=f"structure at 1024 px < {MIN_STRUCTURE:g}")
+    for r in points:
+        if "seconds_min" in r and "seconds_max" in r:
+            ax.plot([r["seconds_min"], r["seconds_max"]], [100 * r["nnfm_drop_end"]] * 2, c="tab:blue", lw=1)
+        ax.annotate(point_label(r), (r["seconds"], 100 * r["nnfm_drop_end"]), fontsize=7, xytext=(3, 3),
+                    textcoords="offset points")
+    front = sorted((r for r in points if r.get("pareto")), key=lambda r: r["seconds"])
+    ax.plot([r["seconds"] for r in front], [100 * r["nnfm_drop_end"] for r in front], "-o", c="tab:red", ms=5,
+            label="Pareto front")
+    ax.set_xlabel("wall time (s, median of the repeats)")
+    ax.set_ylabel("NNFM drop where the run ends (%)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+
+
+TABLE_HEAD = ("tier / knob", "device", "scene / painting", "s (min–max)", "drop 256 px", "structure 256 px",
+              "end px: drop / structure", "1024 px: structure / speckle", "coarse", "colour",
+              "consistency (input)", "front")
+
+
+def markdown_table(rows: list[dict]) -> list[str]:
+    """The table of docs/tradeoffs.md from the CSV's rows."""
+    def num(r: dict, key: str, fmt: str) -> str:
+        return "—" if r.get(key) in (None, "") else format(float(r[key]), fmt)
+
+    lines = ["| " + " | ".join(TABLE_HEAD) + " |", "|" + "---|" * len(TABLE_HEAD)]
+    for r in rows:
+        spread = (f" ({num(r, 'seconds_min', '.0f')}–{num(r, 'seconds_max', '.0f')})"
+                  if int(r.get("repeats", 1)) > 1 else "")
+        lines.append(
+            f"| {point_label(r)} | {r['device']} | {r['scene']} / {r['painting']} | {num(r, 'seconds', '.0f')}{spread}"
+            f" | {100 * float(r['nnfm_drop']):.1f} % | {num(r, 'structure', '.2f')} | {r['end_width']}: "
+            f"{100 * float(r['nnfm_drop_end']):.1f} % / {num(r, 'structure_end', '.2f')} | "
+            f"{num(r, 'structure_1024', '.2f')} / {num(r, 'speckle_1024', '.2f')} | {num(r, 'coarse_ratio', '.2f')} | "
+            f"{num(r, 'colour', '.3f')} | {num(r, 'consistency', '.4f')} ({num(r, 'consistency_input', '.4f')}) | "
+            f"{'yes' if r.get('pareto') else ''} |")
+    return lines
+
+
+def readme_figures(text: str) -> list[tuple[str, list[str]]]:
+    """The marked figures of a Markdown text: (the number as written, the marker's words)."""
+    return [(m.group(1), m.group(2).split()) for m in MARK.finditer(text)]
+
+
+def atlas_figure(rows: list[dict], words: list[str], decimals: int) -> str:
+    """What the atlas's rows say for a marker's ``words`` (tier device scene painting column [min|max]), written as
+    the README writes it: ``decimals`` places, an NNFM drop in percent. Raises ValueError for a marker no row
+    matches."""
+    if len(words) not in (5, 6) or len(words) == 6 and words[5] not in ("min", "max"):
+        raise ValueError(f"atlas marker {' '.join(words)!r}: want tier device scene painting column [min|max]")
+    pattern, column = words[:4], words[4]
+    matching = [r for r in rows if r.get("knob") == SHIPPED and column in r
+                and all(w == "*" or r[k] == w for k, w in zip(KEY[:4], pattern, strict=True))]
+    if not matching:
+        raise ValueError(f"atlas marker {' '.join(words)!r}: no row of the atlas has it")
+    values = [float(r[column]) for r in matching]
+    if len(values) > 1 and len(words) == 5:
+        raise ValueError(f"atlas marker {' '.join(words)!r} matches {len(values)} rows: say min or max")
+    value = (min(values) if words[-1] == "min" else max(values)) if len(words) == 6 else values[0]
+    return f"{100 * value if column in PERCENT else value:.{decimals}f}"
