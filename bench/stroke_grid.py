@@ -1,4 +1,5 @@
-"""A labelled grid of the pictures ``bench/tradeoff.py --sweep scale --pictures DIR`` saved: one row per setting
+"""A labelled grid of the pictures ``bench/tradeoff.py --sweep scale --pictures DIR`` saved (the
+script before the atlas: ``git show b66d182:bench/tradeoff.py``): one row per setting
 found (as shipped; coherent strokes off; broad strokes off), one column per stroke size, the input first.
 
     .venv/bin/python bench/stroke_grid.py DIR/biker_starry --out docs/stroke_size_biker.jpg [--crop 0.5]

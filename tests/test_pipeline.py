@@ -50,8 +50,8 @@ def test_settings_follow_the_paper_per_scene_kind():
     assert (ff.weights.nnfm, s360.weights.nnfm) == (100.0, 10.0)
     assert (ff.weights.clip, ff.weights.content, ff.weights.tv, ff.weights.multiscale) == (10.0, 0.05, 1e-4, 0.0)
     assert (ff.lr_start, ff.lr_end, s360.lr_start, s360.lr_end) == (1e-1, 1e-2, 1e-2, 5e-3)
-    # final's budgets are the CPU's (docs/tradeoffs.md: the paper's 5/10 rounds of max(5 n, 2000) iterations took 45
-    # of its 68 minutes on the demo); it goes on coarse to fine to 1024 px
+    # final's budgets are the CPU's (docs/tradeoffs-history.md: the paper's 5/10 rounds of max(5 n, 2000) iterations
+    # took 45 of its 68 minutes on the demo); it goes on coarse to fine to 1024 px
     assert (ff.preprocess_rounds, s360.preprocess_rounds) == (3, 3)
     assert (ff.refit_iterations, s360.refit_iterations) == (300, 300)
     assert ff.refine_widths == s360.refine_widths == (512, 1024) and ff.working_width == 256
@@ -336,7 +336,8 @@ def test_raster_backend_setting_reaches_ground_truth_and_refits_with_the_same_re
 
 
 def test_forward_preview_children_keep_the_parents_footprint():
-    """The preview's short refit cannot regrow children at the reference's 1/16 scale (docs/tradeoffs.md: fern)."""
+    """The preview's short refit cannot regrow children at the reference's 1/16 scale (docs/tradeoffs-history.md:
+    fern)."""
     assert resolve_settings("preview", "forward", 20).split_scale_divisor == 1.6
     assert resolve_settings("preview", "forward", 20, defaults="paper").split_scale_divisor == 1.6
     assert resolve_settings("balanced", "forward", 20).split_scale_divisor == 16.0

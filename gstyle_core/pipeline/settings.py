@@ -133,7 +133,8 @@ KIND_DEFAULTS = {
 
 # CPU budgets. Rounds/iterations for "final" follow the paper (rounds: 5 forward-facing, 10 for 360°).
 PRESETS = {
-    # preview = the "epochs 3" point of bench/tradeoff.py: on the Pareto front of every group measured (README).
+    # preview = the "epochs 3" point of the old bench/tradeoff.py (docs/tradeoffs-history.md): on the Pareto front of
+    # every group measured then.
     # Splits happen at fractions of the stylization (split_at), so every preset performs them.
     "preview": dict(working_width=192, epochs=3.0, min_steps=30, preprocess_rounds=1, refit_iterations=60,
                     max_views=16),
@@ -144,7 +145,7 @@ PRESETS = {
     "final": dict(working_width=256, epochs=10.0, min_steps=300, preprocess_rounds=3, refit_iterations=300,
                   max_views=10_000, refine_widths=(512, 1024), refine_epochs=6.0),
 }
-# Defaults for the display's size, every scene kind and both ``defaults`` (docs/tradeoffs.md, "At the display's
+# Defaults for the display's size, every scene kind and both ``defaults`` (docs/tradeoffs-history.md, "At the display's
 # size"): the colour matches map the broad colours and keep each Gaussian's finer difference unscaled, and the
 # colour-smoothness term (λ per λ_NNFM) keeps single splats from taking hues of their own. ``match_detail_px=0`` and
 # ``lambda_chroma_tv=0`` give the paper's plain match and objective.

@@ -4,8 +4,8 @@ At the working width only the blend of the Gaussians inside one working pixel is
 each Gaussian's own colour shows as a speck (``style/speckle.py`` measures it). A finer level continues the
 optimisation at ``width`` px (Gatys et al.'s coarse-to-fine: the large structure comes from the coarse level, the
 fine level adds what its pixels can show), with the painting matched at the stroke size × ``width`` so strokes keep
-their size in the scene. Two ways to reach the finer pixels (``settings.refine_mode``; docs/tradeoffs.md measures
-them):
+their size in the scene. Two ways to reach the finer pixels (``settings.refine_mode``; docs/tradeoffs-history.md
+measures them):
 
 * ``crops``: every other optimiser step renders, for each of its views, a random window of the view at ``width`` px
   as large as a working-width view (a crop step costs what a working-width step costs) and takes the NNFM, content and
