@@ -25,8 +25,8 @@ edges kept, refine widths and mode) on ``fountain / starry`` at the first device
 cores, GPU or none), torch's version, the date and the load average before and after their group.
 
 Writes ``docs/atlas.csv`` (``--merge``: the rows of other points kept) and ``docs/atlas_DEVICE.png`` (NNFM drop
-where the run ends against time, the Pareto front per scene / painting among the points that keep the structure at
-1024 px); ``--replot`` redraws from the CSV, ``--table`` prints docs/tradeoffs.md's table. ``RESULT`` line last.
+at 256 px against time, the Pareto front per scene / painting among the points that keep the structure at 1024 px);
+``--replot`` redraws from the CSV, ``--table`` prints docs/tradeoffs.md's table. ``RESULT`` line last.
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """The atlas (``bench/tradeoff.py``): end to end through ``gstyle batch`` on a tiny scene and painting (every column of
-its row filled), its fronts, merges and README markers (``bench/tradeoff_report.py``)."""
+its row filled), its fronts and merges (``bench/tradeoff_report.py``), and the README's figures against the atlas CSV
+the repository ships (``docs/atlas.csv``)."""
 
 from __future__ import annotations
 
@@ -69,10 +70,10 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
 
 
 def test_a_point_that_loses_the_structure_at_1024_px_is_never_on_the_front(report):
-    points = [{"seconds": 10.0, "nnfm_drop_end": 0.30, "structure_1024": 0.8},
-              {"seconds": 10.0, "nnfm_drop_end": 0.45, "structure_1024": 0.3},  # more style, scene lost
-              {"seconds": 20.0, "nnfm_drop_end": 0.35, "structure_1024": 0.6},
-              {"seconds": 30.0, "nnfm_drop_end": 0.32, "structure_1024": 0.7}]  # slower and less than the third
+    points = [{"seconds": 10.0, "nnfm_drop": 0.30, "structure_1024": 0.8},
+              {"seconds": 10.0, "nnfm_drop": 0.45, "structure_1024": 0.3},  # more style, scene lost
+              {"seconds": 20.0, "nnfm_drop": 0.35, "structure_1024": 0.6},
+              {"seconds": 30.0, "nnfm_drop": 0.32, "structure_1024": 0.7}]  # slower and less than the third
     assert report.pareto(points) == [True, False, True, False]
 
 
@@ -102,3 +103,11 @@ def test_a_readme_marker_reads_its_row_min_max_and_percent(report):
     with pytest.raises(ValueError, match="no row"):
         report.atlas_figure(rows, ["final", "cpu-fp32", "a", "starry", "seconds"], 0)
 
+
+def test_the_readmes_figures_are_the_atlas_csvs(report):
+    rows = report.read_rows(ROOT / "docs" / "atlas.csv")
+    found = report.readme_figures((ROOT / "README.md").read_text(encoding="utf-8"))
+    assert len(found) >= 4, "the README's times and figures are marked <!-- atlas ... -->"
+    wrong = [(number, " ".join(words), report.atlas_figure(rows, words, len(number.partition(".")[2])))
+             for number, words in found]
+    assert [w for w in wrong if w[0] != w[2]] == []
