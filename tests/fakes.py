@@ -294,6 +294,20 @@ def small_studio(window, monkeypatch, tmp_path, factory=keep_small_stylizer):
                      output_dir=tmp_path / "out", worker_mode="thread")
 
 
+def still_studio(window, tmp_path, size: tuple[int, int]):
+    """A studio without an engine on a 50-Gaussian scene seen by one camera of ``size``; outputs in ``tmp_path/out``,
+    recent folders in ``tmp_path/recent.json``."""
+    from synthetic import blob_scene, look_at_camera
+
+    from app.studio import LoadedScene, StudioApp
+
+    loaded = LoadedScene(str(tmp_path / "first.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), *size)])
+    app = StudioApp(window.ctx, loaded=loaded, style_path=None, engine_factory=None, engine_config={},
+                    output_dir=tmp_path / "out")
+    app.recent_file = tmp_path / "recent.json"
+    return app
+
+
 def ring_studio(window, tmp_path, factory=make_fake_engine, snapshots: int = 1):
     """A studio on a 150-Gaussian ring scene with 4 ring cameras whose engine (``factory``, ``n=150``) runs in a
     worker thread, started and past its first ``snapshots`` snapshots; outputs go to ``tmp_path``."""

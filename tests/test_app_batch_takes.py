@@ -13,10 +13,10 @@ pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
 from batch_worker import use_tiny_engine  # noqa: E402
-from synthetic import blob_scene, look_at_camera  # noqa: E402
+from fakes import still_studio  # noqa: E402
+from synthetic import blob_scene  # noqa: E402
 from test_batch import make_inputs  # noqa: E402
 
-from app.studio import LoadedScene, StudioApp  # noqa: E402
 from app.takes import TakeShelf  # noqa: E402
 from gstyle_core.cli import run  # noqa: E402
 from gstyle_core.errors import GStyleError  # noqa: E402
@@ -62,10 +62,7 @@ def save_export(path: Path) -> Path:
 
 @pytest.fixture
 def studio(window, tmp_path):
-    loaded = LoadedScene(str(tmp_path / "first.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), W, H)])
-    app = StudioApp(window.ctx, loaded=loaded, style_path=None, engine_factory=None, engine_config={},
-                    output_dir=tmp_path / "out")
-    app.recent_file = tmp_path / "recent.json"
+    app = still_studio(window, tmp_path, (W, H))
     yield app
     app.close()
 
