@@ -74,11 +74,13 @@ class LoadedScene:
     scene: GaussianScene
     cameras: list[Camera]
     generated_cameras: bool = False  # the cameras were made up around the scene (a bare scene file), not its own
+    frame_box: tuple[Any, Any] | None = None  # a result's: its input's box, recorded in its OUT.json
 
 
 def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) -> LoadedScene:
     """Load a scene file (default: the bundled demo) and its cameras (given, else generated)."""
     from gstyle_core.assets import DEMO_SCENE
+    from gstyle_core.cameras.recorded import record_box
     from gstyle_core.render_cli import load_scene_and_cameras
 
     path = Path(scene_path) if scene_path else DEMO_SCENE
@@ -86,7 +88,8 @@ def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) ->
         what = "scene file" if scene_path else "bundled demo scene"
         raise GStyleError(f"{what} not found: {path}")
     scene, _report, cams = load_scene_and_cameras(scene_path, cameras_path)
-    return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras), cams.source.startswith("generated"))
+    return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras), cams.source.startswith("generated"),
+                       record_box(getattr(cams, "generated", None)))
 
 
 class OpenFiles:
