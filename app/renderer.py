@@ -1,6 +1,10 @@
 """GL splat renderer: owns the GL objects that draw one set of Gaussians with one or more colour layers.
 
-Per-Gaussian data lives in RGBA32F textures (4096 Gaussians per row). Drawing takes two passes:
+Per-Gaussian data lives in textures (4096 Gaussians per row) of one of two layouts (``splat_data.LAYOUTS``):
+"compact" (the default: means and opacities float32, quaternions, scales, colours and SH coefficients half
+floats; 32 bytes of geometry a Gaussian, 8 a colour layer, 96 for SH of degree 3) or "float32" (RGBA32F
+throughout: 64, 16 and 192 bytes), kept as the reference the compact one is compared with. Drawing takes two
+passes:
 
 * projection (``shaders/splat_project.vert``, transform feedback): one vertex-shader invocation per Gaussian, in
   back-to-front order, writes its 2D centre, conic, opacity and quad axes into a buffer. It runs only when the
@@ -39,15 +43,17 @@ from gstyle_core.cameras.camera import Camera
 from gstyle_core.scene import used_sh_degree
 
 from .depth_sort import DEFAULT_BITS, DepthSorter, SortRequest, SortResult
-from .shader_loader import program_sources, shader_source
+from .shader_loader import program_sources, shader_source, with_defines
 from .splat_data import (
     TEXTURE_WIDTH,
     check_geometry,
+    check_layout,
     colors_from_arrays,
     geometry_textures,
     importance_order,
     pack_rgba,
     sh_texture_layers,
+    texture_dtype,
     texture_rows,
 )
 
@@ -63,11 +69,15 @@ SH_UNIT = 4  # texture unit of the SH coefficients in the projection pass (0-3: 
 class SplatRenderer:
     """Draw Gaussians into a moderngl framebuffer, matching ``gstyle_core.raster.rasterize``'s maths."""
 
-    def __init__(self, ctx: moderngl.Context, sorter: DepthSorter | None = None) -> None:
+    def __init__(self, ctx: moderngl.Context, sorter: DepthSorter | None = None, layout: str = "compact") -> None:
         self.ctx = ctx
+        self.layout = check_layout(layout)
+        self._dtype = texture_dtype(layout)  # of the colour and SH textures
+        project = shader_source("splat_project.vert")
         self.program = ctx.program(**program_sources("splat"))
-        self.project_program = ctx.program(vertex_shader=shader_source("splat_project.vert"),
-                                           varyings=list(PROJECTED_VARYINGS))
+        self.project_program = ctx.program(
+            vertex_shader=with_defines(project, "COMPACT_GEOMETRY") if layout == "compact" else project,
+            varyings=list(PROJECTED_VARYINGS))
         self._index_buffer = ctx.buffer(reserve=4)
         self._projected = ctx.buffer(reserve=PROJECTED_STRIDE)
         self._vao = ctx.vertex_array(self.program, [(self._projected, "2f 4f 4f 3f", "in_center", "in_conic", "in_axes",
@@ -75,6 +85,7 @@ class SplatRenderer:
         self._project_vao = ctx.vertex_array(self.project_program, [(self._index_buffer, "1i", "in_index")])
         self._projected_for: tuple | None = None
         self._geometry: list[moderngl.Texture] = []
+        self._scale_unit = 1.0  # what the stored scales are multiplied by (compact layout: 2^-k)
         self._layers: dict[str, moderngl.Texture] = {}
         self._means = np.zeros((0, 3), np.float32)
         self._by_importance = np.zeros(0, np.int32)  # Gaussians most important first (reduced detail keeps a prefix)
@@ -129,10 +140,10 @@ class SplatRenderer:
     def update_geometry(self, arrays: Mapping[str, np.ndarray]) -> None:
         """Upload new geometry; colour layers whose length no longer matches are dropped."""
         n = check_geometry(arrays)
-        data = geometry_textures(arrays)
+        data, self._scale_unit = geometry_textures(arrays, self.layout)
         if self._geometry and self._geometry[0].size[1] == data[0].shape[0]:
             for tex, content in zip(self._geometry, data, strict=True):
-                tex.write(content.tobytes())
+                tex.write(content)
         else:
             for tex in self._geometry:
                 tex.release()
@@ -158,10 +169,10 @@ class SplatRenderer:
             raise ValueError(f"colours must have shape [{self.count}, 3], got {list(colors.shape)}")
         if layer == SH_LAYER:
             raise ValueError(f"layer name {SH_LAYER!r} is reserved for SH colours")
-        content = pack_rgba(np.nan_to_num(colors, nan=0.0, posinf=1.0, neginf=0.0))
+        content = pack_rgba(np.nan_to_num(colors, nan=0.0, posinf=1.0, neginf=0.0), self._dtype)
         tex = self._layers.get(layer)
         if tex is not None and tex.size[1] == content.shape[0]:
-            tex.write(content.tobytes())
+            tex.write(content)
         else:
             if tex is not None:
                 tex.release()
@@ -261,6 +272,15 @@ class SplatRenderer:
         data = np.frombuffer(self._projected.read(size=PROJECTED_STRIDE * m), np.float32).reshape(m, -1)
         return {"center": data[:, 0:2], "conic": data[:, 2:6], "axes": data[:, 6:10], "rgb": data[:, 10:13]}
 
+    def gl_memory(self) -> dict[str, int]:
+        """Bytes of this renderer's GL objects by part: ``geometry``, ``colours`` (every layer), ``sh``,
+        ``projected`` (the projection pass's output) and ``order`` (the index buffer). On llvmpipe they live in
+        host memory."""
+        return {"geometry": sum(texture_bytes(t) for t in self._geometry),
+                "colours": sum(texture_bytes(t) for t in self._layers.values()),
+                "sh": texture_bytes(self._sh) if self._sh is not None else 0,
+                "projected": self._projected.size, "order": self._index_buffer.size}
+
     @property
     def sorter(self) -> DepthSorter:
         """The thread that sorts this renderer's Gaussians."""
@@ -277,7 +297,7 @@ class SplatRenderer:
 
     # ----------------------------------------------------------------- internals
     def _texture(self, content: np.ndarray) -> moderngl.Texture:
-        tex = self.ctx.texture((TEXTURE_WIDTH, content.shape[0]), 4, content.tobytes(), dtype="f4")
+        tex = self.ctx.texture((TEXTURE_WIDTH, content.shape[0]), 4, content, dtype=gl_dtype(content.dtype))
         tex.filter = moderngl.NEAREST, moderngl.NEAREST
         return tex
 
@@ -294,8 +314,9 @@ class SplatRenderer:
         prog = self.project_program
         for unit, tex in enumerate(self._geometry):
             tex.use(unit)
-        for unit, name in enumerate(("u_geom0", "u_geom1", "u_geom2", "u_geom3")):
-            prog[name].value = unit
+            prog[f"u_geom{unit}"].value = unit
+        if self.layout == "compact":
+            prog["u_scale_unit"].value = self._scale_unit
         prog["u_tex_width"].value = TEXTURE_WIDTH
         prog["u_world_to_cam"].write(np.asarray(camera.world_to_cam, np.float32).T.tobytes())
         prog["u_intrinsics"].value = (float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy))
@@ -339,7 +360,7 @@ class SplatRenderer:
         if order.nbytes > self._index_buffer.size:
             self._index_buffer.orphan(max(order.nbytes, 4))
         if order.size:
-            self._index_buffer.write(order.tobytes())
+            self._index_buffer.write(order)
         self._order_key = result.key
         self._instances = int(order.size)
         self.sort_count += 1
@@ -348,10 +369,10 @@ class SplatRenderer:
         """Upload the coefficients of the SH layer once: a texture array written one layer at a time."""
         n = sh_dc.shape[0]
         layers = -(-3 * (degree + 1) ** 2 // 4)
-        tex = self.ctx.texture_array((TEXTURE_WIDTH, texture_rows(n), layers), 4, dtype="f4")
+        tex = self.ctx.texture_array((TEXTURE_WIDTH, texture_rows(n), layers), 4, dtype=gl_dtype(self._dtype))
         tex.filter = moderngl.NEAREST, moderngl.NEAREST
-        for j, content in enumerate(sh_texture_layers(sh_dc, sh_rest)):
-            tex.write(content.tobytes(), viewport=(0, 0, j, TEXTURE_WIDTH, content.shape[0], 1))
+        for j, content in enumerate(sh_texture_layers(sh_dc, sh_rest, self._dtype)):
+            tex.write(content, viewport=(0, 0, j, TEXTURE_WIDTH, content.shape[0], 1))
         self._sh, self._sh_degree, self._sh_count = tex, degree, n
         self.uploads["colors"] += 1
 
@@ -372,6 +393,16 @@ class SplatRenderer:
         prog["u_highlight"].value = int(highlight)
         prog["u_tex_width"].value = TEXTURE_WIDTH
         prog["u_target_size"].value = (float(width), float(height))
+
+
+def gl_dtype(dtype: np.dtype | type) -> str:
+    """moderngl's name of a numpy texture dtype (float16 -> "f2", float32 -> "f4")."""
+    return {np.dtype(np.float16): "f2", np.dtype(np.float32): "f4"}[np.dtype(dtype)]
+
+
+def texture_bytes(tex: moderngl.Texture | moderngl.TextureArray) -> int:
+    """Bytes of a texture's texels (layers included)."""
+    return tex.width * tex.height * getattr(tex, "layers", 1) * tex.components * int(tex.dtype[1])
 
 
 def target_size(fbo: moderngl.Framebuffer) -> tuple[int, int]:

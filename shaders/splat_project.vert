@@ -8,10 +8,17 @@
 // scene's view-dependent colour: with SH coefficients (uploaded once) it is evaluated here, once per camera, with
 // gstyle_core/raster/sh.py's conventions (3DGS order and constants, +0.5, clamp at 0).
 
-uniform sampler2D u_geom0;   // mean.xyz, opacity
-uniform sampler2D u_geom1;   // columns of M = R S (rotation times scales): Sigma_3D = M M^T
+// Geometry textures (one texel per Gaussian). Sigma_3D = M M^T with M = R S (rotation times scales).
+uniform sampler2D u_geom0;   // mean.xyz, opacity (float32 in both layouts)
+#ifdef COMPACT_GEOMETRY
+uniform sampler2D u_geom1;   // unit quaternion w, x, y, z (half floats)
+uniform sampler2D u_geom2;   // scales times 2^k (half floats), -
+uniform float u_scale_unit;  // 2^-k: the scene's power of two that keeps the scales in half precision's normal range
+#else
+uniform sampler2D u_geom1;   // the three columns of M (float32)
 uniform sampler2D u_geom2;
 uniform sampler2D u_geom3;
+#endif
 uniform int u_tex_width;
 uniform mat4 u_world_to_cam;  // OpenCV axes, column-major as uploaded
 uniform vec4 u_intrinsics;    // fx, fy, cx, cy
@@ -80,11 +87,24 @@ vec3 sh_colour(int i, vec3 mean) {
     return max(rgb, vec3(0.0));
 }
 
+// M = R S of Gaussian i (R from the quaternion as gstyle_core's rotation_matrices, in the compact layout).
+mat3 cov_factor(int i) {
+#ifdef COMPACT_GEOMETRY
+    vec4 q = texelFetch(u_geom1, texel(i), 0);
+    q /= max(length(q), 1e-12);  // renormalised after the rounding to half floats
+    float w = q.x, x = q.y, y = q.z, z = q.w;
+    vec3 s = texelFetch(u_geom2, texel(i), 0).xyz * u_scale_unit;
+    return mat3(vec3(1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y)) * s.x,
+                vec3(2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x)) * s.y,
+                vec3(2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)) * s.z);
+#else
+    return mat3(texelFetch(u_geom1, texel(i), 0).xyz, texelFetch(u_geom2, texel(i), 0).xyz,
+                texelFetch(u_geom3, texel(i), 0).xyz);
+#endif
+}
+
 void main() {
     vec4 g0 = texelFetch(u_geom0, texel(in_index), 0);
-    vec4 g1 = texelFetch(u_geom1, texel(in_index), 0);
-    vec4 g2 = texelFetch(u_geom2, texel(in_index), 0);
-    vec4 g3 = texelFetch(u_geom3, texel(in_index), 0);
     vec3 p = (u_world_to_cam * vec4(g0.xyz, 1.0)).xyz;
     if (!(p.z > u_near)) { cull(); return; }
 
@@ -99,7 +119,7 @@ void main() {
                       0.0, fy * inv_z,
                       -fx * tx * inv_z * inv_z, -fy * ty * inv_z * inv_z);
     mat3 W = mat3(u_world_to_cam);
-    mat3x2 G = J * W * mat3(g1.xyz, g2.xyz, g3.xyz);   // Sigma_2D = G G^T
+    mat3x2 G = J * W * cov_factor(in_index);   // Sigma_2D = G G^T
     vec3 gx = vec3(G[0].x, G[1].x, G[2].x);
     vec3 gy = vec3(G[0].y, G[1].y, G[2].y);
     float a = dot(gx, gx) + LOW_PASS;
