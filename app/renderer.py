@@ -32,6 +32,7 @@ rasterizer's conventions (the original scene in the viewer); the stylized scene 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Mapping, Sequence
@@ -61,9 +62,12 @@ SH_LAYER = "sh"
 DIFFUSE_LAYER = "diffuse"
 SELECTION_LAYER = "__selection__"  # the highlighted Gaussians (r = 1), see ``set_selection``
 NEAR = 0.01
-PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes", "out_rgb")  # 2 + 4 + 4 + 3 floats per Gaussian
-PROJECTED_STRIDE = 52  # bytes per projected Gaussian
+PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes")  # 2 + 4 + 4 floats per Gaussian
+PROJECTED_STRIDE = 40  # bytes per projected Gaussian
+PROJECTED_SH_STRIDE = 52  # with the SH colour (+ 3 floats, "out_rgb"): only a renderer with SH coefficients
 SH_UNIT = 4  # texture unit of the SH coefficients in the projection pass (0-3: geometry)
+SOFTWARE_GL = ("llvmpipe", "softpipe", "swrast")  # renderer names of GLs that rasterise on the CPU
+SOFTWARE_DRAW_CHUNK = 32768  # splats a draw call on a software GL (``SplatRenderer.draw_chunk``)
 
 
 class SplatRenderer:
@@ -73,16 +77,12 @@ class SplatRenderer:
         self.ctx = ctx
         self.layout = check_layout(layout)
         self._dtype = texture_dtype(layout)  # of the colour and SH textures
-        project = shader_source("splat_project.vert")
         self.program = ctx.program(**program_sources("splat"))
-        self.project_program = ctx.program(
-            vertex_shader=with_defines(project, "COMPACT_GEOMETRY") if layout == "compact" else project,
-            varyings=list(PROJECTED_VARYINGS))
+        self.project_program = self._projection_program(sh=False)
+        self._project_sh_program: moderngl.Program | None = None  # with the SH colour, made with the first SH
         self._index_buffer = ctx.buffer(reserve=4)
-        self._projected = ctx.buffer(reserve=PROJECTED_STRIDE)
-        self._vao = ctx.vertex_array(self.program, [(self._projected, "2f 4f 4f 3f", "in_center", "in_conic", "in_axes",
-                                                     "in_rgb"), (self._index_buffer, "1i", "in_index")])
-        self._project_vao = ctx.vertex_array(self.project_program, [(self._index_buffer, "1i", "in_index")])
+        self._projected = ctx.buffer(reserve=PROJECTED_SH_STRIDE)
+        self._vaos: dict[bool, tuple[moderngl.VertexArray, moderngl.VertexArray]] = {}  # with SH: (draw, project)
         self._projected_for: tuple | None = None
         self._geometry: list[moderngl.Texture] = []
         self._scale_unit = 1.0  # what the stored scales are multiplied by (compact layout: 2^-k)
@@ -92,7 +92,6 @@ class SplatRenderer:
         self._sh: moderngl.TextureArray | None = None  # SH coefficients (layer "sh"), see sh_texture_layers
         self._sh_degree = -1
         self._sh_count = 0
-        self._no_sh = ctx.texture_array((1, 1, 1), 4, dtype="f4")  # bound when there is none (never read)
         self._sorter = sorter if sorter is not None else DepthSorter()
         self._requested: tuple | None = None  # key of the last sort submitted: (depth row, keep, geometry, bits)
         self._order_key: tuple | None = None  # key of the order in the index buffer (None: no usable order)
@@ -105,6 +104,11 @@ class SplatRenderer:
         self.projection_count = 0  # how many projection passes ran (one per new camera/target/geometry)
         self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
         self.highlight = False  # a selection is drawn highlighted (the Gaussians outside it dimmed)
+        # Splats a draw call, each call waiting for the one before it to be rasterised (0: one call). llvmpipe
+        # bins a draw into scenes of up to 36 MiB as far ahead of its rasteriser threads as the draw goes, and
+        # keeps every scene it had in flight, memory included, for reuse: one unthrottled draw of 1.2 M splats
+        # at 800x600 left 536 MB behind, drawn 32,768 at a time 48 MB, in the same time (docs/studio-performance).
+        self.draw_chunk = SOFTWARE_DRAW_CHUNK if is_software_gl(ctx) else 0
 
     # ----------------------------------------------------------------- data
     @property
@@ -230,7 +234,7 @@ class SplatRenderer:
             first = min(max(int(first), 0), self._instances)
             count = min(max(int(count), 0), self._instances - first)
             if count:
-                self._vao.render(moderngl.POINTS, vertices=count, first=first)
+                self._draw_points(first, count)
             self.ctx.disable(moderngl.BLEND)
         self.ctx.scissor = None
         return self._instances if self.count else 0
@@ -269,8 +273,9 @@ class SplatRenderer:
         """The last projection pass's output in draw order: ``center`` [M, 2] (pixels), ``conic`` [M, 4] (a, b, c,
         opacity), ``axes`` [M, 4] (the quad's half axes; zero = culled), ``rgb`` [M, 3] (SH colour, zero without)."""
         m = self._instances
-        data = np.frombuffer(self._projected.read(size=PROJECTED_STRIDE * m), np.float32).reshape(m, -1)
-        return {"center": data[:, 0:2], "conic": data[:, 2:6], "axes": data[:, 6:10], "rgb": data[:, 10:13]}
+        data = np.frombuffer(self._projected.read(size=self._stride * m), np.float32).reshape(m, -1)
+        rgb = data[:, 10:13] if self._stride == PROJECTED_SH_STRIDE else np.zeros((m, 3), np.float32)
+        return {"center": data[:, 0:2], "conic": data[:, 2:6], "axes": data[:, 6:10], "rgb": rgb}
 
     def gl_memory(self) -> dict[str, int]:
         """Bytes of this renderer's GL objects by part: ``geometry``, ``colours`` (every layer), ``sh``,
@@ -290,8 +295,10 @@ class SplatRenderer:
         """Stop the sorter and free all GL objects."""
         self._sorter.stop()
         self._drop_sh()
-        for obj in [*self._geometry, *self._layers.values(), self._no_sh, self._vao, self._project_vao,
-                    self._index_buffer, self._projected, self.program, self.project_program]:
+        programs = [self.project_program] + ([self._project_sh_program] if self._project_sh_program else [])
+        vaos = [vao for pair in self._vaos.values() for vao in pair]
+        for obj in [*self._geometry, *self._layers.values(), *vaos, self._index_buffer,
+                    self._projected, self.program, *programs]:
             obj.release()
         self._geometry, self._layers = [], {}
 
@@ -301,6 +308,20 @@ class SplatRenderer:
         tex.filter = moderngl.NEAREST, moderngl.NEAREST
         return tex
 
+    def _draw_points(self, first: int, count: int) -> None:
+        """Draw ``count`` projected splats from ``first`` in calls of ``draw_chunk``; after each call, wait for the
+        one before it (a query's result), never for the last: the binning of one overlaps the raster of the other,
+        and at most two are in flight."""
+        step = self.draw_chunk if 0 < self.draw_chunk < count else count
+        previous = None
+        for start in range(first, first + count, step):
+            query = self.ctx.query(primitives=True) if step < count else None
+            with query if query is not None else contextlib.nullcontext():
+                self._arrays()[0].render(moderngl.POINTS, vertices=min(step, first + count - start), first=start)
+            if previous is not None:
+                _ = previous.primitives  # blocks until that call is rasterised
+            previous = query
+
     def _project(self, camera: Camera) -> None:
         """Run the projection pass unless its inputs (camera, order, geometry) are those of the last run."""
         key = (np.asarray(camera.world_to_cam, np.float32).tobytes(), float(camera.fx), float(camera.fy),
@@ -308,10 +329,10 @@ class SplatRenderer:
                self.sort_count)
         if key == self._projected_for or not self._instances:
             return
-        needed = PROJECTED_STRIDE * self._instances
+        needed = self._stride * self._instances
         if needed > self._projected.size:
             self._projected.orphan(needed)
-        prog = self.project_program
+        prog = self._project_sh_program if self._sh is not None else self.project_program
         for unit, tex in enumerate(self._geometry):
             tex.use(unit)
             prog[f"u_geom{unit}"].value = unit
@@ -323,13 +344,37 @@ class SplatRenderer:
         prog["u_image_size"].value = (float(camera.width), float(camera.height))
         prog["u_viewport_origin"].value = (0.0, 0.0)
         prog["u_near"].value = NEAR
-        (self._sh if self._sh is not None else self._no_sh).use(SH_UNIT)
-        prog["u_sh"].value = SH_UNIT
-        prog["u_sh_degree"].value = self._sh_degree if self._sh is not None else -1
-        prog["u_camera_pos"].value = tuple(float(v) for v in camera.position)
-        self._project_vao.transform(self._projected, mode=moderngl.POINTS, vertices=self._instances)
+        if self._sh is not None:
+            self._sh.use(SH_UNIT)
+            prog["u_sh"].value = SH_UNIT
+            prog["u_sh_degree"].value = self._sh_degree
+            prog["u_camera_pos"].value = tuple(float(v) for v in camera.position)
+        self._arrays()[1].transform(self._projected, mode=moderngl.POINTS, vertices=self._instances)
         self._projected_for = key
         self.projection_count += 1
+
+    @property
+    def _stride(self) -> int:
+        """Bytes a Gaussian of the projection pass's output (the SH colour only where there are SH)."""
+        return PROJECTED_SH_STRIDE if self._sh is not None else PROJECTED_STRIDE
+
+    def _projection_program(self, sh: bool) -> moderngl.Program:
+        """The projection pass of this layout, writing the SH colour too when ``sh``."""
+        defines = (["COMPACT_GEOMETRY"] if self.layout == "compact" else []) + (["SH_COLOUR"] if sh else [])
+        varyings = [*PROJECTED_VARYINGS, "out_rgb"] if sh else list(PROJECTED_VARYINGS)
+        return self.ctx.program(vertex_shader=with_defines(shader_source("splat_project.vert"), *defines),
+                                varyings=varyings)
+
+    def _arrays(self) -> tuple[moderngl.VertexArray, moderngl.VertexArray]:
+        """The (draw, projection) vertex arrays of the current output layout (with or without the SH colour)."""
+        sh = self._sh is not None
+        if sh not in self._vaos:
+            content = (self._projected, "2f 4f 4f 3f", "in_center", "in_conic", "in_axes", "in_rgb") if sh else \
+                (self._projected, "2f 4f 4f", "in_center", "in_conic", "in_axes")
+            program = self._project_sh_program if sh else self.project_program
+            self._vaos[sh] = (self.ctx.vertex_array(self.program, [content, (self._index_buffer, "1i", "in_index")]),
+                              self.ctx.vertex_array(program, [(self._index_buffer, "1i", "in_index")]))
+        return self._vaos[sh]
 
     def _colour_texture(self, layer: str) -> moderngl.Texture | None:
         """The layer's colour texture; None for the SH layer (its colours come from the projection pass)."""
@@ -371,6 +416,8 @@ class SplatRenderer:
         layers = -(-3 * (degree + 1) ** 2 // 4)
         tex = self.ctx.texture_array((TEXTURE_WIDTH, texture_rows(n), layers), 4, dtype=gl_dtype(self._dtype))
         tex.filter = moderngl.NEAREST, moderngl.NEAREST
+        if self._project_sh_program is None:
+            self._project_sh_program = self._projection_program(sh=True)
         for j, content in enumerate(sh_texture_layers(sh_dc, sh_rest, self._dtype)):
             tex.write(content, viewport=(0, 0, j, TEXTURE_WIDTH, content.shape[0], 1))
         self._sh, self._sh_degree, self._sh_count = tex, degree, n
@@ -393,6 +440,12 @@ class SplatRenderer:
         prog["u_highlight"].value = int(highlight)
         prog["u_tex_width"].value = TEXTURE_WIDTH
         prog["u_target_size"].value = (float(width), float(height))
+
+
+def is_software_gl(ctx: moderngl.Context) -> bool:
+    """The context rasterises on the CPU (Mesa's llvmpipe, softpipe or swrast)."""
+    name = str(ctx.info.get("GL_RENDERER", "")).lower()
+    return any(word in name for word in SOFTWARE_GL)
 
 
 def gl_dtype(dtype: np.dtype | type) -> str:

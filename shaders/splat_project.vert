@@ -26,7 +26,7 @@ uniform vec2 u_image_size;    // width, height in pixels (of the camera)
 uniform vec2 u_viewport_origin;  // pixel offset of the camera image in the framebuffer (x right, y down)
 uniform float u_near;
 uniform sampler2DArray u_sh;  // SH coefficients, coefficient-major (c0.rgb c1.rgb ...): layer j = floats 4j..4j+3
-uniform int u_sh_degree;      // 0-3; -1: no SH (out_rgb unused)
+uniform int u_sh_degree;      // 1-3 (the SH_COLOUR variant)
 uniform vec3 u_camera_pos;    // world position of the camera (view direction = mean - camera)
 
 in int in_index;      // Gaussian index, in back-to-front order
@@ -34,7 +34,9 @@ in int in_index;      // Gaussian index, in back-to-front order
 out vec2 out_center;   // means2d in framebuffer pixels, y down
 out vec4 out_conic;    // inverse 2D covariance (a, b, c), opacity
 out vec4 out_axes;     // the quad's half axes in pixels: major * extent, minor * extent; zero = culled
-out vec3 out_rgb;      // view-dependent colour from SH (zero without SH)
+#ifdef SH_COLOUR
+out vec3 out_rgb;      // view-dependent colour from SH (only in the variant for a scene with SH)
+#endif
 
 const float LOW_PASS = 0.3;
 const float FOV_MARGIN = 0.3;
@@ -42,7 +44,10 @@ const float FOV_MARGIN = 0.3;
 ivec2 texel(int i) { return ivec2(i % u_tex_width, i / u_tex_width); }
 
 void cull() {
-    out_center = vec2(0.0); out_conic = vec4(0.0); out_axes = vec4(0.0); out_rgb = vec3(0.0);
+    out_center = vec2(0.0); out_conic = vec4(0.0); out_axes = vec4(0.0);
+#ifdef SH_COLOUR
+    out_rgb = vec3(0.0);
+#endif
 }
 
 const float C0 = 0.28209479177387814;
@@ -150,5 +155,7 @@ void main() {
     out_center = vec2(fx * p.x * inv_z + cx, fy * p.y * inv_z + cy) + u_viewport_origin;
     out_conic = vec4(vec3(c, -b, a) / det, g0.w);
     out_axes = vec4(half_extent.x * major, half_extent.y * minor);
-    out_rgb = u_sh_degree >= 0 ? sh_colour(in_index, g0.xyz) : vec3(0.0);
+#ifdef SH_COLOUR
+    out_rgb = sh_colour(in_index, g0.xyz);
+#endif
 }

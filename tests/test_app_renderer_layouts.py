@@ -107,17 +107,47 @@ def test_scale_exponent_centres_the_scales_and_never_overflows_half_floats():
 
 def test_gl_memory_of_the_layouts(ctx):
     """Bytes a Gaussian by part: compact geometry 32 (mean, opacity float32; quaternion, scales half), a colour
-    layer 8, SH of degree 3 96; float32 64, 16 and 192. 4096 Gaussians fill one texture row exactly."""
+    layer 8, SH of degree 3 96; float32 64, 16 and 192. The projection's output: 40, 52 with the SH colour. 4096
+    Gaussians fill one texture row exactly."""
     scene = blob_scene(4096, seed=2, sh_degree=3)
+    cam = look_at_camera((0, 0, -4.0), (0, 0, 0), W, H)  # every Gaussian in front of it
     expected = {"compact": (32, 8, 96), "float32": (64, 16, 192)}
     for layout, (geometry, colours, sh) in expected.items():
-        r = SplatRenderer(ctx, layout=layout)
-        r.set_scene(scene_arrays(scene))
-        memory = r.gl_memory()
-        assert (memory["geometry"], memory["colours"], memory["sh"]) == (4096 * geometry, 4096 * colours, 4096 * sh)
-        r.release()
+        for with_sh in (True, False):
+            r = SplatRenderer(ctx, layout=layout)
+            arrays = scene_arrays(scene)
+            if not with_sh:
+                arrays.pop("sh_rest")
+            r.set_scene(arrays)
+            r.render(cam, ctx.framebuffer([ctx.texture((W, H), 4)]), layer="sh" if with_sh else "diffuse")
+            memory = r.gl_memory()
+            assert memory == {"geometry": 4096 * geometry, "colours": 4096 * colours, "sh": 4096 * sh * with_sh,
+                              "projected": 4096 * (52 if with_sh else 40), "order": 4096 * 4}
+            r.release()
 
 
 def test_unknown_layout_is_a_clear_error(ctx):
     with pytest.raises(ValueError, match="unknown texture layout 'half'; have compact, float32"):
         SplatRenderer(ctx, layout="half")
+
+
+def test_a_draw_in_chunks_is_the_same_image_as_one_draw(ctx):
+    """On a software GL the splats are drawn in chunks (each waiting for the one before it, which bounds
+    llvmpipe's binned scenes in flight); the chunks blend in the same order, so the image is the same."""
+    from app.renderer import SOFTWARE_DRAW_CHUNK, is_software_gl, read_rgb_float
+
+    scene = blob_scene(3000, seed=8, spread=0.5, scale=0.04)
+    r = SplatRenderer(ctx)
+    assert r.draw_chunk == (SOFTWARE_DRAW_CHUNK if is_software_gl(ctx) else 0)
+    r.set_scene(scene_arrays(scene))
+    cam = look_at_camera((0.3, -0.8, -3.0), (0, 0, 0), W, H)
+    pictures = {}
+    for chunk in (0, 1000, 2999, 7):
+        r.draw_chunk = chunk
+        fbo = ctx.framebuffer([ctx.texture((W, H), 4, dtype="f4")])
+        r.render(cam, fbo, (0.1, 0.2, 0.3))
+        pictures[chunk] = read_rgb_float(fbo)
+        fbo.release()
+    for chunk in (1000, 2999, 7):
+        np.testing.assert_array_equal(pictures[chunk], pictures[0])
+    r.release()
