@@ -281,6 +281,8 @@ def open_and_draw(ctx: moderngl.Context, scene: GaussianScene, args: argparse.Na
     as the allocator left it, malloc's own count), its GL objects by part and the arrays it keeps."""
     before, before_raw, before_live = rss_bytes(), rss_bytes(trim=False), malloc_live()
     renderer = SplatRenderer(ctx, layout=args.layout)
+    if args.draw_chunk is not None:
+        renderer.draw_chunk = args.draw_chunk
     t0 = time.perf_counter()
     renderer.set_scene(scene_arrays(scene))
     open_s = time.perf_counter() - t0
@@ -308,6 +310,8 @@ def viewer_in_child(path: Path, layout: str, args: argparse.Namespace) -> dict:
     """``open_and_draw`` of the .ply at ``path`` in ``layout``, in a fresh process."""
     command = [sys.executable, str(Path(__file__).resolve()), "--viewer", str(path), "--layout", layout,
                "--seconds", str(args.seconds), "--size", f"{args.size[0]}x{args.size[1]}", "--fps", str(args.fps)]
+    if args.draw_chunk is not None:
+        command += ["--draw-chunk", str(args.draw_chunk)]
     done = subprocess.run(command, capture_output=True, text=True, check=False)
     lines = [line for line in done.stdout.splitlines() if line.startswith("VIEWER ")]
     if done.returncode != 0 or not lines:
@@ -332,7 +336,7 @@ def run_size(ctx: moderngl.Context, source: GaussianScene, n: int, args: argpars
     sorts = sort_times(scene.means, views, subset)
     bits = sorted({DEFAULT_BITS, key_bits(n)})
     quality = {b: inversion_buckets(scene.means, views[0], b) for b in bits}
-    diff = image_difference(ctx, scene_arrays(scene), views[1], bits)
+    diff = image_difference(ctx, scene_arrays(scene), views[min(1, len(views) - 1)], bits)
     return {"n": n, "file_mb": file_bytes / 2**20, "load_s": load_s, "share": share, "sorts": sorts,
             "quality": quality, "diff": diff, "viewers": viewers}
 
@@ -404,12 +408,16 @@ def main() -> None:
     p.add_argument("--fps", type=float, default=60.0, help="the frame cap (the studio's default is 60)")
     p.add_argument("--views", type=int, default=6, help="orbit views the sorts are timed on")
     p.add_argument("--tmp", default=None, help="folder for the temporary .ply (default: the system's)")
+    p.add_argument("--draw-chunk", type=int, default=None,
+                   help="splats a draw call (0: one call; default: the renderer's, 32768 on llvmpipe)")
     p.add_argument("--viewer", default=None, help=argparse.SUPPRESS)  # the child process of one layout's viewer
     p.add_argument("--layout", default="compact", choices=LAYOUTS, help=argparse.SUPPRESS)
     args = p.parse_args()
     if args.viewer:
         viewer_child(args)
         return
+    if args.views < 1:
+        p.error(f"--views must be at least 1, got {args.views}")
     sizes = [int(float(s)) for s in args.sizes.split(",") if s.strip()]
     print(f"cpu: {cpu_description()}; {os.cpu_count()} cores; {args.size[0]}x{args.size[1]}, cap {args.fps:g} fps")
     source, _ = load_scene(args.source)
