@@ -86,12 +86,16 @@ def geometry_textures(arrays: Mapping[str, np.ndarray], layout: str = "float32")
     check_layout(layout)
     means = np.asarray(arrays["means"], np.float32)
     opacity = sigmoid(np.asarray(arrays["opacity_logits"], np.float32))
-    scales = np.exp(np.asarray(arrays["log_scales"], np.float64))
+    # float64 for the float32 layout's matrices; float32 is ample for what is stored as half floats (and halves the
+    # temporary arrays of opening a scene of millions)
+    work = np.float64 if layout == "float32" else np.float32
+    with np.errstate(over="ignore"):  # an absurd log-scale overflows to inf: that Gaussian is repaired away below
+        scales = np.exp(np.asarray(arrays["log_scales"], work))
     if layout == "float32":
         factor = rotation_matrices(arrays["quats"]) * scales[:, None, :]
         finite = np.isfinite(factor).all((1, 2))
     else:
-        factor = unit_quaternions(arrays["quats"])
+        factor = unit_quaternions(arrays["quats"], np.float32)
         finite = np.isfinite(scales).all(1) & np.isfinite(factor).all(1)
     bad = ~(np.isfinite(means).all(1) & finite & np.isfinite(opacity))
     opacity = np.where(bad, 0.0, opacity).astype(np.float32)
@@ -106,11 +110,11 @@ def geometry_textures(arrays: Mapping[str, np.ndarray], layout: str = "float32")
     return [first, pack_rgba(factor, np.float16), pack_rgba(stored, np.float16)], 2.0**-k
 
 
-def unit_quaternions(quats: np.ndarray) -> np.ndarray:
-    """float64 [N, 4] wxyz quaternions scaled to length 1 (length zero or NaN: identity)."""
-    q = np.asarray(quats, np.float64)
+def unit_quaternions(quats: np.ndarray, dtype: type = np.float64) -> np.ndarray:
+    """[N, 4] wxyz quaternions of ``dtype`` scaled to length 1 (length zero or NaN: identity)."""
+    q = np.asarray(quats, dtype)
     norm = np.linalg.norm(q, axis=1, keepdims=True)
-    return np.where(norm > 0, q / np.where(norm > 0, norm, 1.0), np.array([1.0, 0.0, 0.0, 0.0]))
+    return np.where(norm > 0, q / np.where(norm > 0, norm, 1), np.array([1, 0, 0, 0], dtype))
 
 
 def scale_exponent(scales: np.ndarray, sample: int = 100_000) -> int:
