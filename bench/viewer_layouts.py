@@ -24,10 +24,10 @@ sys.path.insert(0, str(ROOT))
 
 import moderngl  # noqa: E402
 
-from app.depth_sort import DepthSorter  # noqa: E402
+from app.depth_sort import DepthSorter, exact_sort_request  # noqa: E402
 from app.main import parse_size  # noqa: E402
 from app.renderer import SplatRenderer, read_rgb  # noqa: E402
-from app.splat_data import LAYOUTS, back_to_front_order, scene_arrays  # noqa: E402
+from app.splat_data import LAYOUTS, scene_arrays  # noqa: E402
 from gstyle_core.cameras.camera import Camera  # noqa: E402
 from gstyle_core.cameras.generate import generate_cameras  # noqa: E402
 from gstyle_core.io import load_scene  # noqa: E402
@@ -39,17 +39,10 @@ SCENES = [DATA / "playcanvas" / "biker.spz", DATA / "splat" / "winter_fountain.c
           DATA / "ply_3dgs" / "kacytran1122_try_iter7000_point_cloud.ply"]
 
 
-def exact_sort(request, scratch) -> np.ndarray:
-    """The exact order (argsort of float64 depths), so that the layouts alone differ."""
-    view = np.zeros((4, 4))
-    view[2] = request.view_row
-    return back_to_front_order(request.means, view, request.near)
-
-
 def viewer_images(ctx: moderngl.Context, arrays: dict, cams: list[Camera], layout: str, layer: str
                   ) -> tuple[list[np.ndarray], dict[str, int]]:
     """8-bit images of ``cams`` in ``layout`` on black, and the renderer's GL bytes by part."""
-    renderer = SplatRenderer(ctx, DepthSorter(exact_sort), layout=layout)
+    renderer = SplatRenderer(ctx, DepthSorter(exact_sort_request), layout=layout)
     renderer.set_scene(arrays)
     images = []
     for cam in cams:

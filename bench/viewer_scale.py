@@ -56,7 +56,14 @@ sys.path.insert(0, str(ROOT))
 import moderngl  # noqa: E402
 
 from app.camera_control import CameraControl  # noqa: E402
-from app.depth_sort import DEFAULT_BITS, DepthSorter, SortScratch, depth_order, key_bits  # noqa: E402
+from app.depth_sort import (  # noqa: E402
+    DEFAULT_BITS,
+    DepthSorter,
+    SortScratch,
+    depth_order,
+    exact_sort_request,
+    key_bits,
+)
 from app.main import parse_size  # noqa: E402
 from app.renderer import NEAR, SplatRenderer, read_rgb  # noqa: E402
 from app.scene_view import SceneView, ViewPass  # noqa: E402
@@ -178,15 +185,6 @@ def inversion_buckets(means: np.ndarray, cam: Camera, bits: int) -> float:
     return float(np.max(z[1:] - np.minimum.accumulate(z)[:-1], initial=0.0) / width)
 
 
-def exact_sort(request, scratch) -> np.ndarray:
-    """The old exact order (float64 argsort), as a sorter's work."""
-    view = np.zeros((4, 4))
-    view[2] = request.view_row
-    order = back_to_front_order(request.means if request.subset is None else request.means[request.subset],
-                                view, request.near)
-    return order if request.subset is None else request.subset[order]
-
-
 def frame_of(ctx: moderngl.Context, arrays: dict, cam: Camera, sorter: DepthSorter, bits: int = DEFAULT_BITS,
              layout: str = "compact") -> np.ndarray:
     """One full 8-bit frame (int16 RGB) of the viewer with this sorter, key bits and texture layout."""
@@ -205,9 +203,9 @@ def frame_of(ctx: moderngl.Context, arrays: dict, cam: Camera, sorter: DepthSort
 def image_difference(ctx: moderngl.Context, arrays: dict, cam: Camera, bits: list[int]) -> dict:
     """(mean, 99.9th percentile) of the 8-bit |difference| over one full frame: per key bits, the quantised order
     against the exact one; "float32": the float32 texture layout against the compact one (both exactly sorted)."""
-    exact = frame_of(ctx, arrays, cam, DepthSorter(exact_sort))
+    exact = frame_of(ctx, arrays, cam, DepthSorter(exact_sort_request))
     diffs = {b: np.abs(frame_of(ctx, arrays, cam, DepthSorter(), b) - exact) for b in bits}
-    diffs["float32"] = np.abs(frame_of(ctx, arrays, cam, DepthSorter(exact_sort), layout="float32") - exact)
+    diffs["float32"] = np.abs(frame_of(ctx, arrays, cam, DepthSorter(exact_sort_request), layout="float32") - exact)
     return {key: (float(d.mean()), float(np.percentile(d, 99.9))) for key, d in diffs.items()}
 
 

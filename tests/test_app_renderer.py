@@ -232,23 +232,12 @@ def test_a_still_camera_submits_no_sort_and_uploads_no_order(ctx):
     r.release()
 
 
-def exact_sort(request, scratch):
-    """The old exact order (argsort of float64 depths) in place of the quantised one."""
-    from app.splat_data import back_to_front_order
-
-    view = np.zeros((4, 4))
-    view[2] = request.view_row
-    if request.subset is None:
-        return back_to_front_order(request.means, view, request.near)
-    return request.subset[back_to_front_order(request.means[request.subset], view, request.near)]
-
-
 BIKER = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "scenes" / "playcanvas" / "biker.spz"
 
 
 @pytest.mark.skipif(not BIKER.is_file(), reason="shared/data playcanvas/biker.spz absent")
 def test_quantised_order_draws_the_exact_orders_image_on_a_real_capture(ctx):
-    from app.depth_sort import DepthSorter, key_bits
+    from app.depth_sort import DepthSorter, exact_sort_request, key_bits
     from app.renderer import read_rgb
     from app.splat_data import scene_arrays
     from gstyle_core.cameras.generate import finite_points, robust_centre_radius
@@ -259,7 +248,7 @@ def test_quantised_order_draws_the_exact_orders_image_on_a_real_capture(ctx):
     w, h = 320, 240
     cam = look_at_camera(centre + radius * np.array([1.2, -0.4, 0.9]), centre, w, h)
     images = {}
-    for name, sorter, bits in (("exact", DepthSorter(exact_sort), 16), ("16 bits", DepthSorter(), 16),
+    for name, sorter, bits in (("exact", DepthSorter(exact_sort_request), 16), ("16 bits", DepthSorter(), 16),
                                ("count bits", DepthSorter(), key_bits(scene.count)), ("10 bits", DepthSorter(), 10)):
         r = SplatRenderer(ctx, sorter)
         r.sort_bits = bits

@@ -10,10 +10,9 @@ moderngl = pytest.importorskip("moderngl")
 
 from synthetic import blob_scene, look_at_camera  # noqa: E402
 
-from app.depth_sort import DepthSorter  # noqa: E402
+from app.depth_sort import DepthSorter, exact_sort_request  # noqa: E402
 from app.renderer import SplatRenderer, read_rgb  # noqa: E402
 from app.splat_data import (  # noqa: E402
-    back_to_front_order,
     geometry_textures,
     scale_exponent,
     scene_arrays,
@@ -24,16 +23,9 @@ SH_CAPTURE = DATA / "ply_3dgs" / "kacytran1122_try_iter7000_point_cloud.ply"  # 
 W, H = 160, 120
 
 
-def exact_sort(request, scratch):
-    """The exact order, so that the two layouts draw the same sequence of splats."""
-    view = np.zeros((4, 4))
-    view[2] = request.view_row
-    return back_to_front_order(request.means, view, request.near)
-
-
 def images(ctx, arrays, cams, layout, layer):
     """8-bit images (int16) of ``cams`` drawn with ``layout`` on black."""
-    r = SplatRenderer(ctx, DepthSorter(exact_sort), layout=layout)
+    r = SplatRenderer(ctx, DepthSorter(exact_sort_request), layout=layout)
     r.set_scene(arrays)
     out = []
     for cam in cams:
