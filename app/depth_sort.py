@@ -147,6 +147,18 @@ def sort_request(request: SortRequest, scratch: SortScratch) -> np.ndarray:
     return depth_order(request.means, request.view_row, request.near, request.bits, request.subset, scratch)
 
 
+def exact_sort_request(request: SortRequest, scratch: SortScratch) -> np.ndarray:
+    """The exact order of a request (numpy's argsort of float64 depths, ``splat_data.back_to_front_order``): the
+    reference the quantised order and the texture layouts are measured against (benches, tests)."""
+    from .splat_data import back_to_front_order
+
+    view = np.zeros((4, 4))
+    view[2] = request.view_row
+    if request.subset is None:
+        return back_to_front_order(request.means, view, request.near)
+    return request.subset[back_to_front_order(request.means[request.subset], view, request.near)]
+
+
 class DepthSorter:
     """A thread that sorts the newest submitted view; ``submit`` never blocks, ``take`` returns the newest finished
     order (once), ``wait`` blocks until the order of a given request is finished."""

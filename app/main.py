@@ -82,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "screenshots and videos in out/)")
     p.add_argument("--resume", action="store_true",
                    help="continue the session saved when the studio last closed with this scene and style")
+    p.add_argument("--batch", default=None, metavar="DIR",
+                   help="open a gstyle batch folder: its finished jobs as takes to compare (the first job's result "
+                        "shown unless a SCENE is given)")
     return p
 
 
@@ -176,6 +179,8 @@ def open_studio(window, args: argparse.Namespace):
     from .studio import StudioApp
 
     engine_on = (not window.headless) if args.engine is None else args.engine
+    if args.batch and not args.scene:  # the batch's first finished job shown, its results as takes
+        args.scene = first_batch_result(args.batch)
     loaded = load_scene_with_cameras(args.scene, args.cameras)
     styles = args.style or ([str(DEFAULT_STYLE)] if Path(DEFAULT_STYLE).is_file() else [None])
     app = StudioApp(window.ctx, loaded=loaded, style_path=styles[0],
@@ -193,6 +198,8 @@ def open_studio(window, args: argparse.Namespace):
     app.view_mode = args.view
     if args.region is not None:  # the selection tool on, with this box (the engine starts with it)
         app.set_region_box(args.region)
+    if args.batch:
+        app.open_batch(args.batch)
     if args.camera:
         if not 1 <= args.camera <= len(app.cameras):
             raise GStyleError(f"--camera must be 1..{len(app.cameras)}, got {args.camera}")
@@ -210,6 +217,16 @@ def open_studio(window, args: argparse.Namespace):
         print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",
               file=sys.stderr)
     return app
+
+
+def first_batch_result(folder: str) -> str:
+    """The result file of the first finished job of the ``gstyle batch`` folder ``folder`` (``GStyleError``: none)."""
+    from .takes import BATCH_FILE, batch_takes
+
+    takes = batch_takes(folder)
+    if not takes:
+        raise GStyleError(f"no finished jobs in {Path(folder) / BATCH_FILE}")
+    return takes[0].path
 
 
 def _run_frames(window, app, args: argparse.Namespace, stop: dict[str, bool]) -> None:

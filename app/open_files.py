@@ -23,6 +23,7 @@ from gstyle_core.scene import GaussianScene
 
 from .export import EXPORT_SUFFIXES
 from .file_browser import FileBrowser, has_suffix, load_recent, recent_folders_file, save_recent, with_recent
+from .takes import BATCH_FILE
 
 DIALOG_ENV = "GSTYLE_FILE_DIALOG"  # "studio": the studio's browser always; "auto" (default): native where there is one
 DIALOG_PROGRAMS = ("zenity", "kdialog", "matedialog", "qarma")  # what portable_file_dialogs runs on Linux
@@ -42,7 +43,7 @@ class FileKind:
 
 
 FILE_KINDS = {
-    "open_scene": FileKind("Open scene", "Gaussian scenes", SCENE_SUFFIXES),
+    "open_scene": FileKind("Open scene", "Gaussian scenes", (*SCENE_SUFFIXES, BATCH_FILE)),  # or a batch's table
     "open_style": FileKind("Open style image", "Images", IMAGE_SUFFIXES),
     "open_style2": FileKind("Open second style image", "Images", IMAGE_SUFFIXES, style_slot=1),
     "save_as": FileKind("Save the stylized scene as", "Gaussian scenes", tuple(EXPORT_SUFFIXES.values()),
@@ -73,11 +74,13 @@ class LoadedScene:
     scene: GaussianScene
     cameras: list[Camera]
     generated_cameras: bool = False  # the cameras were made up around the scene (a bare scene file), not its own
+    frame_box: tuple[Any, Any] | None = None  # a result's: its input's box, recorded in its OUT.json
 
 
 def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) -> LoadedScene:
     """Load a scene file (default: the bundled demo) and its cameras (given, else generated)."""
     from gstyle_core.assets import DEMO_SCENE
+    from gstyle_core.cameras.recorded import record_box
     from gstyle_core.render_cli import load_scene_and_cameras
 
     path = Path(scene_path) if scene_path else DEMO_SCENE
@@ -85,7 +88,8 @@ def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) ->
         what = "scene file" if scene_path else "bundled demo scene"
         raise GStyleError(f"{what} not found: {path}")
     scene, _report, cams = load_scene_and_cameras(scene_path, cameras_path)
-    return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras), cams.source.startswith("generated"))
+    return LoadedScene(str(scene_path or DEMO_SCENE), scene, list(cams.cameras), cams.source.startswith("generated"),
+                       record_box(getattr(cams, "generated", None)))
 
 
 class OpenFiles:
@@ -104,10 +108,17 @@ class OpenFiles:
                 self.panel.status += f" ({len(paths) - 1} more dropped file(s) ignored)"
 
     def open_path(self, path: str, style_slot: int = 0, record: bool = True) -> bool:
-        """Open a dropped or chosen file: a scene (.ply/.compressed.ply/.splat/.spz) or a style image (``style_slot``
-        1: as the second painting of a mix; ``record``: the choice is an undo step). True when it opened; the status
-        line (and the terminal) says what happened either way."""
+        """Open a dropped or chosen file: a scene (.ply/.compressed.ply/.splat/.spz), a style image (``style_slot``
+        1: as the second painting of a mix; ``record``: the choice is an undo step), or a ``gstyle batch`` folder or
+        its batch.csv (its jobs as takes). True when it opened; the status line (and the terminal) says what
+        happened either way."""
         name = Path(path).name
+        if style_slot == 0 and (name == BATCH_FILE or (Path(path) / BATCH_FILE).is_file()):
+            folder = Path(path).parent if name == BATCH_FILE else Path(path)
+            opened = self.open_batch(folder)
+            if opened:
+                self._remember_folder(folder)
+            return opened
         painting_before = self.painting_state() if record and has_suffix(name, IMAGE_SUFFIXES) else None
         last_step = self.history.last()
         try:

@@ -1,6 +1,10 @@
 """GL splat renderer: owns the GL objects that draw one set of Gaussians with one or more colour layers.
 
-Per-Gaussian data lives in RGBA32F textures (4096 Gaussians per row). Drawing takes two passes:
+Per-Gaussian data lives in textures (4096 Gaussians per row) of one of two layouts (``splat_data.LAYOUTS``):
+"compact" (the default: means and opacities float32, quaternions, scales, colours and SH coefficients half
+floats; 32 bytes of geometry a Gaussian, 8 a colour layer, 96 for SH of degree 3) or "float32" (RGBA32F
+throughout: 64, 16 and 192 bytes), kept as the reference the compact one is compared with. Drawing takes two
+passes:
 
 * projection (``shaders/splat_project.vert``, transform feedback): one vertex-shader invocation per Gaussian, in
   back-to-front order, writes its 2D centre, conic, opacity and quad axes into a buffer. It runs only when the
@@ -10,7 +14,8 @@ Per-Gaussian data lives in RGBA32F textures (4096 Gaussians per row). Drawing ta
   geometry stage expands into each splat's quad (its 3-sigma box along its own axes, shrunk to where the fragment
   stage would discard alpha < 1/255 anyway); the vertex stage only fetches the colour. Instancing cost a fixed
   amount per instance on llvmpipe; what remains is fill (every splat covers at least ~18 pixels after the
-  0.3 px^2 dilation): ``bench/gl_frame_parts.py`` splits a moving frame's time into its parts.
+  0.3 px^2 dilation): ``bench/gl_frame_parts.py`` splits a moving frame's time into its parts. On a software GL
+  the draw goes in calls of ``draw_chunk`` splats, each waiting for the one before it (llvmpipe's memory).
 
 The back-to-front order comes from a sorter thread (``app/depth_sort.py``: a counting sort of quantised depth keys
 in a numba kernel that releases the GIL). A new view (its depth row) or detail submits a sort and returns at once;
@@ -28,6 +33,7 @@ rasterizer's conventions (the original scene in the viewer); the stylized scene 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Mapping, Sequence
@@ -39,15 +45,17 @@ from gstyle_core.cameras.camera import Camera
 from gstyle_core.scene import used_sh_degree
 
 from .depth_sort import DEFAULT_BITS, DepthSorter, SortRequest, SortResult
-from .shader_loader import program_sources, shader_source
+from .shader_loader import program_sources, shader_source, with_defines
 from .splat_data import (
     TEXTURE_WIDTH,
     check_geometry,
+    check_layout,
     colors_from_arrays,
     geometry_textures,
     importance_order,
     pack_rgba,
     sh_texture_layers,
+    texture_dtype,
     texture_rows,
 )
 
@@ -55,33 +63,36 @@ SH_LAYER = "sh"
 DIFFUSE_LAYER = "diffuse"
 SELECTION_LAYER = "__selection__"  # the highlighted Gaussians (r = 1), see ``set_selection``
 NEAR = 0.01
-PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes", "out_rgb")  # 2 + 4 + 4 + 3 floats per Gaussian
-PROJECTED_STRIDE = 52  # bytes per projected Gaussian
+PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes")  # 2 + 4 + 4 floats per Gaussian
+PROJECTED_STRIDE = 40  # bytes per projected Gaussian
+PROJECTED_SH_STRIDE = 52  # with the SH colour (+ 3 floats, "out_rgb"): only a renderer with SH coefficients
 SH_UNIT = 4  # texture unit of the SH coefficients in the projection pass (0-3: geometry)
+SOFTWARE_GL = ("llvmpipe", "softpipe", "swrast")  # renderer names of GLs that rasterise on the CPU
+SOFTWARE_DRAW_CHUNK = 32768  # splats a draw call on a software GL (``SplatRenderer.draw_chunk``)
 
 
 class SplatRenderer:
     """Draw Gaussians into a moderngl framebuffer, matching ``gstyle_core.raster.rasterize``'s maths."""
 
-    def __init__(self, ctx: moderngl.Context, sorter: DepthSorter | None = None) -> None:
+    def __init__(self, ctx: moderngl.Context, sorter: DepthSorter | None = None, layout: str = "compact") -> None:
         self.ctx = ctx
+        self.layout = check_layout(layout)
+        self._dtype = texture_dtype(layout)  # of the colour and SH textures
         self.program = ctx.program(**program_sources("splat"))
-        self.project_program = ctx.program(vertex_shader=shader_source("splat_project.vert"),
-                                           varyings=list(PROJECTED_VARYINGS))
+        self.project_program = self._projection_program(sh=False)
+        self._project_sh_program: moderngl.Program | None = None  # with the SH colour, made with the first SH
         self._index_buffer = ctx.buffer(reserve=4)
-        self._projected = ctx.buffer(reserve=PROJECTED_STRIDE)
-        self._vao = ctx.vertex_array(self.program, [(self._projected, "2f 4f 4f 3f", "in_center", "in_conic", "in_axes",
-                                                     "in_rgb"), (self._index_buffer, "1i", "in_index")])
-        self._project_vao = ctx.vertex_array(self.project_program, [(self._index_buffer, "1i", "in_index")])
+        self._projected = ctx.buffer(reserve=PROJECTED_SH_STRIDE)
+        self._vaos: dict[bool, tuple[moderngl.VertexArray, moderngl.VertexArray]] = {}  # with SH: (draw, project)
         self._projected_for: tuple | None = None
         self._geometry: list[moderngl.Texture] = []
+        self._scale_unit = 1.0  # what the stored scales are multiplied by (compact layout: 2^-k)
         self._layers: dict[str, moderngl.Texture] = {}
         self._means = np.zeros((0, 3), np.float32)
         self._by_importance = np.zeros(0, np.int32)  # Gaussians most important first (reduced detail keeps a prefix)
         self._sh: moderngl.TextureArray | None = None  # SH coefficients (layer "sh"), see sh_texture_layers
         self._sh_degree = -1
         self._sh_count = 0
-        self._no_sh = ctx.texture_array((1, 1, 1), 4, dtype="f4")  # bound when there is none (never read)
         self._sorter = sorter if sorter is not None else DepthSorter()
         self._requested: tuple | None = None  # key of the last sort submitted: (depth row, keep, geometry, bits)
         self._order_key: tuple | None = None  # key of the order in the index buffer (None: no usable order)
@@ -94,6 +105,11 @@ class SplatRenderer:
         self.projection_count = 0  # how many projection passes ran (one per new camera/target/geometry)
         self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
         self.highlight = False  # a selection is drawn highlighted (the Gaussians outside it dimmed)
+        # Splats a draw call, each call waiting for the one before it to be rasterised (0: one call). llvmpipe
+        # bins a draw into scenes of up to 36 MiB as far ahead of its rasteriser threads as the draw goes, and
+        # keeps every scene it had in flight, memory included, for reuse: one unthrottled draw of 1.2 M splats
+        # at 800x600 left 536 MB behind, drawn 32,768 at a time 48 MB, in the same time (docs/studio-performance).
+        self.draw_chunk = SOFTWARE_DRAW_CHUNK if is_software_gl(ctx) else 0
 
     # ----------------------------------------------------------------- data
     @property
@@ -129,10 +145,10 @@ class SplatRenderer:
     def update_geometry(self, arrays: Mapping[str, np.ndarray]) -> None:
         """Upload new geometry; colour layers whose length no longer matches are dropped."""
         n = check_geometry(arrays)
-        data = geometry_textures(arrays)
+        data, self._scale_unit = geometry_textures(arrays, self.layout)
         if self._geometry and self._geometry[0].size[1] == data[0].shape[0]:
             for tex, content in zip(self._geometry, data, strict=True):
-                tex.write(content.tobytes())
+                tex.write(content)
         else:
             for tex in self._geometry:
                 tex.release()
@@ -158,10 +174,10 @@ class SplatRenderer:
             raise ValueError(f"colours must have shape [{self.count}, 3], got {list(colors.shape)}")
         if layer == SH_LAYER:
             raise ValueError(f"layer name {SH_LAYER!r} is reserved for SH colours")
-        content = pack_rgba(np.nan_to_num(colors, nan=0.0, posinf=1.0, neginf=0.0))
+        content = pack_rgba(np.nan_to_num(colors, nan=0.0, posinf=1.0, neginf=0.0), self._dtype)
         tex = self._layers.get(layer)
         if tex is not None and tex.size[1] == content.shape[0]:
-            tex.write(content.tobytes())
+            tex.write(content)
         else:
             if tex is not None:
                 tex.release()
@@ -219,7 +235,7 @@ class SplatRenderer:
             first = min(max(int(first), 0), self._instances)
             count = min(max(int(count), 0), self._instances - first)
             if count:
-                self._vao.render(moderngl.POINTS, vertices=count, first=first)
+                self._draw_points(first, count)
             self.ctx.disable(moderngl.BLEND)
         self.ctx.scissor = None
         return self._instances if self.count else 0
@@ -258,8 +274,18 @@ class SplatRenderer:
         """The last projection pass's output in draw order: ``center`` [M, 2] (pixels), ``conic`` [M, 4] (a, b, c,
         opacity), ``axes`` [M, 4] (the quad's half axes; zero = culled), ``rgb`` [M, 3] (SH colour, zero without)."""
         m = self._instances
-        data = np.frombuffer(self._projected.read(size=PROJECTED_STRIDE * m), np.float32).reshape(m, -1)
-        return {"center": data[:, 0:2], "conic": data[:, 2:6], "axes": data[:, 6:10], "rgb": data[:, 10:13]}
+        data = np.frombuffer(self._projected.read(size=self._stride * m), np.float32).reshape(m, -1)
+        rgb = data[:, 10:13] if self._stride == PROJECTED_SH_STRIDE else np.zeros((m, 3), np.float32)
+        return {"center": data[:, 0:2], "conic": data[:, 2:6], "axes": data[:, 6:10], "rgb": rgb}
+
+    def gl_memory(self) -> dict[str, int]:
+        """Bytes of this renderer's GL objects by part: ``geometry``, ``colours`` (every layer), ``sh``,
+        ``projected`` (the projection pass's output) and ``order`` (the index buffer). On llvmpipe they live in
+        host memory."""
+        return {"geometry": sum(texture_bytes(t) for t in self._geometry),
+                "colours": sum(texture_bytes(t) for t in self._layers.values()),
+                "sh": texture_bytes(self._sh) if self._sh is not None else 0,
+                "projected": self._projected.size, "order": self._index_buffer.size}
 
     @property
     def sorter(self) -> DepthSorter:
@@ -270,16 +296,32 @@ class SplatRenderer:
         """Stop the sorter and free all GL objects."""
         self._sorter.stop()
         self._drop_sh()
-        for obj in [*self._geometry, *self._layers.values(), self._no_sh, self._vao, self._project_vao,
-                    self._index_buffer, self._projected, self.program, self.project_program]:
+        programs = [self.project_program] + ([self._project_sh_program] if self._project_sh_program else [])
+        vaos = [vao for pair in self._vaos.values() for vao in pair]
+        for obj in [*self._geometry, *self._layers.values(), *vaos, self._index_buffer,
+                    self._projected, self.program, *programs]:
             obj.release()
         self._geometry, self._layers = [], {}
 
     # ----------------------------------------------------------------- internals
     def _texture(self, content: np.ndarray) -> moderngl.Texture:
-        tex = self.ctx.texture((TEXTURE_WIDTH, content.shape[0]), 4, content.tobytes(), dtype="f4")
+        tex = self.ctx.texture((TEXTURE_WIDTH, content.shape[0]), 4, content, dtype=gl_dtype(content.dtype))
         tex.filter = moderngl.NEAREST, moderngl.NEAREST
         return tex
+
+    def _draw_points(self, first: int, count: int) -> None:
+        """Draw ``count`` projected splats from ``first`` in calls of ``draw_chunk``; after each call, wait for the
+        one before it (a query's result), never for the last: the binning of one overlaps the raster of the other,
+        and at most two are in flight."""
+        step = self.draw_chunk if 0 < self.draw_chunk < count else count
+        previous = None
+        for start in range(first, first + count, step):
+            query = self.ctx.query(primitives=True) if step < count else None
+            with query if query is not None else contextlib.nullcontext():
+                self._arrays()[0].render(moderngl.POINTS, vertices=min(step, first + count - start), first=start)
+            if previous is not None:
+                _ = previous.primitives  # blocks until that call is rasterised
+            previous = query
 
     def _project(self, camera: Camera) -> None:
         """Run the projection pass unless its inputs (camera, order, geometry) are those of the last run."""
@@ -288,27 +330,52 @@ class SplatRenderer:
                self.sort_count)
         if key == self._projected_for or not self._instances:
             return
-        needed = PROJECTED_STRIDE * self._instances
+        needed = self._stride * self._instances
         if needed > self._projected.size:
             self._projected.orphan(needed)
-        prog = self.project_program
+        prog = self._project_sh_program if self._sh is not None else self.project_program
         for unit, tex in enumerate(self._geometry):
             tex.use(unit)
-        for unit, name in enumerate(("u_geom0", "u_geom1", "u_geom2", "u_geom3")):
-            prog[name].value = unit
+            prog[f"u_geom{unit}"].value = unit
+        if self.layout == "compact":
+            prog["u_scale_unit"].value = self._scale_unit
         prog["u_tex_width"].value = TEXTURE_WIDTH
         prog["u_world_to_cam"].write(np.asarray(camera.world_to_cam, np.float32).T.tobytes())
         prog["u_intrinsics"].value = (float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy))
         prog["u_image_size"].value = (float(camera.width), float(camera.height))
         prog["u_viewport_origin"].value = (0.0, 0.0)
         prog["u_near"].value = NEAR
-        (self._sh if self._sh is not None else self._no_sh).use(SH_UNIT)
-        prog["u_sh"].value = SH_UNIT
-        prog["u_sh_degree"].value = self._sh_degree if self._sh is not None else -1
-        prog["u_camera_pos"].value = tuple(float(v) for v in camera.position)
-        self._project_vao.transform(self._projected, mode=moderngl.POINTS, vertices=self._instances)
+        if self._sh is not None:
+            self._sh.use(SH_UNIT)
+            prog["u_sh"].value = SH_UNIT
+            prog["u_sh_degree"].value = self._sh_degree
+            prog["u_camera_pos"].value = tuple(float(v) for v in camera.position)
+        self._arrays()[1].transform(self._projected, mode=moderngl.POINTS, vertices=self._instances)
         self._projected_for = key
         self.projection_count += 1
+
+    @property
+    def _stride(self) -> int:
+        """Bytes a Gaussian of the projection pass's output (the SH colour only where there are SH)."""
+        return PROJECTED_SH_STRIDE if self._sh is not None else PROJECTED_STRIDE
+
+    def _projection_program(self, sh: bool) -> moderngl.Program:
+        """The projection pass of this layout, writing the SH colour too when ``sh``."""
+        defines = (["COMPACT_GEOMETRY"] if self.layout == "compact" else []) + (["SH_COLOUR"] if sh else [])
+        varyings = [*PROJECTED_VARYINGS, "out_rgb"] if sh else list(PROJECTED_VARYINGS)
+        return self.ctx.program(vertex_shader=with_defines(shader_source("splat_project.vert"), *defines),
+                                varyings=varyings)
+
+    def _arrays(self) -> tuple[moderngl.VertexArray, moderngl.VertexArray]:
+        """The (draw, projection) vertex arrays of the current output layout (with or without the SH colour)."""
+        sh = self._sh is not None
+        if sh not in self._vaos:
+            content = (self._projected, "2f 4f 4f 3f", "in_center", "in_conic", "in_axes", "in_rgb") if sh else \
+                (self._projected, "2f 4f 4f", "in_center", "in_conic", "in_axes")
+            program = self._project_sh_program if sh else self.project_program
+            self._vaos[sh] = (self.ctx.vertex_array(self.program, [content, (self._index_buffer, "1i", "in_index")]),
+                              self.ctx.vertex_array(program, [(self._index_buffer, "1i", "in_index")]))
+        return self._vaos[sh]
 
     def _colour_texture(self, layer: str) -> moderngl.Texture | None:
         """The layer's colour texture; None for the SH layer (its colours come from the projection pass)."""
@@ -339,7 +406,7 @@ class SplatRenderer:
         if order.nbytes > self._index_buffer.size:
             self._index_buffer.orphan(max(order.nbytes, 4))
         if order.size:
-            self._index_buffer.write(order.tobytes())
+            self._index_buffer.write(order)
         self._order_key = result.key
         self._instances = int(order.size)
         self.sort_count += 1
@@ -348,10 +415,12 @@ class SplatRenderer:
         """Upload the coefficients of the SH layer once: a texture array written one layer at a time."""
         n = sh_dc.shape[0]
         layers = -(-3 * (degree + 1) ** 2 // 4)
-        tex = self.ctx.texture_array((TEXTURE_WIDTH, texture_rows(n), layers), 4, dtype="f4")
+        tex = self.ctx.texture_array((TEXTURE_WIDTH, texture_rows(n), layers), 4, dtype=gl_dtype(self._dtype))
         tex.filter = moderngl.NEAREST, moderngl.NEAREST
-        for j, content in enumerate(sh_texture_layers(sh_dc, sh_rest)):
-            tex.write(content.tobytes(), viewport=(0, 0, j, TEXTURE_WIDTH, content.shape[0], 1))
+        if self._project_sh_program is None:
+            self._project_sh_program = self._projection_program(sh=True)
+        for j, content in enumerate(sh_texture_layers(sh_dc, sh_rest, self._dtype)):
+            tex.write(content, viewport=(0, 0, j, TEXTURE_WIDTH, content.shape[0], 1))
         self._sh, self._sh_degree, self._sh_count = tex, degree, n
         self.uploads["colors"] += 1
 
@@ -372,6 +441,22 @@ class SplatRenderer:
         prog["u_highlight"].value = int(highlight)
         prog["u_tex_width"].value = TEXTURE_WIDTH
         prog["u_target_size"].value = (float(width), float(height))
+
+
+def is_software_gl(ctx: moderngl.Context) -> bool:
+    """The context rasterises on the CPU (Mesa's llvmpipe, softpipe or swrast)."""
+    name = str(ctx.info.get("GL_RENDERER", "")).lower()
+    return any(word in name for word in SOFTWARE_GL)
+
+
+def gl_dtype(dtype: np.dtype | type) -> str:
+    """moderngl's name of a numpy texture dtype (float16 -> "f2", float32 -> "f4")."""
+    return {np.dtype(np.float16): "f2", np.dtype(np.float32): "f4"}[np.dtype(dtype)]
+
+
+def texture_bytes(tex: moderngl.Texture | moderngl.TextureArray) -> int:
+    """Bytes of a texture's texels (layers included)."""
+    return tex.width * tex.height * getattr(tex, "layers", 1) * tex.components * int(tex.dtype[1])
 
 
 def target_size(fbo: moderngl.Framebuffer) -> tuple[int, int]:

@@ -26,3 +26,9 @@ def program_sources(stem: str) -> dict[str, str]:
     if (SHADER_DIR / f"{stem}.geom").is_file():
         sources["geometry_shader"] = shader_source(f"{stem}.geom")
     return sources
+
+
+def with_defines(source: str, *names: str) -> str:
+    """``source`` with ``#define NAME 1`` for each name, placed after its ``#version`` line (GLSL wants it first)."""
+    head, _, rest = source.partition("\n")
+    return "\n".join([head, *(f"#define {name} 1" for name in names), rest])

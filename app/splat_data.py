@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING
 
@@ -12,16 +13,21 @@ from gstyle_core.scene import SH_C0, sigmoid
 if TYPE_CHECKING:
     from gstyle_core.scene import GaussianScene
 
-TEXTURE_WIDTH = 4096  # Gaussians per texture row; data lives in RGBA32F textures (no SSBO size limit)
+TEXTURE_WIDTH = 4096  # Gaussians per texture row; data lives in RGBA textures (no SSBO size limit)
 GEOMETRY_KEYS = ("means", "log_scales", "quats", "opacity_logits")
+HALF_MAX = 65504.0  # the largest finite half float
+MAX_SCALE_EXPONENT = 30  # |k| of the scales' power of two (``scale_exponent``); 2^-k stays a normal float32
+
+# Per-Gaussian texture layouts of the renderer (bytes a Gaussian: geometry + a colour layer + SH of degree 3):
+# "compact": mean and opacity RGBA32F, unit quaternion and scales (times the scene's power of two) RGBA16F,
+#            colours and SH coefficients RGBA16F: 32 + 8 + 96;
+# "float32": mean and opacity, and the three columns of M = R S, RGBA32F; colours and SH RGBA32F: 64 + 16 + 192.
+LAYOUTS = ("compact", "float32")
 
 
 def rotation_matrices(quats: np.ndarray) -> np.ndarray:
     """[N, 3, 3] rotations from wxyz quaternions of any length (a zero quaternion means identity)."""
-    q = np.asarray(quats, np.float64)
-    norm = np.linalg.norm(q, axis=1, keepdims=True)
-    q = np.where(norm > 0, q / np.where(norm > 0, norm, 1.0), np.array([1.0, 0.0, 0.0, 0.0]))
-    w, x, y, z = q.T
+    w, x, y, z = unit_quaternions(quats).T
     return np.stack([
         1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
         2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
@@ -47,27 +53,82 @@ def texture_rows(n: int) -> int:
     return max(1, -(-n // TEXTURE_WIDTH))
 
 
-def pack_rgba(columns: np.ndarray) -> np.ndarray:
-    """[N, C<=4] float data -> zero-padded float32 [rows, TEXTURE_WIDTH, 4] texture content."""
+def pack_rgba(columns: np.ndarray, dtype: type = np.float32) -> np.ndarray:
+    """[N, C<=4] float data -> zero-padded [rows, TEXTURE_WIDTH, 4] texture content of ``dtype`` (float32, or
+    float16 with values beyond the half range clipped to it)."""
     n = columns.shape[0]
-    out = np.zeros((texture_rows(n) * TEXTURE_WIDTH, 4), np.float32)
+    out = np.zeros((texture_rows(n) * TEXTURE_WIDTH, 4), dtype)
+    if out.dtype == np.float16:
+        columns = np.clip(columns, -HALF_MAX, HALF_MAX)
     out[:n, : columns.shape[1]] = columns
     return out.reshape(-1, TEXTURE_WIDTH, 4)
 
 
-def geometry_textures(arrays: Mapping[str, np.ndarray]) -> list[np.ndarray]:
-    """Four RGBA texture contents: (mean, opacity) and the three columns of M = R S (Sigma_3D = M M^T)."""
+def check_layout(layout: str) -> str:
+    """``layout`` if it is one of ``LAYOUTS``; a one-line ValueError otherwise."""
+    if layout not in LAYOUTS:
+        raise ValueError(f"unknown texture layout {layout!r}; have {', '.join(LAYOUTS)}")
+    return layout
+
+
+def texture_dtype(layout: str) -> type:
+    """numpy dtype of the colour and SH textures of a layout."""
+    return np.float16 if check_layout(layout) == "compact" else np.float32
+
+
+def geometry_textures(arrays: Mapping[str, np.ndarray], layout: str = "float32") -> tuple[list[np.ndarray], float]:
+    """Texture contents of the geometry in ``layout`` and the unit of its stored scales (see ``LAYOUTS``).
+
+    "float32": (mean, opacity) and the three columns of M = R S (Sigma_3D = M M^T), unit 1. "compact": (mean,
+    opacity) float32, then the unit quaternion and the scales times 2^k as half floats, unit 2^-k
+    (``scale_exponent``). Non-finite Gaussians get opacity 0 (the documented repair: they vanish)."""
     check_geometry(arrays)
+    check_layout(layout)
     means = np.asarray(arrays["means"], np.float32)
     opacity = sigmoid(np.asarray(arrays["opacity_logits"], np.float32))
-    scales = np.exp(np.asarray(arrays["log_scales"], np.float64))
-    m = rotation_matrices(arrays["quats"]) * scales[:, None, :]
-    bad = ~(np.isfinite(means).all(1) & np.isfinite(m).all((1, 2)) & np.isfinite(opacity))
-    opacity = np.where(bad, 0.0, opacity).astype(np.float32)  # documented repair: non-finite Gaussians vanish
+    # float64 for the float32 layout's matrices; float32 is ample for what is stored as half floats (and halves the
+    # temporary arrays of opening a scene of millions)
+    work = np.float64 if layout == "float32" else np.float32
+    with np.errstate(over="ignore"):  # an absurd log-scale overflows to inf: that Gaussian is repaired away below
+        scales = np.exp(np.asarray(arrays["log_scales"], work))
+    if layout == "float32":
+        factor = rotation_matrices(arrays["quats"]) * scales[:, None, :]
+        finite = np.isfinite(factor).all((1, 2))
+    else:
+        factor = unit_quaternions(arrays["quats"], np.float32)
+        finite = np.isfinite(scales).all(1) & np.isfinite(factor).all(1)
+    bad = ~(np.isfinite(means).all(1) & finite & np.isfinite(opacity))
+    opacity = np.where(bad, 0.0, opacity).astype(np.float32)
     means = np.where(bad[:, None], 0.0, means)
-    m = np.where(bad[:, None, None], 0.0, m).astype(np.float32)
-    return [pack_rgba(np.column_stack([means, opacity])),
-            pack_rgba(m[:, :, 0]), pack_rgba(m[:, :, 1]), pack_rgba(m[:, :, 2])]
+    first = pack_rgba(np.column_stack([means, opacity]))
+    if layout == "float32":
+        m = np.where(bad[:, None, None], 0.0, factor).astype(np.float32)
+        return [first, pack_rgba(m[:, :, 0]), pack_rgba(m[:, :, 1]), pack_rgba(m[:, :, 2])], 1.0
+    k = scale_exponent(scales)
+    stored = np.where(bad[:, None], 0.0, scales) * 2.0**k
+    factor[bad] = (1.0, 0.0, 0.0, 0.0)
+    return [first, pack_rgba(factor, np.float16), pack_rgba(stored, np.float16)], 2.0**-k
+
+
+def unit_quaternions(quats: np.ndarray, dtype: type = np.float64) -> np.ndarray:
+    """[N, 4] wxyz quaternions of ``dtype`` scaled to length 1 (length zero or NaN: identity)."""
+    q = np.asarray(quats, dtype)
+    norm = np.linalg.norm(q, axis=1, keepdims=True)
+    return np.where(norm > 0, q / np.where(norm > 0, norm, 1), np.array([1, 0, 0, 0], dtype))
+
+
+def scale_exponent(scales: np.ndarray, sample: int = 100_000) -> int:
+    """k such that the scales times 2^k suit half floats: their median (of up to ``sample`` of them) near 1,
+    the largest at most 2^15; |k| <= MAX_SCALE_EXPONENT. Half floats keep 11 significant bits from 6.1e-5 to
+    65504, so the scales of a scene in any unit keep their relative precision (2^-11) unless they span more
+    than 2^30."""
+    flat = np.asarray(scales, np.float64).reshape(-1)
+    positive = flat[np.isfinite(flat) & (flat > 0)]
+    if not positive.size:
+        return 0
+    middle = float(np.median(positive[:: max(1, positive.size // sample)]))
+    k = min(round(-math.log2(middle)), math.floor(15 - math.log2(float(positive.max()))))
+    return int(np.clip(k, -MAX_SCALE_EXPONENT, MAX_SCALE_EXPONENT))
 
 
 def colors_from_arrays(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -111,8 +172,9 @@ def importance_ranks(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.n
     return ranks
 
 
-def sh_texture_layers(sh_dc: np.ndarray, sh_rest: np.ndarray) -> Iterator[np.ndarray]:
-    """Texture contents ([rows, TEXTURE_WIDTH, 4] float32) of SH coefficients, one texture-array layer at a time.
+def sh_texture_layers(sh_dc: np.ndarray, sh_rest: np.ndarray, dtype: type = np.float32) -> Iterator[np.ndarray]:
+    """Texture contents ([rows, TEXTURE_WIDTH, 4] of ``dtype``) of SH coefficients, one texture-array layer at a
+    time.
 
     A Gaussian's coefficients are laid out coefficient-major, ``dc.rgb, rest[0].rgb, rest[1].rgb, ...`` (3 (d+1)^2
     floats, zero-padded to a multiple of 4); layer j holds floats 4j..4j+3 (``shaders/splat_project.vert``)."""
@@ -126,7 +188,7 @@ def sh_texture_layers(sh_dc: np.ndarray, sh_rest: np.ndarray) -> Iterator[np.nda
             if f < floats:
                 k, channel = divmod(f, 3)
                 columns[:, c] = sh_dc[:, channel] if k == 0 else sh_rest[:, k - 1, channel]
-        yield pack_rgba(columns)
+        yield pack_rgba(columns, dtype)
 
 
 def sh_colors(sh: np.ndarray, means: np.ndarray, camera_position: np.ndarray) -> np.ndarray:

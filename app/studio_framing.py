@@ -25,12 +25,13 @@ class StudioFraming:
         """Home pose. A scene with cameras of its own: the first one's viewpoint, levelled to the scene's up axis
         (estimated from the cameras), orbiting the scene's centre. A bare scene file (generated cameras, or none):
         the whole scene framed in the view ("frame all", ``frame_all``) from the first generated camera's side, and
-        kept framed while the view changes size and the camera has not moved (``_keep_framed``)."""
+        kept framed while the view changes size and the camera has not moved (``_keep_framed``); a stylized result
+        of one frames its input's box (recorded in its OUT.json), as its input was framed."""
         from gstyle_core.cameras.framing import scene_box
         from gstyle_core.cameras.generate import finite_points, robust_centre_radius
         from gstyle_core.cameras.up import estimate_up
 
-        self._scene_box = scene_box(self.loaded.scene.means)
+        self._scene_box = getattr(self.loaded, "frame_box", None) or scene_box(self.loaded.scene.means)
         centre, radius = robust_centre_radius(finite_points(self.loaded.scene.means))
         self.control.world_up = estimate_up(self.cameras)
         if self.cameras and not self.loaded.generated_cameras:

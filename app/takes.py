@@ -4,19 +4,27 @@ A take is an exported file (.ply, .spz or .compressed.ply) with a name the artis
 newest ``limit`` of them and remembers them in ``takes.json`` in the output folder, so a studio opened again on the
 same folder finds them (entries whose file is gone are dropped). Forgetting a take never deletes its file. No GL
 here: the studio loads a take's scene (``load``) into a renderer of its own.
+
+A ``gstyle batch`` folder (its ``batch.csv``) opens as takes too (``add_batch``): each finished job is one, named
+``SCENE after PAINTING`` with its settings line; these stay on the shelf until forgotten (the export limit does not
+push them off).
 """
 
 from __future__ import annotations
 
+import csv
 import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from gstyle_core.atomic import atomic_write_text
+from gstyle_core.errors import GStyleError
+from gstyle_core.outputs import companion, output_base
 from gstyle_core.scene import GaussianScene
 
 TAKES_FILE = "takes.json"
+BATCH_FILE = "batch.csv"  # the table ``gstyle batch`` writes in its folder (gstyle_core/pipeline/batch_report.py)
 DEFAULT_LIMIT = 5
 MAX_NAME = 40
 
@@ -31,6 +39,7 @@ class Take:
     created: float
     view_key: str = ""  # what the view showed when it was exported (``StudioApp.view_key``): T skips a take equal to it
     settings: str = ""  # one line: the run's preset, widths and the controls set (``settings_line``)
+    batch: str = ""  # the batch folder it came from ("" for an export)
 
     @property
     def label(self) -> str:
@@ -78,10 +87,16 @@ class TakeShelf:
         try:
             entries = json.loads((self.folder / TAKES_FILE).read_text())
             takes = [Take(str(e["name"]), str(e["path"]), int(e["gaussians"]), float(e["created"]),
-                          str(e.get("view_key", "")), str(e.get("settings", ""))) for e in entries]
+                          str(e.get("view_key", "")), str(e.get("settings", "")), str(e.get("batch", "")))
+                     for e in entries]
         except (OSError, ValueError, TypeError, KeyError):
             return []
-        return [t for t in takes if Path(t.path).is_file()][: self.limit]
+        return self._trimmed([t for t in takes if Path(t.path).is_file()])
+
+    def _trimmed(self, takes: list[Take]) -> list[Take]:
+        """``takes`` without the exports beyond the newest ``limit`` (a batch's takes all stay)."""
+        exports = [t for t in takes if not t.batch][: self.limit]
+        return [t for t in takes if t.batch or t in exports]
 
     def _write(self) -> None:
         """Save the list (atomically: the old ``takes.json`` stays whole); a failure (a read-only folder, a full
@@ -104,9 +119,18 @@ class TakeShelf:
         what the view showed when it was written; ``settings``: its one-line settings."""
         self._counter += 1
         take = Take(name or f"take {self._counter}", str(Path(path)), int(gaussians), time.time(), view_key, settings)
-        self.takes = [take] + [t for t in self.takes if t.path != take.path][: self.limit - 1]
+        self.takes = self._trimmed([take] + [t for t in self.takes if t.path != take.path])
         self._write()
         return take
+
+    def add_batch(self, folder: str | Path) -> list[Take]:
+        """Shelve every finished job of the ``gstyle batch`` folder ``folder`` (in the batch's order, first on top,
+        before the other takes); ``GStyleError`` when its ``batch.csv`` cannot be read."""
+        new = batch_takes(folder)
+        paths = {t.path for t in new}
+        self.takes = new + [t for t in self.takes if t.path not in paths]
+        self._write()
+        return new
 
     def rename(self, index: int, name: str) -> None:
         """Give take ``index`` a new name (trimmed; an empty name keeps the old one)."""
@@ -130,3 +154,36 @@ class TakeShelf:
 
         scene, _report = load_scene(self.takes[index].path)
         return scene
+
+
+def batch_takes(folder: str | Path) -> list[Take]:
+    """A take per finished job in ``folder``'s ``batch.csv`` whose scene file is there: ``SCENE after PAINTING``
+    (``, RUN`` with a plan), its Gaussian count and settings line from its OUT.json. ``GStyleError``: no table."""
+    folder = Path(folder)
+    table = folder / BATCH_FILE
+    try:
+        with open(table, newline="", encoding="utf-8") as fh:
+            rows = list(csv.DictReader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else " ".join(str(exc).split())
+        raise GStyleError(f"cannot read {table}: {why}") from None
+    if rows and not {"scene", "painting", "status", "out"} <= set(rows[0]):
+        raise GStyleError(f"{table} is not a gstyle batch table (no scene, painting, status and out columns)")
+    takes = []
+    for row in rows:
+        path = folder / Path(row["out"] or "").name  # the folder opened, wherever the batch was run from
+        if row["status"] not in ("done", "done already") or not path.is_file():
+            continue
+        try:
+            summary = json.loads(companion(path, ".json").read_text(encoding="utf-8"))
+            settings = summary["settings"]
+            weights = {f"lambda_{k}": v for k, v in (settings.get("weights") or {}).items()}
+            gaussians, line = int(summary["gaussians_after"]), settings_line({"settings": settings,
+                                                                              "params": {**weights, **settings}})
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            gaussians, line = 0, ""
+        name = f"{output_base(Path(row['scene']).name).name} after {Path(row['painting']).stem}"
+        name += f", {row['run']}" if row.get("run") else ""
+        takes.append(Take(name[:MAX_NAME], str(path), gaussians, path.stat().st_mtime, settings=line,
+                          batch=str(folder)))
+    return takes

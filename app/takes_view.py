@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from gstyle_core.errors import GStyleError
+from gstyle_core.outputs import companion
 
 from .export import summary_path
 from .splat_data import scene_arrays
@@ -43,6 +44,22 @@ class TakesView:
         self.compare_with_take = compare
         self.view_mode = "compare" if compare else "take"
         self.panel.status = f"{'comparing with' if compare else 'showing'} {take.name} ({Path(take.path).name})"
+        return True
+
+    def open_batch(self, folder: str | Path) -> bool:
+        """Shelve the finished jobs of a ``gstyle batch`` folder as takes and compare with the first; False (the
+        status line says why) when it has none or its ``batch.csv`` cannot be read."""
+        folder = Path(folder)
+        try:
+            new = self.takes.add_batch(folder)
+        except GStyleError as exc:
+            self._say(f"could not open the batch: {exc}")
+            return False
+        if not new:
+            self._say(f"no finished jobs in {folder / 'batch.csv'}")
+            return False
+        self.show_take(0, compare=True)
+        self._say(f"opened the batch {folder.name}: {len(new)} takes to compare ({new[0].name}, …)")
         return True
 
     def compare_with_original(self) -> None:
@@ -100,13 +117,18 @@ class TakesView:
             stale.release()
 
     def take_texture(self, take) -> tuple[int, tuple[int, int]] | None:
-        """The GL texture (id, size) of a take's thumbnail, loaded once from its PNG (None without one)."""
-        from PIL import Image
+        """The GL texture (id, size) of a take's thumbnail, loaded once from its PNG (a batch's take: its after
+        picture, fitted in the thumbnail's size; None without one)."""
+        from PIL import Image, ImageOps
 
         if take.path not in self._take_textures:
             texture = None
             try:
-                rgb = np.asarray(Image.open(thumbnail_path(self.output_dir, take.path)).convert("RGB"))
+                if take.batch:
+                    with Image.open(companion(take.path, "_after.png")) as after:
+                        rgb = np.asarray(ImageOps.contain(after.convert("RGB"), THUMB_SIZE))
+                else:
+                    rgb = np.asarray(Image.open(thumbnail_path(self.output_dir, take.path)).convert("RGB"))
                 texture = self.ctx.texture((rgb.shape[1], rgb.shape[0]), 3, rgb.tobytes(), alignment=1)
             except (OSError, ValueError):
                 pass

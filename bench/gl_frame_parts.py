@@ -26,7 +26,7 @@ from synthetic import look_at_camera  # noqa: E402
 
 from app.depth_sort import depth_order  # noqa: E402
 from app.main import parse_size  # noqa: E402
-from app.renderer import PROJECTED_STRIDE, SplatRenderer  # noqa: E402
+from app.renderer import SplatRenderer  # noqa: E402
 from app.studio import scene_arrays  # noqa: E402
 from gstyle_core.assets import DEMO_SCENE  # noqa: E402
 from gstyle_core.io import load_scene  # noqa: E402
@@ -34,9 +34,7 @@ from gstyle_core.io import load_scene  # noqa: E402
 
 def quad_pixels(renderer: SplatRenderer) -> float:
     """Total area (pixels) of the quads of the last projection pass."""
-    n = renderer._instances
-    data = np.frombuffer(renderer._projected.read(size=PROJECTED_STRIDE * n), np.float32).reshape(n, -1)
-    axes = data[:, 6:10]
+    axes = renderer.projected()["axes"]
     return float((4 * np.abs(axes[:, 0] * axes[:, 3] - axes[:, 1] * axes[:, 2])).sum())
 
 

@@ -18,9 +18,14 @@ original's volume as a denser capture would. Per size:
   moving frames drew; ``frame_blocked_by_sort_ms``: the longest a moving frame waited for a sort; then, once
   the still view's image is built, the median work of a frame (draw and ``ctx.finish()``) and the sorts it asked;
 * load: the scene written to a temporary .ply, the time of ``gstyle_core.io.load_scene`` reading it back;
-* host memory: the process's resident memory after the viewer opened the scene and drew (orbit and still) minus
-  before, per Gaussian (on llvmpipe this includes the GL textures and buffers, which live in host memory), and
-  the bytes per Gaussian of the arrays the renderer and its sorter keep.
+* frames and memory, once per texture layout of the renderer ("compact", the default, and "float32", the layout
+  before it; ``splat_data.LAYOUTS``), each in a fresh process that reads the .ply (so that neither inherits the
+  other's allocator or GL driver state): resident memory (Linux /proc) after the viewer opened the scene and drew
+  (orbit and still) minus before, per Gaussian, once freed heap memory went back to the system (glibc's
+  malloc_trim: what is live) and as it was (what the allocator kept besides); the renderer's GL objects by part
+  (``SplatRenderer.gl_memory``; on llvmpipe they live in host memory) and the arrays the renderer and its sorter
+  keep; the rest is the GL driver's working memory (llvmpipe's binned scenes, its compiled shaders) and the
+  process's other caches. Beside them, one frame of each layout against the other (8-bit |difference|).
 
     .venv/bin/python bench/viewer_scale.py [--sizes 1200000,6000000] [--seconds 4] [--size 800x600] [--fps 60]
 
@@ -31,9 +36,12 @@ host_bytes_per_gaussian=…`` (sort_ms: the new sort of all n, ``DEFAULT_BITS`` 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import gc
+import json
 import math
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -48,11 +56,24 @@ sys.path.insert(0, str(ROOT))
 import moderngl  # noqa: E402
 
 from app.camera_control import CameraControl  # noqa: E402
-from app.depth_sort import DEFAULT_BITS, DepthSorter, SortScratch, depth_order, key_bits  # noqa: E402
+from app.depth_sort import (  # noqa: E402
+    DEFAULT_BITS,
+    DepthSorter,
+    SortScratch,
+    depth_order,
+    exact_sort_request,
+    key_bits,
+)
 from app.main import parse_size  # noqa: E402
 from app.renderer import NEAR, SplatRenderer, read_rgb  # noqa: E402
 from app.scene_view import SceneView, ViewPass  # noqa: E402
-from app.splat_data import back_to_front_order, rotation_matrices, scene_arrays  # noqa: E402
+from app.splat_data import (  # noqa: E402
+    LAYOUTS,
+    back_to_front_order,
+    importance_order,
+    rotation_matrices,
+    scene_arrays,
+)
 from gstyle_core.cameras.camera import Camera  # noqa: E402
 from gstyle_core.cameras.framing import scene_box  # noqa: E402
 from gstyle_core.cameras.generate import finite_points, robust_centre_radius  # noqa: E402
@@ -83,16 +104,15 @@ def densify(scene: GaussianScene, n: int, seed: int = 0) -> GaussianScene:
                          np.zeros((n, 0, 3), np.float32))
 
 
-def rss_bytes() -> int:
-    """Resident memory of this process (Linux /proc) once freed heap memory went back to the system (glibc's
-    malloc_trim: what is live, not what the allocator kept)."""
-    import ctypes
-
+def rss_bytes(trim: bool = True) -> int:
+    """Resident memory of this process (Linux /proc); with ``trim`` once freed heap memory went back to the
+    system (glibc's malloc_trim: what is live, not what the allocator kept)."""
     gc.collect()
-    try:
-        ctypes.CDLL("libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):
-        pass
+    if trim:
+        try:
+            ctypes.CDLL("libc.so.6").malloc_trim(0)
+        except (OSError, AttributeError):
+            pass
     return int(Path("/proc/self/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
@@ -165,30 +185,28 @@ def inversion_buckets(means: np.ndarray, cam: Camera, bits: int) -> float:
     return float(np.max(z[1:] - np.minimum.accumulate(z)[:-1], initial=0.0) / width)
 
 
-def exact_sort(request, scratch) -> np.ndarray:
-    """The old exact order (float64 argsort), as a sorter's work."""
-    view = np.zeros((4, 4))
-    view[2] = request.view_row
-    order = back_to_front_order(request.means if request.subset is None else request.means[request.subset],
-                                view, request.near)
-    return order if request.subset is None else request.subset[order]
+def frame_of(ctx: moderngl.Context, arrays: dict, cam: Camera, sorter: DepthSorter, bits: int = DEFAULT_BITS,
+             layout: str = "compact") -> np.ndarray:
+    """One full 8-bit frame (int16 RGB) of the viewer with this sorter, key bits and texture layout."""
+    renderer = SplatRenderer(ctx, sorter, layout=layout)
+    renderer.sort_bits = bits
+    renderer.set_scene(arrays)
+    fbo = ctx.framebuffer([ctx.texture((cam.width, cam.height), 4)])
+    renderer.render(cam, fbo, BACKGROUND)
+    image = read_rgb(fbo).astype(np.int16)
+    fbo.color_attachments[0].release()
+    fbo.release()
+    renderer.release()
+    return image
 
 
 def image_difference(ctx: moderngl.Context, arrays: dict, cam: Camera, bits: list[int]) -> dict:
-    """Per key bits: (mean, 99.9th percentile) of |quantised - exact| over one full frame's 8-bit RGB."""
-    images = []
-    for sorter, key_size in ((DepthSorter(exact_sort), DEFAULT_BITS), *((DepthSorter(), b) for b in bits)):
-        renderer = SplatRenderer(ctx, sorter)
-        renderer.sort_bits = key_size
-        renderer.set_scene(arrays)
-        fbo = ctx.framebuffer([ctx.texture((cam.width, cam.height), 4)])
-        renderer.render(cam, fbo, BACKGROUND)
-        images.append(read_rgb(fbo).astype(np.int16))
-        fbo.color_attachments[0].release()
-        fbo.release()
-        renderer.release()
-    diffs = [np.abs(image - images[0]) for image in images[1:]]
-    return {b: (float(d.mean()), float(np.percentile(d, 99.9))) for b, d in zip(bits, diffs, strict=True)}
+    """(mean, 99.9th percentile) of the 8-bit |difference| over one full frame: per key bits, the quantised order
+    against the exact one; "float32": the float32 texture layout against the compact one (both exactly sorted)."""
+    exact = frame_of(ctx, arrays, cam, DepthSorter(exact_sort_request))
+    diffs = {b: np.abs(frame_of(ctx, arrays, cam, DepthSorter(), b) - exact) for b in bits}
+    diffs["float32"] = np.abs(frame_of(ctx, arrays, cam, DepthSorter(exact_sort_request), layout="float32") - exact)
+    return {key: (float(d.mean()), float(np.percentile(d, 99.9))) for key, d in diffs.items()}
 
 
 def frame_loop(ctx: moderngl.Context, renderer: SplatRenderer, control: CameraControl, size: tuple[int, int],
@@ -241,55 +259,84 @@ def still_cost(ctx: moderngl.Context, view: SceneView, renderer: SplatRenderer, 
     return {"still_built_ms": float(np.median(work)), "still_sorts": renderer.sorter.stats.submitted - submitted}
 
 
-def gl_bytes(renderer: SplatRenderer) -> int:
-    """Bytes of the renderer's textures and buffers (on llvmpipe they live in host memory)."""
-    textures = [*renderer._geometry, *renderer._layers.values()]
-    return (sum(t.width * t.height * 16 for t in textures) + renderer._projected.size
-            + renderer._index_buffer.size)
+def malloc_live() -> int:
+    """Bytes glibc's malloc has handed out and not taken back (mallinfo2; 0 where there is none)."""
+    class MallInfo2(ctypes.Structure):
+        _fields_ = [(name, ctypes.c_size_t) for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
+                                                          "fsmblks", "uordblks", "fordblks", "keepcost")]
+
+    try:
+        mallinfo2 = ctypes.CDLL("libc.so.6").mallinfo2
+    except (OSError, AttributeError):
+        return 0
+    mallinfo2.restype = MallInfo2
+    info = mallinfo2()
+    return int(info.uordblks + info.hblkhd)
 
 
 def open_and_draw(ctx: moderngl.Context, scene: GaussianScene, args: argparse.Namespace) -> dict:
-    """The viewer opens the scene and draws (orbit, still): timings, memory before/after, the kept arrays."""
-    before = rss_bytes()
-    renderer = SplatRenderer(ctx)
+    """The viewer (``args.layout``) opens the scene and draws (orbit, still): timings, memory before/after (live,
+    as the allocator left it, malloc's own count), its GL objects by part and the arrays it keeps."""
+    before, before_raw, before_live = rss_bytes(), rss_bytes(trim=False), malloc_live()
+    renderer = SplatRenderer(ctx, layout=args.layout)
+    if args.draw_chunk is not None:
+        renderer.draw_chunk = args.draw_chunk
     t0 = time.perf_counter()
     renderer.set_scene(scene_arrays(scene))
     open_s = time.perf_counter() - t0
+    opened_raw = rss_bytes(trim=False) - before_raw
     control = orbit_control(scene, *args.size)
     opened = rss_bytes() - before
     frames = frame_loop(ctx, renderer, control, args.size, args.seconds, args.fps)
-    frames.update(open_s=open_s, host_bytes=rss_bytes() - before, opened_bytes=opened, gl_bytes=gl_bytes(renderer),
-                  array_bytes=renderer._means.nbytes + renderer._by_importance.nbytes + 4 * scene.count,
-                  by_importance=renderer._by_importance.copy())
+    host_raw = rss_bytes(trim=False) - before_raw
+    frames.update(open_s=open_s, host_bytes=rss_bytes() - before, host_raw_bytes=host_raw, opened_bytes=opened,
+                  opened_raw_bytes=opened_raw, malloc_bytes=malloc_live() - before_live, gl=renderer.gl_memory(),
+                  array_bytes=renderer._means.nbytes + renderer._by_importance.nbytes + 4 * scene.count)
     renderer.release()
     return frames
 
 
-def load_time(scene: GaussianScene, tmp_dir: str | None) -> tuple[GaussianScene, float, int]:
-    """Write ``scene`` to a temporary .ply and read it back: (the scene read, seconds to read it, file bytes)."""
-    with tempfile.TemporaryDirectory(dir=tmp_dir) as tmp:
-        path = Path(tmp) / "densified.ply"
-        save_scene(scene, path)
-        del scene
-        gc.collect()
-        t0 = time.perf_counter()
-        loaded, _ = load_scene(path)
-        return loaded, time.perf_counter() - t0, path.stat().st_size
+def viewer_child(args: argparse.Namespace) -> None:
+    """``--viewer PLY``: read the scene, open and draw it in ``args.layout``, print one ``VIEWER {json}`` line."""
+    scene, _ = load_scene(args.viewer)
+    depth_order(scene.means[:16], np.eye(4), NEAR)  # numba's kernel loaded before measuring
+    ctx = moderngl.create_standalone_context(backend="egl", require=330)
+    print("VIEWER " + json.dumps(open_and_draw(ctx, scene, args)), flush=True)
+
+
+def viewer_in_child(path: Path, layout: str, args: argparse.Namespace) -> dict:
+    """``open_and_draw`` of the .ply at ``path`` in ``layout``, in a fresh process."""
+    command = [sys.executable, str(Path(__file__).resolve()), "--viewer", str(path), "--layout", layout,
+               "--seconds", str(args.seconds), "--size", f"{args.size[0]}x{args.size[1]}", "--fps", str(args.fps)]
+    if args.draw_chunk is not None:
+        command += ["--draw-chunk", str(args.draw_chunk)]
+    done = subprocess.run(command, capture_output=True, text=True, check=False)
+    lines = [line for line in done.stdout.splitlines() if line.startswith("VIEWER ")]
+    if done.returncode != 0 or not lines:
+        raise SystemExit(f"the {layout} viewer of {path.name} failed: {done.stderr.strip()[-2000:]}")
+    return json.loads(lines[-1][len("VIEWER "):])
 
 
 def run_size(ctx: moderngl.Context, source: GaussianScene, n: int, args: argparse.Namespace) -> dict:
     """Every figure of one size (see the module docstring)."""
-    scene, load_s, file_bytes = load_time(densify(source, n), args.tmp)
-    drawn = open_and_draw(ctx, scene, args)
-    share = float(np.median(drawn["shares"]))
-    subset = drawn.pop("by_importance")[: max(1, math.ceil(share * n))] if share < 1.0 else None
+    with tempfile.TemporaryDirectory(dir=args.tmp) as tmp:
+        path = Path(tmp) / "densified.ply"
+        save_scene(densify(source, n), path)
+        gc.collect()
+        t0 = time.perf_counter()
+        scene, _ = load_scene(path)
+        load_s, file_bytes = time.perf_counter() - t0, path.stat().st_size
+        viewers = {layout: viewer_in_child(path, layout, args) for layout in LAYOUTS}
+    share = float(np.median(viewers["compact"]["shares"]))
+    ranked = importance_order(scene.log_scales, scene.opacity_logits)
+    subset = ranked[: max(1, math.ceil(share * n))] if share < 1.0 else None
     views = orbit_views(orbit_control(scene, *args.size), *args.size, args.views)
     sorts = sort_times(scene.means, views, subset)
     bits = sorted({DEFAULT_BITS, key_bits(n)})
     quality = {b: inversion_buckets(scene.means, views[0], b) for b in bits}
-    diff = image_difference(ctx, scene_arrays(scene), views[1], bits)
+    diff = image_difference(ctx, scene_arrays(scene), views[min(1, len(views) - 1)], bits)
     return {"n": n, "file_mb": file_bytes / 2**20, "load_s": load_s, "share": share, "sorts": sorts,
-            "quality": quality, "diff": diff, **drawn}
+            "quality": quality, "diff": diff, "viewers": viewers}
 
 
 def stats(ms: list[float]) -> str:
@@ -315,24 +362,38 @@ def report(rows: list[dict]) -> None:
     print("|---|---|---|")
     for r in rows:
         gaps = ", ".join(f"{bits} bits {gap:.2f}" for bits, gap in r["quality"].items())
-        diffs = ", ".join(f"{bits} bits {mean:.4f} / {high:.0f}" for bits, (mean, high) in r["diff"].items())
+        diffs = ", ".join(f"{bits} bits {mean:.4f} / {high:.0f}" for bits, (mean, high) in r["diff"].items()
+                          if bits != "float32")
         print(f"| {r['n']:,} | {gaps} | {diffs} |")
-    print("\nviewer (fps median / p95 ms; host memory = live RSS after opening and drawing minus before, per "
-          "Gaussian; after opening only / of which GL objects / renderer+sorter arrays)")
-    print("| Gaussians | file MB | load s | open s | orbiting | still | still once built: ms a frame, sorts | "
-          "drawn while orbiting | frame waited for a sort, ms | host B/G (opened / GL / arrays) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("\nviewer, per texture layout, each in its own process (fps median / p95 ms). Host memory per Gaussian: "
+          "RSS after opening and drawing minus before, live (freed heap returned first, malloc_trim) and as the "
+          "allocator left it; of the live bytes, the renderer's GL objects (geometry / colour layers / projection "
+          "output + index buffer), the arrays it and its sorter keep, and the rest (the GL driver's working "
+          "memory, caches). Layouts: one frame of float32 against compact, 8-bit |difference| mean / 99.9th pct")
+    print("| Gaussians | file MB | load s | layout | open s | orbiting | still | still once built: ms a frame, sorts | "
+          "drawn while orbiting | frame waited for a sort, ms | host B/G live (after opening) | as left (after "
+          "opening) | GL B/G | arrays | rest | layouts' image difference |")
+    print("|---" * 16 + "|")
     for r in rows:
         n = r["n"]
-        print(f"| {n:,} | {r['file_mb']:.0f} | {r['load_s']:.2f} | {r['open_s']:.2f} | {stats(r['orbiting'])} | "
-              f"{stats(r['still'])} | {r['still_built_ms']:.2f}, {r['still_sorts']} | {r['share']:.3f} | "
-              f"{max(r['waits'], default=0.0):.1f} | "
-              f"{r['host_bytes'] / n:.0f} ({r['opened_bytes'] / n:.0f} / {r['gl_bytes'] / n:.0f} / "
-              f"{r['array_bytes'] / n:.0f}) |")
+        for layout, v in r["viewers"].items():
+            gl = v["gl"]
+            gl_total = sum(gl.values())
+            rest = v["host_bytes"] - gl_total - v["array_bytes"]
+            mean, high = r["diff"]["float32"]
+            print(f"| {n:,} | {r['file_mb']:.0f} | {r['load_s']:.2f} | {layout} | {v['open_s']:.2f} | "
+                  f"{stats(v['orbiting'])} | {stats(v['still'])} | {v['still_built_ms']:.2f}, {v['still_sorts']} | "
+                  f"{float(np.median(v['shares'])):.3f} | {max(v['waits'], default=0.0):.1f} | "
+                  f"{v['host_bytes'] / n:.0f} ({v['opened_bytes'] / n:.0f}) | "
+                  f"{v['host_raw_bytes'] / n:.0f} ({v['opened_raw_bytes'] / n:.0f}) | "
+                  f"{gl_total / n:.0f} ({gl['geometry'] / n:.0f} / {(gl['colours'] + gl['sh']) / n:.0f} / "
+                  f"{(gl['projected'] + gl['order']) / n:.0f}) | {v['array_bytes'] / n:.0f} | {rest / n:.0f} | "
+                  f"{mean:.4f} / {high:.0f} |")
     for r in rows:
+        v = r["viewers"]["compact"]
         print(f"RESULT n={r['n']} sort_ms={r['sorts'][f'numba {DEFAULT_BITS} bits']:.1f} "
-              f"frame_blocked_by_sort_ms={max(r['waits'], default=0.0):.1f} drawn_share_orbiting={r['share']:.3f} "
-              f"load_s={r['load_s']:.2f} host_bytes_per_gaussian={r['host_bytes'] / r['n']:.0f}")
+              f"frame_blocked_by_sort_ms={max(v['waits'], default=0.0):.1f} drawn_share_orbiting={r['share']:.3f} "
+              f"load_s={r['load_s']:.2f} host_bytes_per_gaussian={v['host_bytes'] / r['n']:.0f}")
 
 
 def main() -> None:
@@ -345,7 +406,16 @@ def main() -> None:
     p.add_argument("--fps", type=float, default=60.0, help="the frame cap (the studio's default is 60)")
     p.add_argument("--views", type=int, default=6, help="orbit views the sorts are timed on")
     p.add_argument("--tmp", default=None, help="folder for the temporary .ply (default: the system's)")
+    p.add_argument("--draw-chunk", type=int, default=None,
+                   help="splats a draw call (0: one call; default: the renderer's, 32768 on llvmpipe)")
+    p.add_argument("--viewer", default=None, help=argparse.SUPPRESS)  # the child process of one layout's viewer
+    p.add_argument("--layout", default="compact", choices=LAYOUTS, help=argparse.SUPPRESS)
     args = p.parse_args()
+    if args.viewer:
+        viewer_child(args)
+        return
+    if args.views < 1:
+        p.error(f"--views must be at least 1, got {args.views}")
     sizes = [int(float(s)) for s in args.sizes.split(",") if s.strip()]
     print(f"cpu: {cpu_description()}; {os.cpu_count()} cores; {args.size[0]}x{args.size[1]}, cap {args.fps:g} fps")
     source, _ = load_scene(args.source)
@@ -356,16 +426,17 @@ def main() -> None:
         t0 = time.perf_counter()
         rows.append(run_size(ctx, source, n, args))
         print(f"{n:,} Gaussians measured in {time.perf_counter() - t0:.0f} s; peak RSS so far "
-              f"{peak_rss_gb():.1f} GB", flush=True)
+              f"{peak_rss_gb():.1f} GB (a viewer process: {peak_rss_gb(children=True):.1f} GB)", flush=True)
     report(rows)
     ctx.release()
 
 
-def peak_rss_gb() -> float:
-    """The process's peak resident memory (GB)."""
+def peak_rss_gb(children: bool = False) -> float:
+    """Peak resident memory (GB) of this process, or of its largest child process so far."""
     import resource
 
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    who = resource.RUSAGE_CHILDREN if children else resource.RUSAGE_SELF
+    return resource.getrusage(who).ru_maxrss / 2**20
 
 
 if __name__ == "__main__":

@@ -14,8 +14,10 @@ DEFAULT_PNG_OUT = "out/render.png"
 
 
 def load_scene_and_cameras(scene_path: str | None, cameras_path: str | None, width: int | None = None):
-    """Load a scene (default: the bundled demo) and its cameras (given, or generated around the Gaussians)."""
+    """Load a scene (default: the bundled demo) and its cameras: given; else those generated around its input when
+    it is a stylized result whose OUT.json records them (``cameras.recorded``); else generated around its Gaussians."""
     from .cameras import generate_cameras, load_cameras
+    from .cameras.recorded import recorded_cameras
     from .io import load_scene
 
     path = Path(scene_path) if scene_path else DEMO_SCENE
@@ -25,7 +27,7 @@ def load_scene_and_cameras(scene_path: str | None, cameras_path: str | None, wid
     if cameras_path:
         cams = load_cameras(cameras_path)
     else:
-        cams = generate_cameras(scene.means, kind="auto")
+        cams = recorded_cameras(path) or generate_cameras(scene.means, kind="auto")
     if width:
         cams = cams.scaled_to_width(width)
     return scene, report, cams

@@ -50,7 +50,9 @@ fi
 # NVIDIA GPU, torch's CUDA build of the same version comes from $GSTYLE_TORCH_INDEX (default: PyTorch's CUDA 13.0
 # index) and the 'cuda' extra adds gsplat, whose rasterizer compiles once on the first GPU run (docs/gpu.md).
 # GSTYLE_DEVICE=cpu keeps the CPU build on such a machine.
-extras="app,vgg,dev"
+# GSTYLE_EXTRAS adds extras: scripts/test.sh asks for ray (gstyle batch --ray and its tests; it needs no torch, the
+# CPU wheel stays as it is); the studio and the CLI run without it.
+extras="app,vgg,dev${GSTYLE_EXTRAS:+,$GSTYLE_EXTRAS}"
 if [[ ${GSTYLE_DEVICE:-auto} != cpu ]] && command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L >/dev/null 2>&1; then
   echo "setup: NVIDIA GPU found ($(nvidia-smi --query-gpu=name --format=csv,noheader | head -1)): torch's CUDA build"
   if ! .venv/bin/python -c "import torch, sys; sys.exit(not (torch.__version__.startswith('2.13.0')

@@ -8,10 +8,17 @@
 // scene's view-dependent colour: with SH coefficients (uploaded once) it is evaluated here, once per camera, with
 // gstyle_core/raster/sh.py's conventions (3DGS order and constants, +0.5, clamp at 0).
 
-uniform sampler2D u_geom0;   // mean.xyz, opacity
-uniform sampler2D u_geom1;   // columns of M = R S (rotation times scales): Sigma_3D = M M^T
+// Geometry textures (one texel per Gaussian). Sigma_3D = M M^T with M = R S (rotation times scales).
+uniform sampler2D u_geom0;   // mean.xyz, opacity (float32 in both layouts)
+#ifdef COMPACT_GEOMETRY
+uniform sampler2D u_geom1;   // unit quaternion w, x, y, z (half floats)
+uniform sampler2D u_geom2;   // scales times 2^k (half floats), -
+uniform float u_scale_unit;  // 2^-k: the scene's power of two that keeps the scales in half precision's normal range
+#else
+uniform sampler2D u_geom1;   // the three columns of M (float32)
 uniform sampler2D u_geom2;
 uniform sampler2D u_geom3;
+#endif
 uniform int u_tex_width;
 uniform mat4 u_world_to_cam;  // OpenCV axes, column-major as uploaded
 uniform vec4 u_intrinsics;    // fx, fy, cx, cy
@@ -19,7 +26,7 @@ uniform vec2 u_image_size;    // width, height in pixels (of the camera)
 uniform vec2 u_viewport_origin;  // pixel offset of the camera image in the framebuffer (x right, y down)
 uniform float u_near;
 uniform sampler2DArray u_sh;  // SH coefficients, coefficient-major (c0.rgb c1.rgb ...): layer j = floats 4j..4j+3
-uniform int u_sh_degree;      // 0-3; -1: no SH (out_rgb unused)
+uniform int u_sh_degree;      // 1-3 (the SH_COLOUR variant)
 uniform vec3 u_camera_pos;    // world position of the camera (view direction = mean - camera)
 
 in int in_index;      // Gaussian index, in back-to-front order
@@ -27,7 +34,9 @@ in int in_index;      // Gaussian index, in back-to-front order
 out vec2 out_center;   // means2d in framebuffer pixels, y down
 out vec4 out_conic;    // inverse 2D covariance (a, b, c), opacity
 out vec4 out_axes;     // the quad's half axes in pixels: major * extent, minor * extent; zero = culled
-out vec3 out_rgb;      // view-dependent colour from SH (zero without SH)
+#ifdef SH_COLOUR
+out vec3 out_rgb;      // view-dependent colour from SH (only in the variant for a scene with SH)
+#endif
 
 const float LOW_PASS = 0.3;
 const float FOV_MARGIN = 0.3;
@@ -35,7 +44,10 @@ const float FOV_MARGIN = 0.3;
 ivec2 texel(int i) { return ivec2(i % u_tex_width, i / u_tex_width); }
 
 void cull() {
-    out_center = vec2(0.0); out_conic = vec4(0.0); out_axes = vec4(0.0); out_rgb = vec3(0.0);
+    out_center = vec2(0.0); out_conic = vec4(0.0); out_axes = vec4(0.0);
+#ifdef SH_COLOUR
+    out_rgb = vec3(0.0);
+#endif
 }
 
 const float C0 = 0.28209479177387814;
@@ -80,11 +92,24 @@ vec3 sh_colour(int i, vec3 mean) {
     return max(rgb, vec3(0.0));
 }
 
+// M = R S of Gaussian i (R from the quaternion as gstyle_core's rotation_matrices, in the compact layout).
+mat3 cov_factor(int i) {
+#ifdef COMPACT_GEOMETRY
+    vec4 q = texelFetch(u_geom1, texel(i), 0);
+    q /= max(length(q), 1e-12);  // renormalised after the rounding to half floats
+    float w = q.x, x = q.y, y = q.z, z = q.w;
+    vec3 s = texelFetch(u_geom2, texel(i), 0).xyz * u_scale_unit;
+    return mat3(vec3(1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y)) * s.x,
+                vec3(2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x)) * s.y,
+                vec3(2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)) * s.z);
+#else
+    return mat3(texelFetch(u_geom1, texel(i), 0).xyz, texelFetch(u_geom2, texel(i), 0).xyz,
+                texelFetch(u_geom3, texel(i), 0).xyz);
+#endif
+}
+
 void main() {
     vec4 g0 = texelFetch(u_geom0, texel(in_index), 0);
-    vec4 g1 = texelFetch(u_geom1, texel(in_index), 0);
-    vec4 g2 = texelFetch(u_geom2, texel(in_index), 0);
-    vec4 g3 = texelFetch(u_geom3, texel(in_index), 0);
     vec3 p = (u_world_to_cam * vec4(g0.xyz, 1.0)).xyz;
     if (!(p.z > u_near)) { cull(); return; }
 
@@ -99,7 +124,7 @@ void main() {
                       0.0, fy * inv_z,
                       -fx * tx * inv_z * inv_z, -fy * ty * inv_z * inv_z);
     mat3 W = mat3(u_world_to_cam);
-    mat3x2 G = J * W * mat3(g1.xyz, g2.xyz, g3.xyz);   // Sigma_2D = G G^T
+    mat3x2 G = J * W * cov_factor(in_index);   // Sigma_2D = G G^T
     vec3 gx = vec3(G[0].x, G[1].x, G[2].x);
     vec3 gy = vec3(G[0].y, G[1].y, G[2].y);
     float a = dot(gx, gx) + LOW_PASS;
@@ -130,5 +155,7 @@ void main() {
     out_center = vec2(fx * p.x * inv_z + cx, fy * p.y * inv_z + cy) + u_viewport_origin;
     out_conic = vec4(vec3(c, -b, a) / det, g0.w);
     out_axes = vec4(half_extent.x * major, half_extent.y * minor);
-    out_rgb = u_sh_degree >= 0 ? sh_colour(in_index, g0.xyz) : vec3(0.0);
+#ifdef SH_COLOUR
+    out_rgb = sh_colour(in_index, g0.xyz);
+#endif
 }

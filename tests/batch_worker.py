@@ -1,6 +1,7 @@
 """``gstyle`` with the stand-in engine of ``test_outputs_stylize`` (nine steps, no networks) behind ``gstyle stylize``:
 the batch tests run their jobs through it, in the test's process (``use_tiny_engine(monkeypatch.setattr)``) or as
-the pool's worker command (``python tests/batch_worker.py stylize ...``). The scene and the paintings are loaded as a
+the pool's worker command (``python tests/batch_worker.py stylize ...``; ``--kill-parent-once MARKER`` first: the
+first job kills the process that started it, as a Ray worker lost). The scene and the paintings are loaded as a
 real run loads them, so a corrupt painting fails the job the same way."""
 
 from __future__ import annotations
@@ -45,6 +46,22 @@ def use_tiny_engine(setattr_: Callable, built: list | None = None) -> None:
     setattr_(cli, "evaluate_run", tiny_figures)
 
 
+def kill_parent_once(marker: str) -> None:
+    """The first time (``marker`` not there yet): kill the process that started this one, as a lost Ray worker."""
+    import os
+    import signal
+    from pathlib import Path
+
+    if not Path(marker).exists():
+        Path(marker).write_text(str(os.getppid()))
+        os.kill(os.getppid(), signal.SIGKILL)
+        sys.exit(1)
+
+
 if __name__ == "__main__":
+    argv = sys.argv[1:]
+    if argv[:1] == ["--kill-parent-once"]:  # python batch_worker.py --kill-parent-once MARKER stylize ...
+        kill_parent_once(argv[1])
+        argv = argv[2:]
     use_tiny_engine(setattr)
-    sys.exit(run(sys.argv[1:]))
+    sys.exit(run(argv))

@@ -31,17 +31,19 @@ class FakeEngine:
 
     ``fail_at``: step() raises RuntimeError at that step (1-based). ``set_params`` values are echoed in the
     snapshot under ``"params"`` so tests can see that they arrived. ``ignore_sigterm``: the process ignores SIGTERM
-    (with a long ``step_seconds``, a worker that hangs and must be killed).
+    (with a long ``step_seconds``, a worker that hangs and must be killed). ``min_level``: the darkest colour of the
+    cycle (0: black every 100 steps; above 0 every snapshot shows the scene).
     """
 
     def __init__(self, n: int = 64, total_steps: int = 1_000_000, fail_at: int | None = None,
-                 step_seconds: float = 0.002, grow_every: int = 0, ignore_sigterm: bool = False) -> None:
+                 step_seconds: float = 0.002, grow_every: int = 0, ignore_sigterm: bool = False,
+                 min_level: float = 0.0) -> None:
         if ignore_sigterm:
             import signal
 
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
         self.n, self.total, self.fail_at = n, total_steps, fail_at
-        self.step_seconds, self.grow_every = step_seconds, grow_every
+        self.step_seconds, self.grow_every, self.min_level = step_seconds, grow_every, min_level
         self.steps = 0
         self.params: dict[str, float] = {"lambda_clip": 10.0, "lambda_nnfm": 100.0}
         self.geometry_version = 0
@@ -69,7 +71,7 @@ class FakeEngine:
 
     def snapshot(self) -> dict:
         n = len(self.means)
-        level = (self.steps % 100) / 100.0
+        level = self.min_level + (1.0 - self.min_level) * (self.steps % 100) / 100.0
         return {
             "means": self.means.copy(),
             "log_scales": np.full((n, 3), np.log(0.05), np.float32),
@@ -294,15 +296,30 @@ def small_studio(window, monkeypatch, tmp_path, factory=keep_small_stylizer):
                      output_dir=tmp_path / "out", worker_mode="thread")
 
 
-def ring_studio(window, tmp_path, factory=make_fake_engine, snapshots: int = 1):
-    """A studio on a 150-Gaussian ring scene with 4 ring cameras whose engine (``factory``, ``n=150``) runs in a
-    worker thread, started and past its first ``snapshots`` snapshots; outputs go to ``tmp_path``."""
+def still_studio(window, tmp_path, size: tuple[int, int]):
+    """A studio without an engine on a 50-Gaussian scene seen by one camera of ``size``; outputs in ``tmp_path/out``,
+    recent folders in ``tmp_path/recent.json``."""
+    from synthetic import blob_scene, look_at_camera
+
+    from app.studio import LoadedScene, StudioApp
+
+    loaded = LoadedScene(str(tmp_path / "first.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), *size)])
+    app = StudioApp(window.ctx, loaded=loaded, style_path=None, engine_factory=None, engine_config={},
+                    output_dir=tmp_path / "out")
+    app.recent_file = tmp_path / "recent.json"
+    return app
+
+
+def ring_studio(window, tmp_path, factory=make_fake_engine, snapshots: int = 1, **config):
+    """A studio on a 150-Gaussian ring scene with 4 ring cameras whose engine (``factory``, ``n=150`` and
+    ``config``) runs in a worker thread, started and past its first ``snapshots`` snapshots; outputs go to
+    ``tmp_path``."""
     from synthetic import blob_scene, ring_cameras
 
     from app.studio import LoadedScene, StudioApp
 
     app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
-                    engine_factory=factory, engine_config={"n": 150}, worker_mode="thread")
+                    engine_factory=factory, engine_config={"n": 150, **config}, worker_mode="thread")
     app.start_engine()
     assert app.bridge.wait_until(lambda s: s.snapshots_received >= snapshots or s.error, 60), app.bridge.state.error
     return app

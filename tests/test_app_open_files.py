@@ -11,6 +11,7 @@ from imgui_bundle import imgui  # noqa: E402, F401, I001 - before glfw (gl-stack
 from PIL import Image  # noqa: E402
 
 from app.studio import LoadedScene, StudioApp  # noqa: E402
+from fakes import still_studio  # noqa: E402
 from gstyle_core.io import save_scene  # noqa: E402
 from synthetic import blob_scene, look_at_camera  # noqa: E402
 
@@ -19,10 +20,7 @@ W, H = 160, 120
 
 @pytest.fixture()
 def studio(window, tmp_path):
-    loaded = LoadedScene(str(tmp_path / "first.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), W, H)])
-    app = StudioApp(window.ctx, loaded=loaded, style_path=None, engine_factory=None, engine_config={},
-                    output_dir=tmp_path / "out")
-    app.recent_file = tmp_path / "recent.json"
+    app = still_studio(window, tmp_path, (W, H))
     yield app
     app.close()
 

@@ -232,23 +232,12 @@ def test_a_still_camera_submits_no_sort_and_uploads_no_order(ctx):
     r.release()
 
 
-def exact_sort(request, scratch):
-    """The old exact order (argsort of float64 depths) in place of the quantised one."""
-    from app.splat_data import back_to_front_order
-
-    view = np.zeros((4, 4))
-    view[2] = request.view_row
-    if request.subset is None:
-        return back_to_front_order(request.means, view, request.near)
-    return request.subset[back_to_front_order(request.means[request.subset], view, request.near)]
-
-
 BIKER = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "scenes" / "playcanvas" / "biker.spz"
 
 
 @pytest.mark.skipif(not BIKER.is_file(), reason="shared/data playcanvas/biker.spz absent")
 def test_quantised_order_draws_the_exact_orders_image_on_a_real_capture(ctx):
-    from app.depth_sort import DepthSorter, key_bits
+    from app.depth_sort import DepthSorter, exact_sort_request, key_bits
     from app.renderer import read_rgb
     from app.splat_data import scene_arrays
     from gstyle_core.cameras.generate import finite_points, robust_centre_radius
@@ -259,7 +248,7 @@ def test_quantised_order_draws_the_exact_orders_image_on_a_real_capture(ctx):
     w, h = 320, 240
     cam = look_at_camera(centre + radius * np.array([1.2, -0.4, 0.9]), centre, w, h)
     images = {}
-    for name, sorter, bits in (("exact", DepthSorter(exact_sort), 16), ("16 bits", DepthSorter(), 16),
+    for name, sorter, bits in (("exact", DepthSorter(exact_sort_request), 16), ("16 bits", DepthSorter(), 16),
                                ("count bits", DepthSorter(), key_bits(scene.count)), ("10 bits", DepthSorter(), 10)):
         r = SplatRenderer(ctx, sorter)
         r.sort_bits = bits
@@ -274,28 +263,48 @@ def test_quantised_order_draws_the_exact_orders_image_on_a_real_capture(ctx):
     assert diffs["10 bits"].mean() > diffs["16 bits"].mean()  # coarser keys do show (the comparison can fail)
 
 
+HALF_ROUNDOFF = 2.0**-11  # half floats keep 11 significant bits: a normal value rounds within 2^-11 of itself
+HALF_SUBNORMAL_ERROR = 2.0**-25  # half the spacing of half floats below 2^-14
+FLOAT32_EVAL = (2e-5, 1e-5)  # the shader's own float32 evaluation (absolute, relative; float32 layout measured)
+
+
+@pytest.mark.parametrize("layout", ["compact", "float32"])
 @pytest.mark.parametrize("degree", [1, 2, 3])
-def test_projection_pass_evaluates_sh_as_the_rasterizer_on_random_directions(ctx, degree):
+def test_projection_pass_evaluates_sh_as_the_rasterizer_on_random_directions(ctx, degree, layout):
+    """The shader's SH colours (read back from the projection pass) against sh.py in float64. Coefficients stored
+    as half floats are each off by at most 2^-11 of themselves (or 2^-25 below 2^-14), so a colour is off by at
+    most sum_k |basis_k(dir)| (2^-11 |c_k| + 2^-25) more than the float32 evaluation's own error."""
     torch = pytest.importorskip("torch")
     from app.splat_data import scene_arrays
-    from gstyle_core.raster.sh import eval_sh_colors
+    from gstyle_core.raster.sh import eval_sh_colors, sh_basis
 
     rng = np.random.default_rng(degree)
     scene = blob_scene(2000, seed=degree, sh_degree=degree, spread=2.0)
     scene.sh_rest = rng.normal(0, 0.4, scene.sh_rest.shape).astype(np.float32)
-    r = SplatRenderer(ctx)
+    r = SplatRenderer(ctx, layout=layout)
     r.set_scene(scene_arrays(scene))
-    coeffs = torch.from_numpy(np.concatenate([scene.sh_dc[:, None], scene.sh_rest], 1))
-    seen = np.zeros(scene.count, bool)
+    coeffs = torch.from_numpy(np.concatenate([scene.sh_dc[:, None], scene.sh_rest], 1)).double()
+    means = torch.from_numpy(scene.means).double()
+    seen, worst = np.zeros(scene.count, bool), 0.0
     for _ in range(6):  # cameras at random places looking in random directions: directions over the whole sphere
         eye = rng.normal(0, 0.5, 3)
         cam = look_at_camera(eye, eye + rng.normal(0, 1, 3), W, H)
         r.render(cam, float_fbo(ctx), layer="sh")
-        order, rgb = r.order(), r.projected()["rgb"]
+        order, rgb = r.order(), r.projected()["rgb"].astype(np.float64)
         drawn = r.projected()["axes"].any(1)  # culled ones (degenerate, faint) carry no colour
-        ref = eval_sh_colors(coeffs, torch.from_numpy(scene.means), torch.tensor(cam.position, dtype=torch.float32),
-                             degree).numpy()[order]
-        np.testing.assert_allclose(rgb[drawn], ref[drawn], rtol=1e-5, atol=2e-5)
+        position = torch.tensor(cam.position, dtype=torch.float64)
+        ref = eval_sh_colors(coeffs, means, position, degree).numpy()[order]
+        offset = means - position
+        basis = sh_basis(offset / offset.norm(dim=1, keepdim=True), degree).abs().numpy()[order]  # [M, K]
+        tolerance = FLOAT32_EVAL[0] + FLOAT32_EVAL[1] * np.abs(ref)
+        if layout == "compact":
+            magnitude = np.abs(coeffs.numpy()[order])  # [M, K, 3]
+            tolerance += np.einsum("mk,mkc->mc", basis, HALF_ROUNDOFF * magnitude + HALF_SUBNORMAL_ERROR)
+        error = np.abs(rgb - ref)[drawn]
+        assert (error <= tolerance[drawn]).all(), f"worst error / tolerance {np.max(error / tolerance[drawn]):.2f}"
+        worst = max(worst, float(error.max()))
         seen[order[drawn]] = True
     assert seen.mean() > 0.9
+    if layout == "compact":  # the coefficients really are half floats: errors beyond float32's own
+        assert worst > FLOAT32_EVAL[0]
     r.release()

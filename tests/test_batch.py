@@ -29,6 +29,11 @@ PICTURE = -(-CELL_WIDTH // 3)  # the stand-in's after pictures are 3:1: 256 px w
 @pytest.fixture
 def inputs(tmp_path, monkeypatch) -> dict:
     """Two tiny scenes, two paintings (reddish, bluish), a private cache folder."""
+    return make_inputs(tmp_path, monkeypatch)
+
+
+def make_inputs(tmp_path: Path, monkeypatch) -> dict:
+    """``inputs``' files in ``tmp_path``."""
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     scenes = []
     for k in (1, 2):

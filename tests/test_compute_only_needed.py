@@ -335,7 +335,7 @@ def test_renderer_evaluates_sh_on_the_gpu_for_real_sh_only_and_uploads_nothing_w
     from app.splat_data import sh_colors
 
     fbo = ctx.framebuffer([ctx.texture((64, 48), 4, dtype="f4")])
-    r = SplatRenderer(ctx)
+    r = SplatRenderer(ctx, layout="float32")  # exact colours both ways (half-float SH: test_app_renderer)
     arrays = viewer_arrays(sh_degree=3)
     r.set_scene(arrays)
     assert SH_LAYER in r.layers

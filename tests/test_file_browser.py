@@ -26,7 +26,8 @@ def tree(tmp_path):
 
 
 def test_the_dialogs_offer_the_readers_suffixes_compressed_ply_included():
-    assert FILE_KINDS["open_scene"].suffixes == SCENE_SUFFIXES and ".compressed.ply" in SCENE_SUFFIXES
+    assert FILE_KINDS["open_scene"].suffixes == (*SCENE_SUFFIXES, "batch.csv")  # a gstyle batch's table: its takes
+    assert ".compressed.ply" in SCENE_SUFFIXES
     assert FILE_KINDS["open_style"].suffixes == FILE_KINDS["open_style2"].suffixes == IMAGE_SUFFIXES
     assert has_suffix("x.COMPRESSED.PLY", [".compressed.ply"]) and not has_suffix("x.ply", [".compressed.ply"])
     assert not has_suffix("ply", [".ply"]) and has_suffix("a.b.spz", SCENE_SUFFIXES)

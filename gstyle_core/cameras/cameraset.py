@@ -21,7 +21,8 @@ class CameraSet:
     ``kind`` is "forward" (forward-facing, LLFF-like) or "360"; ``source`` says where the cameras came
     from (a path, or "generated-orbit"/"generated-arc"). ``points`` [M,3] and ``point_colors`` [M,3]
     (floats in [0,1]) are sparse points in the same world frame when known (COLMAP points3D, ...).
-    ``near``/``far`` are scene depth bounds when the format gives them (LLFF).
+    ``near``/``far`` are scene depth bounds when the format gives them (LLFF). ``generated``: for generated
+    cameras, the parameters that make them again (``generate_cameras``; recorded in a stylized result's OUT.json).
     """
 
     cameras: list[Camera]
@@ -31,6 +32,7 @@ class CameraSet:
     point_colors: np.ndarray | None = None  # [M, 3] float32 in [0, 1]
     near: float | None = None
     far: float | None = None
+    generated: dict | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in SCENE_KINDS:

@@ -89,3 +89,29 @@ def frame_cameras(cameras: Sequence[Camera], lo: np.ndarray, hi: np.ndarray, up:
                    for cam, rot in zip(cameras, rotations, strict=True)) if cameras else 1.0
     return [replace(cam, world_to_cam=look_at(centre - distance * rot[:, 2], centre, up))
             for cam, rot in zip(cameras, rotations, strict=True)]
+
+
+def extent_growth(before: np.ndarray, after: np.ndarray) -> dict[str, float]:
+    """How much further out the centres ``after`` [M, 3] reach than ``before`` [N, 3] (a stylized result against its
+    input), as ratios after / before (1: no growth): ``radius`` of the sphere generated cameras frame
+    (``generate.robust_centre_radius``), ``box`` the diagonal of the framing box (``scene_box``), ``max_distance``
+    the farthest centre from the input's centre; ``outside_share`` the fraction of ``after`` outside the input's box
+    grown by 1 % of its diagonal (0 for none)."""
+    from .generate import finite_points, robust_centre_radius
+
+    old, new = finite_points(before), finite_points(after)
+    centre, radius = robust_centre_radius(old)
+    lo, hi = scene_box(old)
+    diag = float(np.linalg.norm(hi - lo))
+    new_lo, new_hi = scene_box(new)
+    pad = 0.01 * diag
+    outside = np.any((new < lo - pad) | (new > hi + pad), axis=1) if len(new) else np.zeros(0, bool)
+    reach = float(np.linalg.norm(old - centre, axis=1).max()) if len(old) else 0.0
+
+    def ratio(a: float, b: float) -> float:
+        return a / b if b > 0 else 1.0
+
+    return {"radius": ratio(robust_centre_radius(new)[1], radius),
+            "box": ratio(float(np.linalg.norm(new_hi - new_lo)), diag),
+            "max_distance": ratio(float(np.linalg.norm(new - centre, axis=1).max()) if len(new) else 0.0, reach),
+            "outside_share": float(outside.mean()) if len(outside) else 0.0}

@@ -34,14 +34,17 @@ _AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0),
 
 
 def generate_cameras(means: np.ndarray, *, kind: str = "auto", count: int = 24, width: int = 640,
-                     height: int = 480, fov_deg: float = 50.0, up: str | np.ndarray = "-y") -> CameraSet:
+                     height: int = 480, fov_deg: float = 50.0, up: str | np.ndarray = "-y",
+                     centre: np.ndarray | None = None, radius: float | None = None) -> CameraSet:
     """Cameras looking at the central mass of ``means`` [N,3].
 
     ``kind``: "orbit" (a full circle ``ORBIT_ELEVATION_DEG`` above the horizon, kind "360"), "arc"
     (±``ARC_HALF_SPAN_DEG`` around the +z side, i.e. looking along world +z like COLMAP's first camera,
     kind "forward") or "auto" (= "orbit": without cameras nothing tells which side is the front).
     ``fov_deg`` is the field of view across the smaller image side. See the module docstring for ``up``.
-    Empty or all-non-finite ``means`` are framed as a point at the origin.
+    Empty or all-non-finite ``means`` are framed as a point at the origin. ``centre`` and ``radius`` given frame
+    that sphere instead (the input's, for a stylized result: ``cameras.recorded``). The set's ``generated`` holds
+    every parameter that makes the same cameras again (``up`` as the vector it resolved to).
     """
     if kind not in ("auto", "orbit", "arc"):
         raise ValueError(f"generate_cameras: kind must be 'auto', 'orbit' or 'arc', got {kind!r}")
@@ -51,7 +54,12 @@ def generate_cameras(means: np.ndarray, *, kind: str = "auto", count: int = 24, 
         raise ValueError(f"generate_cameras: fov_deg must be in [1, 170], got {fov_deg}")
     kind = "orbit" if kind == "auto" else kind
     pts = finite_points(means)
-    centre, radius = robust_centre_radius(pts)
+    found_centre, found_radius = robust_centre_radius(pts) if centre is None or radius is None else (None, None)
+    centre = found_centre if centre is None else np.asarray(centre, np.float64).reshape(3)
+    radius = found_radius if radius is None else float(radius)
+    if not (np.isfinite(centre).all() and np.isfinite(radius) and radius > 0):
+        raise ValueError(f"generate_cameras: the framed sphere needs a finite centre and a radius > 0, got "
+                         f"{centre}, {radius}")
     up_vec = resolve_up(up, pts, centre)
     focal = 0.5 * min(width, height) / math.tan(math.radians(fov_deg) / 2)
     distance = FRAMING_MARGIN * radius / math.sin(math.radians(fov_deg) / 2)
@@ -71,7 +79,9 @@ def generate_cameras(means: np.ndarray, *, kind: str = "auto", count: int = 24, 
         cameras.append(Camera(width, height, focal, focal, width / 2, height / 2,
                               look_at(eye, centre, up_vec), name=f"{kind}_{i:03d}"))
     scene_kind = "360" if kind == "orbit" else "forward"
-    return CameraSet(cameras, scene_kind, f"generated-{kind}")
+    record = {"kind": kind, "count": count, "width": width, "height": height, "fov_deg": float(fov_deg),
+              "up": [float(v) for v in up_vec], "centre": [float(v) for v in centre], "radius": float(radius)}
+    return CameraSet(cameras, scene_kind, f"generated-{kind}", generated=record)
 
 
 def finite_points(means: np.ndarray) -> np.ndarray:

@@ -14,6 +14,32 @@ import torch
 from ..raster.projection import quat_to_rotmat
 
 Optimizers = dict[str, torch.optim.Optimizer]
+FOOTPRINT_SIGMA = 3.0  # a Gaussian is drawn out to 3 σ (the rasterizer's screen radius, ``raster.projection``)
+MAX_REDRAWS = 64  # draws of a child's offset before the last few are pulled onto the allowed ellipsoid
+
+
+def child_offset_limit(scale_divisor: float) -> float:
+    """How far (in the parent's σ, Mahalanobis) a child of scale σ / ``scale_divisor`` may sit from its parent's
+    centre with its own footprint (``FOOTPRINT_SIGMA`` of its σ) inside the parent's: 3 (1 − 1 / divisor). Children
+    drawn from the whole Gaussian land up to 3-4 σ out: a large faint Gaussian at a capture's fringe then puts
+    children (and, after refits, colour) beyond where anything was, and the scene grows."""
+    return FOOTPRINT_SIGMA * max(0.0, 1.0 - 1.0 / float(scale_divisor))
+
+
+def truncated_normal(shape: tuple[int, ...], limit: float, generator: torch.Generator | None = None,
+                     dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """Standard normal 3-vectors [..., 3] drawn again wherever their norm exceeds ``limit`` (the normal
+    distribution restricted to that ball); after ``MAX_REDRAWS`` rounds any left (a tiny ``limit``) are scaled onto
+    it."""
+    noise = torch.randn(shape, generator=generator, dtype=dtype)
+    for _ in range(MAX_REDRAWS):
+        outside = noise.norm(dim=-1) > limit
+        count = int(outside.sum())
+        if count == 0:
+            return noise
+        noise[outside] = torch.randn((count, shape[-1]), generator=generator, dtype=dtype)
+    norms = noise.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+    return torch.where(norms > limit, noise * (limit / norms), noise)
 
 
 def _edit(
@@ -66,12 +92,15 @@ def split(
     n_children: int = 2,
     scale_divisor: float = 1.6,
     generator: torch.Generator | None = None,
+    max_offset: float | None = None,
 ) -> None:
     """Replace each Gaussian where ``mask`` is True by ``n_children`` samples of itself.
 
-    Children are placed at points drawn from the parent's own Gaussian, their scales are the parent's divided by
-    ``scale_divisor`` (i.e. ``log(scale_divisor)`` less in log space); everything else (colours, opacity, rotation and
-    every extra such as c_s) is inherited.
+    Children are placed at points drawn from the parent's own Gaussian (with ``max_offset``: within that many of its
+    σ from its centre, Mahalanobis; ``child_offset_limit`` keeps every child's footprint inside its parent's, so
+    such a split never grows the scene), their scales are the parent's divided by ``scale_divisor`` (i.e.
+    ``log(scale_divisor)`` less in log space); everything else (colours, opacity, rotation and every extra such as
+    c_s) is inherited.
     """
     sel = torch.where(mask)[0]
     if len(sel) == 0:
@@ -79,7 +108,10 @@ def split(
     rest = torch.where(~mask)[0]
     scales = torch.exp(params["log_scales"].detach()[sel])
     rot = quat_to_rotmat(params["quats"].detach()[sel])
-    noise = torch.randn((n_children, len(sel), 3), generator=generator, dtype=scales.dtype)
+    if max_offset is None:
+        noise = torch.randn((n_children, len(sel), 3), generator=generator, dtype=scales.dtype)
+    else:
+        noise = truncated_normal((n_children, len(sel), 3), max_offset, generator, scales.dtype)
     offsets = torch.einsum("nij,cnj->cni", rot, scales[None] * noise)
     log_div = math.log(scale_divisor)
 

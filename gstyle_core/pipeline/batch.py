@@ -3,7 +3,9 @@ OUT.json and pictures in the output folder; jobs already finished are skipped, a
 one is one line and the others go on. Ends with ``batch.csv`` (a row per job) and ``contact_sheet.png``.
 
 Jobs run in the calling process one after another (``--jobs 1``) or as ``python -m gstyle_core.cli stylize``
-subprocesses, at most ``--jobs`` at a time (one per CUDA GPU, each seeing only its own, when torch sees GPUs).
+subprocesses, at most ``--jobs`` at a time (one per CUDA GPU, each seeing only its own, when torch sees GPUs), or
+as Ray tasks with ``--ray ADDRESS`` (``batch_ray.py``). ``--plan plan.toml`` varies settings between runs
+(``batch_plan.py``).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import statistics
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import GStyleError
@@ -38,6 +40,8 @@ class Job:
     status: str = "pending"  # pending, running, done, done already, failed
     seconds: float | None = None
     line: str = ""  # a failed job's last line (its error or crash line)
+    run: str = ""  # the plan's run it belongs to ("" without a plan)
+    options: list[str] = field(default_factory=list)  # its ``gstyle stylize`` options (``job_argv``)
 
     @property
     def log(self) -> Path:
@@ -51,8 +55,14 @@ def add_batch_arguments(p: argparse.ArgumentParser) -> None:
     from .cli import add_stylize_arguments
 
     add_stylize_arguments(p)
-    p.add_argument("--scenes", nargs="+", required=True, metavar="SCENE", help="scene files, one row each")
-    p.add_argument("--styles", nargs="+", required=True, metavar="IMAGE", help="paintings, one column each")
+    p.add_argument("--scenes", nargs="+", default=None, metavar="SCENE", help="scene files, one row each")
+    p.add_argument("--styles", nargs="+", default=None, metavar="IMAGE", help="paintings, one column each")
+    p.add_argument("--plan", default=None, metavar="PLAN.toml",
+                   help="runs whose settings vary, each with its scenes and paintings (docs/batch.md); the command "
+                        "line's stylize options go to every job, a run's own win")
+    p.add_argument("--ray", default=None, metavar="ADDRESS",
+                   help="run each job as a task on a Ray cluster: auto, local, HOST:PORT or ray://HOST:PORT, as "
+                        "ray.init(address=...) reads it (needs the 'ray' extra)")
     p.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="jobs at a time (default: one per CUDA GPU, else cores // --threads); 1 runs them in this "
                         "process")
@@ -68,35 +78,44 @@ def stylize_options(argv: list[str]) -> list[str]:
     pre = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
     pre.add_argument("--scenes", nargs="+")
     pre.add_argument("--styles", nargs="+")
-    for name in ("--jobs", "--threads", "--out"):
+    for name in ("--jobs", "--threads", "--out", "--plan", "--ray"):
         pre.add_argument(name)
     pre.add_argument("--resume", action="store_true")
     args = argv[1:] if argv and argv[0] == "batch" else argv
     return pre.parse_known_args(args)[1]
 
 
+def job_argv(scene: str, painting: str, options: list[str], out: Path) -> list[str]:
+    """The ``gstyle stylize`` arguments of one job."""
+    return ["stylize", scene, "--style", painting, *options, "--out", str(out)]
+
+
 def plan_jobs(args: argparse.Namespace, out_dir: Path) -> list[Job]:
-    """A job per scene and painting, named ``SCENE__PAINTING.ply`` (stems); finished ones (OUT.ply exists, written
-    last) are marked done already unless ``--force``; an interrupted one (its checkpoint exists) gets ``--resume``."""
+    """A job per run, scene and painting, named ``SCENE__PAINTING.ply`` (stems; ``SCENE__PAINTING__RUN.ply`` with a
+    plan); finished ones (OUT.ply exists, written last) are marked done already unless ``--force``; an interrupted
+    one (its checkpoint exists) gets ``--resume``."""
+    from .batch_plan import batch_runs
+
     if args.scene is not None or args.style:
         raise GStyleError("give the scenes with --scenes and the paintings with --styles")
-    options = stylize_options(getattr(args, "argv", []))
     own_cameras = getattr(args, "scene_cameras", None) or {}  # a caller's hook (bench/tradeoff.py): scene -> cameras
     jobs, names = [], set()
-    for scene in args.scenes:
-        for painting in args.styles:
-            name = f"{output_base(Path(scene).name).name}__{Path(painting).stem}"
-            if name in names:
-                raise GStyleError(f"two jobs would both write {out_dir / name}.ply: give scenes and paintings "
-                                  "different names")
-            names.add(name)
-            out = out_dir / f"{name}.ply"
-            cameras = ["--cameras", own_cameras[scene]] if scene in own_cameras else []
-            argv = ["stylize", scene, "--style", painting, *cameras, *options, "--out", str(out)]
-            if stylize_checkpoint_path(out).exists() and not args.force:
-                argv.append("--resume")
-            done = out.exists() and not args.force
-            jobs.append(Job(scene, painting, out, argv, "done already" if done else "pending"))
+    for run in batch_runs(args, stylize_options(getattr(args, "argv", []))):
+        for scene in run.scenes:
+            for painting in run.styles:
+                name = "__".join(x for x in (output_base(Path(scene).name).name, Path(painting).stem, run.name) if x)
+                if name in names:
+                    raise GStyleError(f"two jobs would both write {out_dir / name}.ply: give scenes and paintings "
+                                      "different names")
+                names.add(name)
+                out = out_dir / f"{name}.ply"
+                cameras = ["--cameras", own_cameras[scene]] if scene in own_cameras else []
+                argv = job_argv(scene, painting, [*cameras, *run.options], out)
+                if stylize_checkpoint_path(out).exists() and not args.force:
+                    argv.append("--resume")
+                done = out.exists() and not args.force
+                jobs.append(Job(scene, painting, out, argv, "done already" if done else "pending", run=run.name,
+                                options=list(run.options)))
     return jobs
 
 
@@ -123,11 +142,15 @@ def cuda_gpus(args: argparse.Namespace) -> int:
 
 def batch_command(args: argparse.Namespace) -> int:
     """Run ``gstyle batch``: the jobs, a progress line per change, then batch.csv and contact_sheet.png."""
-    from .batch_report import write_contact_sheet, write_csv
-
     out_dir = Path(args.out)
     jobs = plan_jobs(args, out_dir)
     pending = [job for job in jobs if job.status == "pending"]
+    if getattr(args, "ray", None):
+        from .batch_ray import run_on_ray
+
+        (out_dir / "logs").mkdir(parents=True, exist_ok=True)
+        run_on_ray(jobs, pending, args)
+        return write_results(jobs, out_dir)
     slots, threads, gpus = pool_size(args, len(pending)) if pending else (1, 0, 0)
     for job in pending:
         job.argv += ["--threads", str(threads)]
@@ -140,8 +163,14 @@ def batch_command(args: argparse.Namespace) -> int:
         run_in_process(jobs, pending)
     else:
         run_in_pool(jobs, pending, slots, gpus, threads)
-    written = [write_csv(jobs, out_dir / "batch.csv"), write_contact_sheet(jobs, args.scenes, args.styles,
-                                                                            out_dir / "contact_sheet.png")]
+    return write_results(jobs, out_dir)
+
+
+def write_results(jobs: list[Job], out_dir: Path) -> int:
+    """batch.csv and contact_sheet.png, the last line; the batch's exit status (1 if a job failed)."""
+    from .batch_report import write_contact_sheet, write_csv
+
+    written = [write_csv(jobs, out_dir / "batch.csv"), write_contact_sheet(jobs, out_dir / "contact_sheet.png")]
     failed = sum(job.status == "failed" for job in jobs)
     print(f"batch: {len(jobs) - failed} done, {failed} failed; wrote {', '.join(map(str, written))}")
     return 1 if failed else 0
@@ -187,15 +216,17 @@ def run_in_pool(jobs: list[Job], pending: list[Job], slots: int, gpus: int, thre
         raise
 
 
-def start(job: Job, slot: int, gpus: int, threads: int) -> tuple[Job, subprocess.Popen, float, object]:
-    """Start ``job`` as a subprocess writing to its log; numba's and OpenMP's pools get ``threads`` threads too, as
-    torch does (``--threads``), so that jobs side by side do not oversubscribe the cores."""
+def start(job: Job, slot: int, gpus: int, threads: int,
+          worker: list[str] | None = None) -> tuple[Job, subprocess.Popen, float, object]:
+    """Start ``job`` as a subprocess (``worker + job.argv``, default ``WORKER``) writing to its log; numba's and
+    OpenMP's pools get ``threads`` threads too, as torch does (``--threads``), so that jobs side by side do not
+    oversubscribe the cores."""
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS=str(threads))
     if gpus:
         env["CUDA_VISIBLE_DEVICES"] = str(slot % gpus)
     log = open(job.log, "w", encoding="utf-8")  # noqa: SIM115 - closed when the job ends
     job.status = "running"
-    proc = subprocess.Popen([*WORKER, *job.argv], stdout=log, stderr=subprocess.STDOUT, env=env)
+    proc = subprocess.Popen([*(worker or WORKER), *job.argv], stdout=log, stderr=subprocess.STDOUT, env=env)
     return job, proc, time.perf_counter(), log
 
 

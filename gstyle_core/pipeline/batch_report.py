@@ -1,6 +1,6 @@
 """What ``gstyle batch`` writes at the end: ``batch.csv`` (a row per job, its figures from OUT.json's ``quality``)
-and ``contact_sheet.png`` (scenes as rows, paintings as columns, each cell the job's after picture over a line of
-its figures; a failed job's cell grey)."""
+and ``contact_sheet.png`` (scenes as rows, a plan's runs one after another, paintings as columns, each cell the
+job's after picture over a line of its figures; a failed job's cell grey)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from ..atomic import atomic_path, atomic_write_text
 from ..outputs import companion
 from .batch import Job, summary_path
 
-CSV_COLUMNS = ("scene", "painting", "status", "seconds", "preset", "nnfm_initial", "nnfm_final", "nnfm_drop",
+CSV_COLUMNS = ("scene", "painting", "run", "status", "seconds", "preset", "nnfm_initial", "nnfm_final", "nnfm_drop",
                "structure", "speckle_ratio", "speckle_width", "out")
 CELL_WIDTH, TEXT_HEIGHT = 256, 30  # a cell: the picture 256 px wide, two lines of text below
 PICTURE_HEIGHT, MAX_PICTURE_HEIGHT = 192, 512  # the picture's box: the tallest picture's height at that width, capped
@@ -43,7 +43,7 @@ def csv_rows(jobs: list[Job]) -> list[dict]:
     for job in jobs:
         figures = job_figures(job) if job.status != "failed" else {}
         seconds = job.seconds if job.seconds is not None else figures.get("seconds_total")
-        row = {"scene": job.scene, "painting": job.painting, "status": job.status, "out": str(job.out),
+        row = {"scene": job.scene, "painting": job.painting, "run": job.run, "status": job.status, "out": str(job.out),
                "seconds": None if seconds is None else round(seconds, 2), **figures}
         rows.append({key: ("" if row.get(key) is None else _rounded(row[key])) for key in CSV_COLUMNS})
     return rows
@@ -106,21 +106,24 @@ def cell(job: Job, font, height: int):
             fitted = ImageOps.contain(picture.convert("RGB"), (CELL_WIDTH, height))
         image.paste(fitted, ((CELL_WIDTH - fitted.width) // 2, (height - fitted.height) // 2))
         words = figures_line(job_figures(job))
-    name = f"{Path(job.scene).name} x {Path(job.painting).name}"
+    name = f"{Path(job.scene).name} x {Path(job.painting).name}" + (f" ({job.run})" if job.run else "")
     draw.text((4, height + 2), name, fill="black", font=font)
     draw.text((4, height + 16), words, fill="black", font=font)
     return image
 
 
-def write_contact_sheet(jobs: list[Job], scenes: list[str], paintings: list[str], path: Path) -> Path:
-    """``contact_sheet.png``: a row per scene, a column per painting (the order given), written atomically."""
+def write_contact_sheet(jobs: list[Job], path: Path) -> Path:
+    """``contact_sheet.png``: a row per run and scene, a column per painting (in the order planned; a run without
+    a painting leaves its cell white), written atomically."""
     from PIL import Image, ImageFont
 
     font, box = ImageFont.load_default(), picture_height(jobs)
     height = box + TEXT_HEIGHT
-    sheet = Image.new("RGB", (CELL_WIDTH * len(paintings), height * len(scenes)), "white")
-    for k, job in enumerate(jobs):  # planned row by row: scene k // columns, painting k % columns
-        row, col = divmod(k, len(paintings))
+    rows = list(dict.fromkeys((job.run, job.scene) for job in jobs))
+    columns = list(dict.fromkeys(job.painting for job in jobs))
+    sheet = Image.new("RGB", (CELL_WIDTH * max(1, len(columns)), height * max(1, len(rows))), "white")
+    for job in jobs:
+        row, col = rows.index((job.run, job.scene)), columns.index(job.painting)
         sheet.paste(cell(job, font, box), (col * CELL_WIDTH, row * height))
     with atomic_path(path) as tmp:
         sheet.save(tmp, format="PNG")

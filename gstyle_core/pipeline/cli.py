@@ -216,6 +216,7 @@ def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, styl
     appearing together or none (``OutputGroup``; the scene is renamed into place last: an existing OUT.ply means
     the run is complete). Returns the summary and the files written, the scene first."""
     from ..atomic import atomic_write_text
+    from ..cameras.recorded import RECORD_KEY, camera_record
     from ..io import save_scene
     from ..io.saver import format_of
     from ..outputs import OutputGroup
@@ -236,7 +237,7 @@ def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, styl
         "seconds_per_phase": {k: round(v, 2) for k, v in engine.timings.items()},
         "seconds_total": round(time.perf_counter() - t0, 1),
         "gaussians_before": scene.count, "gaussians_after": stylized.count, "quality": quality,
-        "region": region_summary(engine), **run,
+        "region": region_summary(engine), RECORD_KEY: camera_record(cams, scene.means), **run,
     }
     with OutputGroup() as group:
         group.write(json_path, lambda tmp: atomic_write_text(tmp, json.dumps(summary, indent=2,

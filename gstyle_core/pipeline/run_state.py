@@ -195,8 +195,9 @@ class RunState:
 
     # ------------------------------------------------------------------------------------------------ edits
     def split(self, mask: torch.Tensor, children: int, divisor: float, priority: torch.Tensor | None = None) -> int:
-        """Split the ``mask`` Gaussians (c_s, the gradient and a region's rows follow); past ``max_gaussians`` the
-        lowest-``priority`` candidates are dropped. Returns how many were split."""
+        """Split the ``mask`` Gaussians (c_s, the gradient and a region's rows follow), each child drawn inside its
+        parent's footprint (``ops.child_offset_limit``); past ``max_gaussians`` the lowest-``priority`` candidates are
+        dropped. Returns how many were split."""
         extras = {"c_s": self.c_s, "grad_acc": self.grad_acc, **self.active.split_extras()}
         limit = max(0, self.max_gaussians - self.gaussian_count)
         n_sel = int(mask.sum())
@@ -210,7 +211,8 @@ class RunState:
             self.reduction_note = (f"split reduced from {n_sel:,} to {keep:,} Gaussians by the cap of "
                                    f"{self.max_gaussians:,}")
             self.decisions.setdefault("reductions", []).append(f"step {self.global_step + 1}: {self.reduction_note}")
-        ops.split(self.params, {}, extras, mask, n_children=children, scale_divisor=divisor, generator=self.generator)
+        ops.split(self.params, {}, extras, mask, n_children=children, scale_divisor=divisor, generator=self.generator,
+                  max_offset=ops.child_offset_limit(divisor))  # children inside their parent: the scene never grows
         self.c_s, self.grad_acc = extras["c_s"], extras["grad_acc"]
         self.active.take_split_extras(extras)
         return int(mask.sum())
