@@ -21,8 +21,9 @@ machine, ``--repeats`` times (each repeat a batch of its own, ``--force``: every
 Scenes: the bundled 360° demo (``fountain``), the fern (forward-facing, its LLFF cameras and photos; a fitted fern is
 made once with ``gstyle fit`` into the cache folder when missing, or ``--fern PATH``), and from ``../shared/data``
 when present ``winter`` and ``biker``. ``--knobs`` adds the knob sweep (style strength, stroke size, palette match,
-edges kept, refine widths and mode) on ``fountain / starry`` at the first device. Rows carry the machine (CPU model,
-cores, GPU or none), torch's version, the date and the load average before and after their group.
+edges kept, refine widths and mode) on ``fountain / starry`` at the first device. Rows carry the code measured (its
+commit, ``+changes`` when the checkout differs), the machine (CPU model, cores, GPU or none), torch's version, the
+date and the load average before and after their group.
 
 Writes ``docs/atlas.csv`` (``--merge``: the rows of other points kept) and ``docs/atlas_DEVICE.png`` (NNFM drop
 at 256 px against time, the Pareto front per scene / painting among the points that keep the structure at 1024 px);
@@ -90,7 +91,20 @@ def machine() -> dict:
 
     cpu = cpu_info()
     gpu = torch.cuda.get_device_name(0) if torch.cuda.is_available() else "no GPU"
-    return {"machine": f"{cpu.model}, {cpu.cores} cores, {gpu}", "torch": torch.__version__}
+    return {"machine": f"{cpu.model}, {cpu.cores} cores, {gpu}", "torch": torch.__version__, "code": code_version()}
+
+
+def code_version() -> str:
+    """The commit the atlas measured (``+changes`` when the checkout differs from it; "" outside git)."""
+    import subprocess
+
+    def git(*args: str) -> str:
+        done = subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True, check=False)
+        return done.stdout.strip() if done.returncode == 0 else ""
+
+    commit = git("rev-parse", "--short=10", "HEAD")
+    changed = git("status", "--porcelain", "--untracked-files=no", "--", "gstyle_core", "bench", "assets")
+    return f"{commit}+changes" if commit and changed else commit
 
 
 def devices_here() -> list[str]:

@@ -18,7 +18,7 @@ KEY = ("tier", "device", "scene", "painting", "knob")  # a point; rows of the sa
 FIGURES = ("seconds", "seconds_min", "seconds_max", "repeats", "gaussians", "working_width", "end_width",
            "nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "speckle_1024", "structure_1024",
            "coarse_ratio", "colour", "consistency", "consistency_input")
-CONTEXT = ("machine", "torch", "measured", "load_before", "load_after", "pareto")
+CONTEXT = ("machine", "torch", "code", "measured", "load_before", "load_after", "pareto")
 COLUMNS = KEY + FIGURES + CONTEXT
 INTEGERS = ("repeats", "gaussians", "working_width", "end_width")
 PERCENT = ("nnfm_drop", "nnfm_drop_end")  # README figures written as percentages
