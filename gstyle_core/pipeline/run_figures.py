@@ -114,20 +114,26 @@ def run_texture_scale(engine, style, before, after, alpha, width: int):
 def run_display_speckle(engine, scene, after_scene, style, n_views: int, width: int):
     """The speckle figure (``style/speckle.py``) of the evaluation views rendered ``width`` px wide: the fine share of
     the chroma stylization added inside the scene against the painting's own at its matched size in those pixels (its
-    luminance with keep colours, where only that pattern is transferred)."""
+    luminance with keep colours, where only that pattern is transferred); with the fringe halo of the same renders
+    (``style/fringe.py``) in its ``fringe``."""
+    from dataclasses import replace
+
     from ..render_cli import render_scene_image
+    from ..style.fringe import fringe_halo
     from ..style.speckle import display_speckle
     from ..style.texture_scale import matched_side
 
     s = engine.settings
     cams = evaluation_cameras(engine, n_views, width)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
-    after = [render_scene_image(after_scene, c) for c in cams]
+    after, alpha_after = zip(*(render_scene_image(after_scene, c, with_alpha=True) for c in cams), strict=True)
+    alpha = [np.asarray(a) for a in alpha]
     paintings = [style] if isinstance(style, np.ndarray) else list(style)
-    return display_speckle(list(before), after, [np.asarray(a) for a in alpha], paintings,
-                           matched_side(s.working_width, s.style_scale, width),
-                           None if len(paintings) == 1 else s.style_weights,
-                           channels="luminance" if s.keep_colours else "chroma")
+    speckle = display_speckle(list(before), list(after), alpha, paintings,
+                              matched_side(s.working_width, s.style_scale, width),
+                              None if len(paintings) == 1 else s.style_weights,
+                              channels="luminance" if s.keep_colours else "chroma")
+    return replace(speckle, fringe=fringe_halo(list(before), list(after), alpha, list(alpha_after)).to_dict())
 
 
 def result_summary(engine, width: int = DEFAULT_DISPLAY_WIDTH) -> dict:
