@@ -6,7 +6,7 @@
 Renders the evaluation views ``gstyle stylize`` measures (``--views`` of the input's cameras, spread as
 ``choose_views`` spreads them; generated around the input as the run generates them, or ``--cameras``) ``--width``
 px wide, for the input and each result, and prints per file the halo (the fringe's luminance lift over the body's),
-both lifts and the near-white share of the fringe, then a ``RESULT`` line. ``--picture``: one row per file (the
+both lifts and the near-saturated share of the fringe, then a ``RESULT`` line. ``--picture``: one row per file (the
 input first) of a full-size ``--crop`` px crop of view ``--view`` where the input's fringe is densest.
 """
 
@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     cams = [list(cams)[i].resized_to_width(args.width) for i in choose_views(list(cams), args.views)]
     before, alpha = zip(*(render_scene_image(scene_in, c, with_alpha=True) for c in cams), strict=True)
     print(f"{args.scenes[0]}: {len(cams)} views at {args.width} px; fringe = input alpha in {FRINGE_ALPHA}")
-    print(f"{'result':24s} {'halo':>7s} {'fringe lift':>12s} {'body lift':>10s} {'near-white before':>18s} "
+    print(f"{'result':24s} {'halo':>7s} {'fringe lift':>12s} {'body lift':>10s} {'saturated before':>17s} "
           f"{'after':>7s} {'body after':>11s}")
     shown, results = [before[args.view % len(cams)]], []
     for path, label in zip(args.scenes[1:], labels, strict=True):
@@ -96,11 +96,11 @@ def main(argv: list[str] | None = None) -> int:
         results.append((label, fig))
         shown.append(after[args.view % len(cams)])
         print(f"{label:24s} {fig.halo:+7.3f} {fig.lift_fringe:+12.3f} {fig.lift_body:+10.3f} "
-              f"{fig.bright_before:18.1%} {fig.bright_after:7.1%} {fig.bright_body:11.1%}")
+              f"{fig.bright_before:17.1%} {fig.bright_after:7.1%} {fig.bright_body:11.1%}")
     if args.picture:
         where = picture(shown, ["input", *labels], alpha[args.view % len(cams)], args.crop, args.picture)
         print(f"wrote {where} of evaluation view {args.view % len(cams)}")
-    print("RESULT " + " ".join(f"{label}_halo={fig.halo:.4f} {label}_near_white={fig.bright_after:.4f}"
+    print("RESULT " + " ".join(f"{label}_halo={fig.halo:.4f} {label}_saturated={fig.bright_after:.4f}"
                                for label, fig in results))
     return 0
 

@@ -10,7 +10,7 @@ stylization (black background, so a render is premultiplied: colour = Σ w_i c_i
   so nearly empty pixels count little and a division by a tiny alpha never dominates);
 * the **lift** of a region: the luminance of that colour after minus before; the **halo** = fringe lift − body lift
   (0: stylization brightened the fringe as much as the body; above 0: a brighter rim);
-* the **near-white share**: the alpha-weighted share of fringe pixels whose un-premultiplied colour has its largest
+* the **near-saturated share**: the alpha-weighted share of fringe pixels whose un-premultiplied colour has its largest
   channel ≥ ``BRIGHT`` (0.95), before and after, beside the same share of the stylized body's pixels.
 """
 
@@ -65,7 +65,7 @@ def fringe_halo_line(d: dict) -> str:
     low, high = d["fringe_alpha"]
     return (f"fringe halo (input alpha {low}–{high}, {num('fringe_share', '.0%')} of the scene's pixels): "
             f"{num('halo', '+.3f')} luminance over the body's lift ({num('lift_fringe', '+.3f')} vs "
-            f"{num('lift_body', '+.3f')}; 0: no brighter rim); near-white {num('bright_before', '.1%')} → "
+            f"{num('lift_body', '+.3f')}; 0: no brighter rim); near-saturated {num('bright_before', '.1%')} → "
             f"{num('bright_after', '.1%')} (the body's {num('bright_body', '.1%')})")
 
 
@@ -89,9 +89,9 @@ def fringe_halo(before: Sequence[np.ndarray], after: Sequence[np.ndarray], alpha
             lum = luminance(image)[..., 0]
             for r, mask in enumerate((fringe, body)):
                 sums[k, r] += (lum[mask].sum(), alpha[mask].sum())
-            bright[k] += _near_white(image, alpha, alpha_in, fringe)
+            bright[k] += _near_saturated(image, alpha, alpha_in, fringe)
             weight[k] += float(alpha_in[fringe].sum())
-        bright[2] += _near_white(a, _plane(aa), alpha_in, body)
+        bright[2] += _near_saturated(a, _plane(aa), alpha_in, body)
         weight[2] += float(alpha_in[body].sum())
     mean = sums[..., 0] / np.maximum(sums[..., 1], 1e-12)  # [before/after, fringe/body]
     lift = mean[1] - mean[0]
@@ -106,7 +106,7 @@ def _plane(alpha: np.ndarray | torch.Tensor) -> np.ndarray:
     return a.reshape(a.shape[:2])
 
 
-def _near_white(image: np.ndarray, alpha: np.ndarray, weight: np.ndarray, mask: np.ndarray) -> float:
+def _near_saturated(image: np.ndarray, alpha: np.ndarray, weight: np.ndarray, mask: np.ndarray) -> float:
     """Σ ``weight`` over the ``mask`` pixels whose un-premultiplied colour (image / alpha) reaches ``BRIGHT``."""
     colour = np.asarray(image, np.float64)[..., :3][mask] / np.maximum(alpha[mask], 1e-6)[:, None]
     return float(weight[mask][colour.max(axis=1) >= BRIGHT].sum())
