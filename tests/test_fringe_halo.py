@@ -49,3 +49,32 @@ def test_a_runs_display_figures_carry_the_fringe_halo():
     assert fringe["fringe_alpha"] == [0.02, 0.5] and 0 < fringe["fringe_share"] < 1
     assert fringe["halo"] == pytest.approx(fringe["lift_fringe"] - fringe["lift_body"], abs=2e-4)
     assert fringe_halo_line(fringe).startswith("fringe halo (input alpha 0.02–0.5")
+
+
+def test_the_bench_measures_results_and_crops_the_fringe(tmp_path, capsys):
+    """bench/fringe_halo.py: a result whose faint Gaussians turned white scores a halo; the picture is written."""
+    import sys
+    from pathlib import Path
+
+    from gstyle_core.io import save_scene
+    from gstyle_core.scene import rgb_to_sh_dc
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    import fringe_halo as bench
+
+    scene = blob_scene(150, seed=2)
+    scene.opacity_logits[1::2] = logit(np.full(75, 0.05)).astype(np.float32)
+    bright = blob_scene(150, seed=2)
+    bright.opacity_logits[:] = scene.opacity_logits
+    bright.sh_dc[1::2] = rgb_to_sh_dc(np.ones((75, 3)))  # the faint half white
+    for name, s in (("in", scene), ("same", scene), ("bright", bright)):
+        save_scene(s, tmp_path / f"{name}.ply")
+    picture = tmp_path / "fringe.jpg"
+    assert bench.main([str(tmp_path / n) for n in ("in.ply", "same.ply", "bright.ply")] +
+                      ["--labels", "same,bright", "--width", "96", "--views", "2", "--crop", "48",
+                       "--picture", str(picture)]) == 0
+    result = capsys.readouterr().out.splitlines()[-1].split()
+    figures = dict(item.split("=") for item in result[1:])
+    assert float(figures["same_halo"]) == pytest.approx(0.0, abs=1e-9)
+    assert float(figures["bright_halo"]) > 0.02  # 0.036: the faint white half also shows in the body a little
+    assert picture.exists() and picture.stat().st_size > 0
