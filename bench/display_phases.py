@@ -6,7 +6,8 @@ of stylization), after the stylization at the working width (before any finer le
 (``refine_K``), and the result. For each stage it prints the speckle ratio (``style/speckle.py``: the fine share of the
 chroma added since the input, against the painting's at its matched size in display pixels), per view and over the
 views, the added chroma's fine and whole energy (summed over the views), the energy and fine share of the stage's own
-change (against the stage before), and the seconds the engine had spent by then. After pre-processing the new geometry
+change (against the stage before), the fringe halo and the fringe's near-saturated share (``style/fringe.py``), and the
+seconds the engine had spent by then. After pre-processing the new geometry
 is rendered with the ground-truth colours. Last a ``RESULT`` line with the ratio after the working width and
 at the end.
 
@@ -31,6 +32,7 @@ from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
 from gstyle_core.pipeline.run_figures import evaluation_cameras  # noqa: E402
 from gstyle_core.render_cli import render_scene_image  # noqa: E402
+from gstyle_core.style.fringe import fringe_halo  # noqa: E402
 from gstyle_core.style.speckle import FINE_BANDS, chroma_energies, display_speckle, fine_share  # noqa: E402
 from gstyle_core.style.texture_scale import matched_side  # noqa: E402
 
@@ -59,9 +61,12 @@ def stage_speckles(engine, scene_in, style, width: int) -> list[dict]:
     previous = {"images": list(before)}
 
     def figure(name: str, seconds: float, scene=None) -> dict:
-        after = [render_scene_image(scene or engine.stylized_scene(), c) for c in cameras]
+        after, after_alphas = zip(*(render_scene_image(scene or engine.stylized_scene(), c, with_alpha=True)
+                                    for c in cameras), strict=True)
+        after = list(after)
         fig = display_speckle(list(before), after, list(alphas), paintings, side,
                               None if len(paintings) == 1 else s.style_weights, channels)
+        fringe = fringe_halo(list(before), after, list(alphas), list(after_alphas))
         added = sum(chroma_energies(np.asarray(a, np.float64) - b, w, channels)
                     for a, b, w in zip(after, before, alphas, strict=True))
         step = sum(chroma_energies(np.asarray(a, np.float64) - b, w, channels)
@@ -69,7 +74,8 @@ def stage_speckles(engine, scene_in, style, width: int) -> list[dict]:
         previous["images"] = after
         return {"stage": name, "seconds": round(seconds, 1), "gaussians": engine.gaussian_count,
                 "added_fine_energy": float(added[:FINE_BANDS].sum()), "added_energy": float(added.sum()),
-                "change_fine_share": fine_share(step), "change_energy": float(step.sum()), **fig.to_dict()}
+                "change_fine_share": fine_share(step), "change_energy": float(step.sum()), **fig.to_dict(),
+                "fringe_halo": fringe.halo, "fringe_near_saturated": fringe.bright_after}
 
     def current() -> str:  # the phase object that runs now (a refit belongs to the stylization)
         return next((ph.name for ph in engine.phases if not ph.finished), "done")
@@ -110,13 +116,13 @@ def main(argv: list[str] | None = None) -> int:
           f"{list(engine.settings.refine_widths)} ({engine.settings.refine_mode}); speckle at {width} px, painting "
           f"at {rows[-1]['painting_side']} px (fine share {rows[-1]['painting_fine_share']})")
     print(f"{'stage':28s} {'engine s':>9s} {'Gaussians':>10s} {'speckle':>8s}  {'per view':18s} "
-          f"{'added fine / all':>18s}  {'this stage: energy, fine share':>30s}")
+          f"{'added fine / all':>18s}  {'this stage: energy, fine share':>30s}  {'halo':>6s} {'saturated':>10s}")
     for r in rows:
         views = " / ".join("-" if v is None else f"{v:.2f}" for v in r["speckle_ratio_per_view"])
         ratio = "-" if r["speckle_ratio"] is None else f"{r['speckle_ratio']:.2f}"
         print(f"{r['stage']:28s} {r['seconds']:9.1f} {r['gaussians']:10,d} {ratio:>8s}  {views:18s} "
               f"{r['added_fine_energy']:8.0f} / {r['added_energy']:7.0f}  {r['change_energy']:19.0f}, "
-              f"{r['change_fine_share']:.2f}")
+              f"{r['change_fine_share']:.2f}  {r['fringe_halo']:+6.3f} {r['fringe_near_saturated']:10.1%}")
     working = next((r for r in rows if r["stage"] == "after stylize"), rows[-1])
     print(f"RESULT speckle_after_working_width={working['speckle_ratio']} speckle_result={rows[-1]['speckle_ratio']} "
           f"engine_seconds={rows[-1]['seconds']}")

@@ -14,6 +14,7 @@ from ..crash import RunCrashed, what_failed
 from ..device import DEVICES, DeviceFailure
 from ..errors import GStyleError, OutputWriteError, one_line_error
 from ..outputs import SUMMARY, companions
+from ..style.fringe import fringe_halo_line
 from ..style.precision import PRECISIONS
 from ..style.speckle import DEFAULT_DISPLAY_WIDTH
 from .arg_types import display_width_arg, region_arg, style_weights_arg, widths_arg
@@ -173,6 +174,8 @@ def _print_figures(q: dict) -> None:
         print(texture_scale_line(q["texture_scale"]))
     if "display" in q:  # the same at the display's size: excess fine colour
         print(display_speckle_line(q["display"]))
+        if "fringe" in q["display"]:  # faint Gaussians at the capture's edge turned bright
+            print(fringe_halo_line(q["display"]["fringe"]))
 
 
 def keep_finished_run(engine, out: Path, request: BuildRequest) -> None:

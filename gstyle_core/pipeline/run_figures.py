@@ -54,7 +54,7 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     if display_width and display_width > 0:
         renders = display_renders(engine, scene, after_scene, n_views, display_width)
         display = run_display_speckle(engine, scene, after_scene, style, n_views, display_width, renders).to_dict()
-        out["display"] = {**display, "structure": structure_kept(*renders)}
+        out["display"] = {**display, "structure": structure_kept(*renders[:3])}
     out["images"] = (np.concatenate(before, axis=1), np.concatenate(after, axis=1))
     return out
 
@@ -113,31 +113,36 @@ def run_texture_scale(engine, style, before, after, alpha, width: int):
     return texture_scale(before, after, [np.asarray(a) for a in alpha], paintings, side, weights)
 
 
-def display_renders(engine, scene, after_scene, n_views: int, width: int) -> tuple[list, list, list]:
-    """The evaluation views rendered ``width`` px wide: before (with its coverage, alpha) and after stylization."""
+def display_renders(engine, scene, after_scene, n_views: int, width: int) -> tuple[list, list, list, list]:
+    """The evaluation views rendered ``width`` px wide: before and after stylization, each with its coverage
+    (alpha): ``(before, after, alpha_before, alpha_after)``."""
     from ..render_cli import render_scene_image
 
     cams = evaluation_cameras(engine, n_views, width)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
-    return list(before), [render_scene_image(after_scene, c) for c in cams], list(alpha)
+    after, alpha_after = zip(*(render_scene_image(after_scene, c, with_alpha=True) for c in cams), strict=True)
+    return list(before), list(after), [np.asarray(a) for a in alpha], [np.asarray(a) for a in alpha_after]
 
 
 def run_display_speckle(engine, scene, after_scene, style, n_views: int, width: int,
-                        renders: tuple[list, list, list] | None = None):
+                        renders: tuple[list, list, list, list] | None = None):
     """The speckle figure (``style/speckle.py``) of the evaluation views rendered ``width`` px wide (``renders``:
     those of ``display_renders`` when already made): the fine share of the chroma stylization added inside the scene
     against the painting's own at its matched size in those pixels (its luminance with keep colours, where only that
-    pattern is transferred)."""
+    pattern is transferred); with the fringe halo of the same renders (``style/fringe.py``) in its ``fringe``."""
+    from dataclasses import replace
+
+    from ..style.fringe import fringe_halo
     from ..style.speckle import display_speckle
     from ..style.texture_scale import matched_side
 
     s = engine.settings
-    before, after, alpha = renders or display_renders(engine, scene, after_scene, n_views, width)
+    before, after, alpha, alpha_after = renders or display_renders(engine, scene, after_scene, n_views, width)
     paintings = [style] if isinstance(style, np.ndarray) else list(style)
-    return display_speckle(before, after, [np.asarray(a) for a in alpha], paintings,
-                           matched_side(s.working_width, s.style_scale, width),
-                           None if len(paintings) == 1 else s.style_weights,
-                           channels="luminance" if s.keep_colours else "chroma")
+    speckle = display_speckle(before, after, alpha, paintings, matched_side(s.working_width, s.style_scale, width),
+                              None if len(paintings) == 1 else s.style_weights,
+                              channels="luminance" if s.keep_colours else "chroma")
+    return replace(speckle, fringe=fringe_halo(before, after, alpha, alpha_after).to_dict())
 
 
 def result_summary(engine, width: int = DEFAULT_DISPLAY_WIDTH) -> dict:

@@ -171,7 +171,12 @@ CALIBRATED_360 = dict(
 # With the term the coarse colour field (pipeline/colour_field.py) is on: over 9 captures × paintings it raised the
 # coarse ratio and the structure on all nine (docs/texture-scale.md).
 BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0, colour_field=True)
-CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0)}  # strokes need 256 px; 32 steps of 4 views
+# The 360° preview's split children at 1/2.5 of their parent's scale (not the paper's 1/6.4): eight children at 1/6.4
+# cover a fifth of their parent's footprint, and the preview's 60 refit iterations do not regrow them, so the soft
+# fringe that large Gaussians made fell apart into specks that stylization turned into a halo of bright strokes
+# (docs/display-size.md, "The fringe halo"; the forward-facing preview keeps 3DGS's 1/1.6 for the same reason).
+CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0,  # strokes need 256 px; 32 steps of 4 views
+                                          preprocess_scale_divisor=2.5)}
 # Calibrated 360° runs with finer levels (balanced, final): the content term (VGG block 3) does not hold edges as fine
 # as a 512- or 1024-px pixel, so the edge-keeping term holds them there, with twice the style weight for the drop it
 # costs (docs/display-size.md, "Edges kept": balanced over 3 captures × 3 paintings, structure at 512 px 0.72-0.82

@@ -89,6 +89,7 @@ class DisplaySpeckle:
     added_fine: float  # fine share of the added chroma, energies summed over the views
     painting_fine: float  # the painting's fine share (weighted mean over a mix's paintings)
     per_view_fine: tuple[float, ...]
+    fringe: dict | None = None  # the fringe halo of the same renders (``fringe.FringeHalo.to_dict()``), when measured
 
     @property
     def ratio(self) -> float:
@@ -107,7 +108,8 @@ class DisplaySpeckle:
                 "fine_below_px": SPECKLE_EDGES[FINE_BANDS], "painting_side": self.painting_side,
                 "added_fine_share": _rounded(self.added_fine), "painting_fine_share": _rounded(self.painting_fine),
                 "speckle_ratio": _rounded(self.ratio),
-                "speckle_ratio_per_view": [_rounded(r) for r in self.per_view_ratios]}
+                "speckle_ratio_per_view": [_rounded(r) for r in self.per_view_ratios],
+                **({} if self.fringe is None else {"fringe": self.fringe})}
 
     def line(self) -> str:
         """One line for the end of a run."""
