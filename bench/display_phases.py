@@ -95,19 +95,29 @@ def stage_speckles(engine, scene_in, style, width: int) -> list[dict]:
     return rows
 
 
+def add_set_option(p: argparse.ArgumentParser) -> None:
+    """``--set NAME=VALUE`` (repeatable): any StylizeSettings field on top of the stylize options."""
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="any StylizeSettings field on top of the options (a Python literal: 6, 0.5, (512,), 'whole')")
+
+
+def with_set_options(request, items: list[str]):
+    """``request`` with the ``--set`` items as settings overrides (their values read as Python literals)."""
+    for item in items:
+        name, _, value = item.partition("=")
+        request.overrides[name.strip()] = ast.literal_eval(value.strip())
+    return request
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_stylize_arguments(p)
     p.add_argument("--json", default=None, help="also write the rows to this file")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="any StylizeSettings field on top of the options (a Python literal: 6, 0.5, (512,), 'whole')")
+    add_set_option(p)
     args = p.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
-    request = build_request(args)
-    for item in args.set:
-        name, _, value = item.partition("=")
-        request.overrides[name.strip()] = ast.literal_eval(value.strip())
+    request = with_set_options(build_request(args), args.set)
     engine, scene_in, _, _, style = build_stylizer(request)
     width = args.display_width or 1024
     rows = stage_speckles(engine, scene_in, style, width)

@@ -15,7 +15,6 @@ ratio of 1 is no growth. ``--stop-after PHASE`` stops once that phase is over (e
 from __future__ import annotations
 
 import argparse
-import ast
 import sys
 import time
 from pathlib import Path
@@ -27,6 +26,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from gstyle_core.cameras.framing import extent_growth  # noqa: E402
 from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from display_phases import add_set_option, with_set_options  # noqa: E402
 
 
 def part_of_run(engine) -> str:
@@ -47,15 +49,11 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_stylize_arguments(p)
     p.add_argument("--stop-after", default=None, metavar="PHASE", help="stop once this phase is over")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="any StylizeSettings field on top of the options (a Python literal)")
+    add_set_option(p)
     args = p.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
-    request = build_request(args)
-    for item in args.set:
-        name, _, value = item.partition("=")
-        request.overrides[name.strip()] = ast.literal_eval(value.strip())
+    request = with_set_options(build_request(args), args.set)
     engine, scene_in, _, _, _ = build_stylizer(request)
     print(f"{args.scene or 'demo'}: preset {engine.settings.preset}, {scene_in.count:,} Gaussians; ratios to the "
           "input's (1 = no growth)")

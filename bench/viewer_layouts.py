@@ -24,11 +24,9 @@ sys.path.insert(0, str(ROOT))
 
 import moderngl  # noqa: E402
 
-from app.depth_sort import DepthSorter, exact_sort_request  # noqa: E402
 from app.main import parse_size  # noqa: E402
-from app.renderer import SplatRenderer, read_rgb  # noqa: E402
+from app.renderer import draw_views  # noqa: E402
 from app.splat_data import LAYOUTS, scene_arrays  # noqa: E402
-from gstyle_core.cameras.camera import Camera  # noqa: E402
 from gstyle_core.cameras.generate import generate_cameras  # noqa: E402
 from gstyle_core.io import load_scene  # noqa: E402
 from gstyle_core.machine import cpu_description  # noqa: E402
@@ -37,23 +35,6 @@ from gstyle_core.render_cli import render_scene_image  # noqa: E402
 DATA = ROOT.parent / "shared" / "data" / "scenes"
 SCENES = [DATA / "playcanvas" / "biker.spz", DATA / "splat" / "winter_fountain.cropped.splat",
           DATA / "ply_3dgs" / "kacytran1122_try_iter7000_point_cloud.ply"]
-
-
-def viewer_images(ctx: moderngl.Context, arrays: dict, cams: list[Camera], layout: str, layer: str
-                  ) -> tuple[list[np.ndarray], dict[str, int]]:
-    """8-bit images of ``cams`` in ``layout`` on black, and the renderer's GL bytes by part."""
-    renderer = SplatRenderer(ctx, DepthSorter(exact_sort_request), layout=layout)
-    renderer.set_scene(arrays)
-    images = []
-    for cam in cams:
-        fbo = ctx.framebuffer([ctx.texture((cam.width, cam.height), 4)])
-        renderer.render(cam, fbo, (0.0, 0.0, 0.0), layer=layer)
-        images.append(read_rgb(fbo).astype(np.int16))
-        fbo.color_attachments[0].release()
-        fbo.release()
-    memory = renderer.gl_memory()
-    renderer.release()
-    return images, memory
 
 
 def psnr(image: np.ndarray, reference: np.ndarray) -> float:
@@ -68,7 +49,7 @@ def compare(ctx: moderngl.Context, path: Path, args: argparse.Namespace) -> list
     cams = generate_cameras(scene.means, count=args.views, width=args.size[0], height=args.size[1]).cameras
     layer = "sh" if scene.sh_degree > 0 else "diffuse"
     arrays = scene_arrays(scene)
-    results = {layout: viewer_images(ctx, arrays, cams, layout, layer) for layout in LAYOUTS}
+    results = {layout: draw_views(ctx, arrays, cams, layout, layer) for layout in LAYOUTS}
     per_gaussian = {layout: "/".join(f"{memory[k] / scene.count:.0f}" for k in ("geometry", "colours", "sh"))
                     for layout, (_, memory) in results.items()}
     rows = []

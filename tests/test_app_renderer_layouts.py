@@ -10,8 +10,7 @@ moderngl = pytest.importorskip("moderngl")
 
 from synthetic import blob_scene, look_at_camera  # noqa: E402
 
-from app.depth_sort import DepthSorter, exact_sort_request  # noqa: E402
-from app.renderer import SplatRenderer, read_rgb  # noqa: E402
+from app.renderer import SplatRenderer, draw_views  # noqa: E402
 from app.splat_data import (  # noqa: E402
     geometry_textures,
     scale_exponent,
@@ -24,17 +23,8 @@ W, H = 160, 120
 
 
 def images(ctx, arrays, cams, layout, layer):
-    """8-bit images (int16) of ``cams`` drawn with ``layout`` on black."""
-    r = SplatRenderer(ctx, DepthSorter(exact_sort_request), layout=layout)
-    r.set_scene(arrays)
-    out = []
-    for cam in cams:
-        fbo = ctx.framebuffer([ctx.texture((cam.width, cam.height), 4)])
-        r.render(cam, fbo, (0.0, 0.0, 0.0), layer=layer)
-        out.append(read_rgb(fbo).astype(np.int16))
-        fbo.release()
-    r.release()
-    return np.stack(out)
+    """8-bit images (int16) of ``cams`` drawn with ``layout`` on black, stacked."""
+    return np.stack(draw_views(ctx, arrays, cams, layout, layer)[0])
 
 
 def psnr(image, reference):
