@@ -109,16 +109,22 @@ def with_set_options(request, items: list[str]):
     return request
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def built_engine(p: argparse.ArgumentParser, argv: list[str] | None):
+    """Parse ``argv`` with ``p`` (the stylize options and ``--set`` added here) and build the engine ``gstyle
+    stylize`` builds for them: ``(args, engine, input scene, painting)``."""
     add_stylize_arguments(p)
-    p.add_argument("--json", default=None, help="also write the rows to this file")
     add_set_option(p)
     args = p.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
-    request = with_set_options(build_request(args), args.set)
-    engine, scene_in, _, _, style = build_stylizer(request)
+    engine, scene_in, _, _, style = build_stylizer(with_set_options(build_request(args), args.set))
+    return args, engine, scene_in, style
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--json", default=None, help="also write the rows to this file")
+    args, engine, scene_in, style = built_engine(p, argv)
     width = args.display_width or 1024
     rows = stage_speckles(engine, scene_in, style, width)
     print(f"{args.scene or 'demo'} × {', '.join(args.style or ['the bundled painting'])}: preset "

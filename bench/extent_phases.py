@@ -19,16 +19,12 @@ import sys
 import time
 from pathlib import Path
 
-import torch
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gstyle_core.cameras.framing import extent_growth  # noqa: E402
-from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from display_phases import add_set_option, with_set_options  # noqa: E402
+from display_phases import built_engine  # noqa: E402
 
 
 def part_of_run(engine) -> str:
@@ -47,14 +43,8 @@ def part_of_run(engine) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_stylize_arguments(p)
     p.add_argument("--stop-after", default=None, metavar="PHASE", help="stop once this phase is over")
-    add_set_option(p)
-    args = p.parse_args(argv)
-    if args.threads:
-        torch.set_num_threads(args.threads)
-    request = with_set_options(build_request(args), args.set)
-    engine, scene_in, _, _, _ = build_stylizer(request)
+    args, engine, scene_in, _ = built_engine(p, argv)
     print(f"{args.scene or 'demo'}: preset {engine.settings.preset}, {scene_in.count:,} Gaussians; ratios to the "
           "input's (1 = no growth)")
     print(f"{'after':42s} {'engine s':>9s} {'Gaussians':>10s} {'5-95 % radius':>14s} {'framing box':>12s} "
