@@ -1,11 +1,12 @@
-"""The 360° preview's pre-processing split keeps the scene's coverage (issue #50 item 4, the fringe halo): children
-of a flat Gaussian that cover only a fifth of their parent's footprint left the soft fringe they made as specks,
-which the preview's short refit could not close and stylization turned into a halo of bright strokes
-(docs/display-size.md, "The fringe halo")."""
+"""The 360° preview's and balanced tier's pre-processing split keeps the scene's coverage (issue #50 item 4, the
+fringe halo): children of a flat Gaussian that cover only a fifth of their parent's footprint left the soft fringe
+they made as specks, which a short refit could not close and stylization turned into a halo of bright strokes
+(docs/display-size.md, "The fringe halo"; docs/tradeoffs.md for balanced)."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from fakes import MeanColourPull
 from synthetic import blob_scene, ring_cameras
 
@@ -19,11 +20,12 @@ def _coverage(scene, cameras) -> float:
     return float(sum(render_scene_image(scene, c, with_alpha=True)[1].sum() for c in cameras))
 
 
-def test_the_360_preview_split_keeps_the_scene_coverage():
+@pytest.mark.parametrize("preset", ["preview", "balanced"])
+def test_the_360_split_keeps_the_scene_coverage(preset):
     scene = blob_scene(200, seed=5, scale=0.04)
     scene.log_scales[:12, :2] += np.log(5.0)  # a few large flat Gaussians: the ones the split picks
-    settings = resolve_settings("preview", "360", 3, clip_available=False, max_views=3, working_width=48,
-                                refit_iterations=0, force_preprocess=True)  # the split alone, as shipped
+    settings = resolve_settings(preset, "360", 3, clip_available=False, max_views=3, working_width=48,
+                                refit_iterations=0, force_preprocess=True, preprocess_rounds=1)  # one split alone
     engine = Stylizer(scene, ring_cameras(3), np.full((8, 8, 3), 0.5, np.float32), settings,
                       objective_factory=MeanColourPull)
     while engine.phase in ("ground_truth", "preprocess"):
