@@ -50,12 +50,6 @@ def outputs_of(out: Path) -> dict[str, bytes]:
             and p.name != "contact_sheet.png"}
 
 
-def test_the_stylize_companions_are_the_same_as_the_cli_s():
-    from gstyle_core.pipeline.cli import STYLIZE_COMPANIONS
-
-    assert batch_ray.STYLIZE_COMPANIONS == STYLIZE_COMPANIONS
-
-
 def test_a_batch_on_ray_writes_what_the_local_pool_writes(cluster, stand_in, inputs, capsys):
     local, remote = inputs["out"].with_name("local"), inputs["out"]
     assert run(batch_args(dict(inputs, out=local), "--jobs", "2", "--threads", "1", "--strength", "2")) == 0

@@ -109,13 +109,13 @@ def plan_jobs(args: argparse.Namespace, out_dir: Path) -> list[Job]:
                                       "different names")
                 names.add(name)
                 out = out_dir / f"{name}.ply"
-                cameras = ["--cameras", own_cameras[scene]] if scene in own_cameras else []
-                argv = job_argv(scene, painting, [*cameras, *run.options], out)
+                options = [*(["--cameras", own_cameras[scene]] if scene in own_cameras else []), *run.options]
+                argv = job_argv(scene, painting, options, out)
                 if stylize_checkpoint_path(out).exists() and not args.force:
                     argv.append("--resume")
                 done = out.exists() and not args.force
                 jobs.append(Job(scene, painting, out, argv, "done already" if done else "pending", run=run.name,
-                                options=list(run.options)))
+                                options=options))
     return jobs
 
 
@@ -123,12 +123,17 @@ def pool_size(args: argparse.Namespace, pending: int) -> tuple[int, int, int]:
     """Jobs at a time, torch threads per job and CUDA GPUs to spread them over (0: none)."""
     from ..machine import usable_cores
 
+    check_counts(args)
     cores, gpus = usable_cores(), cuda_gpus(args)
-    if args.jobs is not None and args.jobs < 1 or args.threads is not None and args.threads < 1:
-        raise GStyleError("--jobs and --threads must be at least 1")
     jobs = args.jobs or gpus or max(1, cores // (args.threads or DEFAULT_THREADS_PER_JOB))
     jobs = max(1, min(jobs, pending))
     return jobs, args.threads or max(1, cores // jobs), gpus
+
+
+def check_counts(args: argparse.Namespace) -> None:
+    """``--jobs`` and ``--threads``, when given, at least 1 (a one-line error otherwise)."""
+    if args.jobs is not None and args.jobs < 1 or args.threads is not None and args.threads < 1:
+        raise GStyleError("--jobs and --threads must be at least 1")
 
 
 def cuda_gpus(args: argparse.Namespace) -> int:

@@ -25,13 +25,10 @@ from pathlib import Path
 
 from ..atomic import atomic_write_bytes
 from ..errors import GStyleError
-from ..outputs import SUMMARY, companions
-from .batch import DEFAULT_THREADS_PER_JOB, Job, finish, job_argv, progress
+from ..outputs import STYLIZE_COMPANIONS, companions
+from .batch import DEFAULT_THREADS_PER_JOB, Job, check_counts, finish, job_argv, progress
 
-# what a job sends back, the scene last, as ``gstyle stylize`` writes them (``cli.STYLIZE_COMPANIONS``, named here so
-# that a Ray worker does not import the engine to run its subprocess)
-STYLIZE_COMPANIONS = (SUMMARY, "_before.png", "_after.png")
-TAILS = (*STYLIZE_COMPANIONS, ".ply")
+TAILS = (*STYLIZE_COMPANIONS, ".ply")  # what a job sends back, the scene last, as ``gstyle stylize`` writes them
 WAIT_SECONDS = 1.0
 NEEDS_RAY = "--ray needs the 'ray' package: pip install 'gstyle-studio[ray]' (or pip install 'ray>=2.9')"
 
@@ -70,8 +67,7 @@ def run_on_ray(jobs: list[Job], pending: list[Job], args: argparse.Namespace) ->
     if not pending:
         print(f"batch: {len(jobs)} jobs, {len(jobs)} done already; nothing to run", file=sys.stderr)
         return
-    if args.threads is not None and args.threads < 1:
-        raise GStyleError("--jobs and --threads must be at least 1")
+    check_counts(args)
     ray = import_ray()
     connected = connect(ray, args.ray)
     try:

@@ -13,7 +13,7 @@ from ..assets import DEMO_SCENE
 from ..crash import RunCrashed, what_failed
 from ..device import DEVICES, DeviceFailure
 from ..errors import GStyleError, OutputWriteError, one_line_error
-from ..outputs import SUMMARY, companions
+from ..outputs import STYLIZE_COMPANIONS, companions
 from ..style.fringe import fringe_halo_line
 from ..style.precision import PRECISIONS
 from ..style.speckle import DEFAULT_DISPLAY_WIDTH
@@ -21,8 +21,6 @@ from .arg_types import display_width_arg, region_arg, style_weights_arg, widths_
 from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, request_config, style_paths
 from .controls import add_control_arguments
 from .run_figures import display_speckle_line, evaluate_run, texture_scale_line
-
-STYLIZE_COMPANIONS = (SUMMARY, "_before.png", "_after.png")  # beside OUT.ply: its summary, before/after pictures
 
 
 def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
