@@ -162,14 +162,28 @@ def scene_paths(names: list[str], fern: Path) -> dict[str, tuple[Path, Path | No
     return out
 
 
-def run_batch(argv: list[str], cameras: dict[str, str]) -> None:
-    """``gstyle batch`` with ``argv``, each scene in ``cameras`` with its own cameras (the batch's ``scene_cameras``
-    hook); a failed job is the batch's one line and leaves its point out."""
+def write_plan(path: Path, scenes: dict[str, tuple[Path, Path | None]], paintings: dict[str, Path]) -> Path:
+    """A ``gstyle batch`` plan (docs/batch.md) at ``path``: every painting, a run per scene named after it, with the
+    scene's own cameras where it has them (the fern's LLFF poses)."""
+    def quoted(value: Path) -> str:
+        return json.dumps(str(value))  # a TOML basic string
+
+    lines = [f"styles = [{', '.join(quoted(p) for p in paintings.values())}]"]
+    for name, (scene, cams) in scenes.items():
+        lines += ["", "[[run]]", f"name = {json.dumps(name)}", f"scenes = [{quoted(scene)}]"]
+        lines += [] if cams is None else [f"cameras = {quoted(cams)}"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def run_batch(argv: list[str]) -> None:
+    """``gstyle batch`` with ``argv``; a failed job is the batch's one line and leaves its point out."""
     from gstyle_core.cli import build_parser
     from gstyle_core.pipeline.batch import batch_command
 
     args = build_parser().parse_args(argv)
-    args.argv, args.scene_cameras = list(argv), cameras
+    args.argv = list(argv)
     batch_command(args)
 
 
@@ -225,13 +239,12 @@ def run_group(tier: str, device: str, knob: tuple[str, list[str]], scenes: dict,
     common = ["--preset", tier, *DEVICES[device], "--display-width", str(DISPLAY_WIDTH), *options,
               "--jobs", str(args.jobs), *(["--threads", str(args.threads)] if args.threads else []),
               "--checkpoint-every", "0"]
-    cameras = {str(path): str(cams) for path, cams in scenes.values() if cams is not None}
+    plan = write_plan(folder / "plan.toml", scenes, paintings)
     loads, t0 = [load_average()], time.perf_counter()
     for k in range(args.repeats):
         out = folder / f"repeat{k + 1}"
         force = [] if args.resume else ["--force"]
-        run_batch(["batch", "--scenes", *(str(p) for p, _ in scenes.values()),
-                   "--styles", *map(str, paintings.values()), *common, *force, "--out", str(out)], cameras)
+        run_batch(["batch", "--plan", str(plan), *common, *force, "--out", str(out)])
     loads.append(load_average())
     done = [job_outputs(folder / f"repeat{k + 1}") for k in range(args.repeats)]
     context = {**machine(), "measured": datetime.date.today().isoformat(), "load_before": loads[0],

@@ -41,9 +41,9 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
         torch.set_num_threads(threads)
     printed = capsys.readouterr().out.strip().splitlines()
     assert printed[-1] == "RESULT points=1 pareto=1 groups=1"
-    for k in (1, 2):  # one batch per repeat, each with its job's outputs and batch.csv
+    for k in (1, 2):  # one batch per repeat, each with its job's outputs and batch.csv (the plan's run per scene)
         folder = work / "preview_cpu-fp32_as_shipped" / f"repeat{k}"
-        assert (folder / "batch.csv").is_file() and (folder / "tiny__style.ply").is_file()
+        assert (folder / "batch.csv").is_file() and (folder / "tiny__style__tiny.ply").is_file()
     with out.open(newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 1

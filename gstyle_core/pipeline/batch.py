@@ -98,7 +98,6 @@ def plan_jobs(args: argparse.Namespace, out_dir: Path) -> list[Job]:
 
     if args.scene is not None or args.style:
         raise GStyleError("give the scenes with --scenes and the paintings with --styles")
-    own_cameras = getattr(args, "scene_cameras", None) or {}  # a caller's hook (bench/tradeoff.py): scene -> cameras
     jobs, names = [], set()
     for run in batch_runs(args, stylize_options(getattr(args, "argv", []))):
         for scene in run.scenes:
@@ -109,13 +108,12 @@ def plan_jobs(args: argparse.Namespace, out_dir: Path) -> list[Job]:
                                       "different names")
                 names.add(name)
                 out = out_dir / f"{name}.ply"
-                options = [*(["--cameras", own_cameras[scene]] if scene in own_cameras else []), *run.options]
-                argv = job_argv(scene, painting, options, out)
+                argv = job_argv(scene, painting, run.options, out)
                 if stylize_checkpoint_path(out).exists() and not args.force:
                     argv.append("--resume")
                 done = out.exists() and not args.force
                 jobs.append(Job(scene, painting, out, argv, "done already" if done else "pending", run=run.name,
-                                options=options))
+                                options=list(run.options)))
     return jobs
 
 
