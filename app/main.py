@@ -221,11 +221,13 @@ def open_studio(window, args: argparse.Namespace):
 
 def first_batch_result(folder: str) -> str:
     """The result file of the first finished job of the ``gstyle batch`` folder ``folder`` (``GStyleError``: none)."""
-    from .takes import BATCH_FILE, batch_takes
+    from gstyle_core.outputs import BATCH_TABLE
+
+    from .takes import batch_takes
 
     takes = batch_takes(folder)
     if not takes:
-        raise GStyleError(f"no finished jobs in {Path(folder) / BATCH_FILE}")
+        raise GStyleError(f"no finished jobs in {Path(folder) / BATCH_TABLE}")
     return takes[0].path
 
 

@@ -19,11 +19,11 @@ from gstyle_core.cameras.camera import Camera
 from gstyle_core.errors import GStyleError
 from gstyle_core.images import IMAGE_SUFFIXES
 from gstyle_core.io import SCENE_SUFFIXES
+from gstyle_core.outputs import BATCH_TABLE
 from gstyle_core.scene import GaussianScene
 
 from .export import EXPORT_SUFFIXES
 from .file_browser import FileBrowser, has_suffix, load_recent, recent_folders_file, save_recent, with_recent
-from .takes import BATCH_FILE
 
 DIALOG_ENV = "GSTYLE_FILE_DIALOG"  # "studio": the studio's browser always; "auto" (default): native where there is one
 DIALOG_PROGRAMS = ("zenity", "kdialog", "matedialog", "qarma")  # what portable_file_dialogs runs on Linux
@@ -43,7 +43,7 @@ class FileKind:
 
 
 FILE_KINDS = {
-    "open_scene": FileKind("Open scene", "Gaussian scenes", (*SCENE_SUFFIXES, BATCH_FILE)),  # or a batch's table
+    "open_scene": FileKind("Open scene", "Gaussian scenes", (*SCENE_SUFFIXES, BATCH_TABLE)),  # or a batch's table
     "open_style": FileKind("Open style image", "Images", IMAGE_SUFFIXES),
     "open_style2": FileKind("Open second style image", "Images", IMAGE_SUFFIXES, style_slot=1),
     "save_as": FileKind("Save the stylized scene as", "Gaussian scenes", tuple(EXPORT_SUFFIXES.values()),
@@ -113,8 +113,8 @@ class OpenFiles:
         its batch.csv (its jobs as takes). True when it opened; the status line (and the terminal) says what
         happened either way."""
         name = Path(path).name
-        if style_slot == 0 and (name == BATCH_FILE or (Path(path) / BATCH_FILE).is_file()):
-            folder = Path(path).parent if name == BATCH_FILE else Path(path)
+        if style_slot == 0 and (name == BATCH_TABLE or (Path(path) / BATCH_TABLE).is_file()):
+            folder = Path(path).parent if name == BATCH_TABLE else Path(path)
             opened = self.open_batch(folder)
             if opened:
                 self._remember_folder(folder)

@@ -20,11 +20,10 @@ from pathlib import Path
 
 from gstyle_core.atomic import atomic_write_text
 from gstyle_core.errors import GStyleError
-from gstyle_core.outputs import companion, output_base
+from gstyle_core.outputs import BATCH_TABLE, companion, output_base
 from gstyle_core.scene import GaussianScene
 
 TAKES_FILE = "takes.json"
-BATCH_FILE = "batch.csv"  # the table ``gstyle batch`` writes in its folder (gstyle_core/pipeline/batch_report.py)
 DEFAULT_LIMIT = 5
 MAX_NAME = 40
 
@@ -160,7 +159,7 @@ def batch_takes(folder: str | Path) -> list[Take]:
     """A take per finished job in ``folder``'s ``batch.csv`` whose scene file is there: ``SCENE after PAINTING``
     (``, RUN`` with a plan), its Gaussian count and settings line from its OUT.json. ``GStyleError``: no table."""
     folder = Path(folder)
-    table = folder / BATCH_FILE
+    table = folder / BATCH_TABLE
     try:
         with open(table, newline="", encoding="utf-8") as fh:
             rows = list(csv.DictReader(fh))

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from gstyle_core.errors import GStyleError
-from gstyle_core.outputs import companion
+from gstyle_core.outputs import BATCH_TABLE, companion
 
 from .export import summary_path
 from .splat_data import scene_arrays
@@ -56,7 +56,7 @@ class TakesView:
             self._say(f"could not open the batch: {exc}")
             return False
         if not new:
-            self._say(f"no finished jobs in {folder / 'batch.csv'}")
+            self._say(f"no finished jobs in {folder / BATCH_TABLE}")
             return False
         self.show_take(0, compare=True)
         self._say(f"opened the batch {folder.name}: {len(new)} takes to compare ({new[0].name}, …)")

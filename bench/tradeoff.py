@@ -51,6 +51,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 import tradeoff_report as report  # noqa: E402
 
 from gstyle_core.errors import GStyleError  # noqa: E402
+from gstyle_core.outputs import BATCH_TABLE  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
 FERN_PHOTOS = SHARED / "scenes" / "llff_fern"  # photos + poses: the fern's cameras and ground truth
@@ -189,7 +190,7 @@ def run_batch(argv: list[str]) -> None:
 
 def job_outputs(folder: Path) -> dict[tuple[str, str], Path]:
     """(scene path, painting path) -> OUT.json of each job a batch finished (its batch.csv)."""
-    with (folder / "batch.csv").open(newline="", encoding="utf-8") as fh:
+    with (folder / BATCH_TABLE).open(newline="", encoding="utf-8") as fh:
         return {(r["scene"], r["painting"]): Path(r["out"]).with_suffix(".json")
                 for r in csv.DictReader(fh) if r["status"] != "failed"}
 

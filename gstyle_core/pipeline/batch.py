@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import GStyleError
-from ..outputs import companion, output_base
+from ..outputs import BATCH_TABLE, companion, output_base
 from .checkpoint import stylize_checkpoint_path
 
 DEFAULT_THREADS_PER_JOB = 1  # jobs = cores // threads; a 2-thread job slowed 12x on a shared machine (docs/batch.md)
@@ -173,7 +173,7 @@ def write_results(jobs: list[Job], out_dir: Path) -> int:
     """batch.csv and contact_sheet.png, the last line; the batch's exit status (1 if a job failed)."""
     from .batch_report import write_contact_sheet, write_csv
 
-    written = [write_csv(jobs, out_dir / "batch.csv"), write_contact_sheet(jobs, out_dir / "contact_sheet.png")]
+    written = [write_csv(jobs, out_dir / BATCH_TABLE), write_contact_sheet(jobs, out_dir / "contact_sheet.png")]
     failed = sum(job.status == "failed" for job in jobs)
     print(f"batch: {len(jobs) - failed} done, {failed} failed; wrote {', '.join(map(str, written))}")
     return 1 if failed else 0
