@@ -11,7 +11,6 @@ and radius) and the input's framing box (``framing.scene_box``) into OUT.json un
 from __future__ import annotations
 
 import json
-import math
 import os
 from pathlib import Path
 from typing import Any
@@ -45,15 +44,12 @@ def cameras_from_record(record: dict, where: str = "the record") -> CameraSet:
     a one-line ``GStyleError`` naming ``where``."""
     from gstyle_core.cameras.generate import generate_cameras
 
-    try:
+    try:  # generate_cameras refuses a non-finite centre, radius or up (ValueError)
         vectors = {key: np.asarray(record[key], np.float64).reshape(3) for key in _VECTORS}
-        radius = float(record["radius"])
-        if not all(np.isfinite(v).all() for v in vectors.values()) or not math.isfinite(radius):
-            raise ValueError("a value is not finite")
         cams = generate_cameras(np.zeros((0, 3)), kind=str(record["kind"]), count=int(record["count"]),
                                 width=int(record["width"]), height=int(record["height"]),
                                 fov_deg=float(record["fov_deg"]), up=vectors["up"], centre=vectors["centre"],
-                                radius=radius)
+                                radius=float(record["radius"]))
     except KeyError as exc:
         raise GStyleError(f"{where}: the recorded cameras ({RECORD_KEY}) are malformed: no {exc}") from None
     except (TypeError, ValueError) as exc:
