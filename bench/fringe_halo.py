@@ -20,6 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from gstyle_core.atomic import atomic_path  # noqa: E402
 from gstyle_core.pipeline.view_choice import choose_views  # noqa: E402
 from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image  # noqa: E402
 from gstyle_core.style.fringe import FRINGE_ALPHA, fringe_halo  # noqa: E402
@@ -58,9 +59,8 @@ def picture(rows: list[np.ndarray], labels: list[str], alpha: np.ndarray, crop: 
         x += tile.width + 6
     path = Path(out)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    sheet.save(tmp, format="JPEG", quality=88)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        sheet.save(tmp, format="JPEG", quality=88)
     return f"{path} ({crop} px crop at ({x0}, {y0}), full size)"
 
 
