@@ -45,6 +45,7 @@ from gstyle_core.cameras.camera import Camera
 from gstyle_core.scene import used_sh_degree
 
 from .depth_sort import DEFAULT_BITS, DepthSorter, SortRequest, SortResult
+from .gl_io import gl_dtype, is_software_gl, read_rgb, target_size, texture_bytes
 from .shader_loader import program_sources, shader_source, with_defines
 from .splat_data import (
     TEXTURE_WIDTH,
@@ -67,7 +68,6 @@ PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes")  # 2 + 4 + 4 floats
 PROJECTED_STRIDE = 40  # bytes per projected Gaussian
 PROJECTED_SH_STRIDE = 52  # with the SH colour (+ 3 floats, "out_rgb"): only a renderer with SH coefficients
 SH_UNIT = 4  # texture unit of the SH coefficients in the projection pass (0-3: geometry)
-SOFTWARE_GL = ("llvmpipe", "softpipe", "swrast")  # renderer names of GLs that rasterise on the CPU
 SOFTWARE_DRAW_CHUNK = 32768  # splats a draw call on a software GL (``SplatRenderer.draw_chunk``)
 
 
@@ -443,37 +443,6 @@ class SplatRenderer:
         prog["u_target_size"].value = (float(width), float(height))
 
 
-def is_software_gl(ctx: moderngl.Context) -> bool:
-    """The context rasterises on the CPU (Mesa's llvmpipe, softpipe or swrast)."""
-    name = str(ctx.info.get("GL_RENDERER", "")).lower()
-    return any(word in name for word in SOFTWARE_GL)
-
-
-def gl_dtype(dtype: np.dtype | type) -> str:
-    """moderngl's name of a numpy texture dtype (float16 -> "f2", float32 -> "f4")."""
-    return {np.dtype(np.float16): "f2", np.dtype(np.float32): "f4"}[np.dtype(dtype)]
-
-
-def texture_bytes(tex: moderngl.Texture | moderngl.TextureArray) -> int:
-    """Bytes of a texture's texels (layers included)."""
-    return tex.width * tex.height * getattr(tex, "layers", 1) * tex.components * int(tex.dtype[1])
-
-
-def target_size(fbo: moderngl.Framebuffer) -> tuple[int, int]:
-    """Drawing size of a framebuffer: its viewport (the window's default framebuffer is resized through it)."""
-    x, y, width, height = fbo.viewport
-    return int(width), int(height)
-
-
-def read_rgb(fbo: moderngl.Framebuffer, viewport: tuple[int, int, int, int] | None = None) -> np.ndarray:
-    """Read a framebuffer's ``viewport`` (x, y from the bottom, width, height; default: the framebuffer's viewport
-    size from its corner) as uint8 [H, W, 3], row 0 = top of the image."""
-    x, y, width, height = viewport if viewport is not None else (0, 0, *target_size(fbo))
-    data = np.frombuffer(fbo.read(viewport=(x, y, width, height), components=3, alignment=1),
-                         np.uint8).reshape(height, width, 3)
-    return data[::-1].copy()
-
-
 def draw_views(ctx: moderngl.Context, arrays: Mapping[str, np.ndarray], cams: Sequence[Camera],
                layout: str = "compact", layer: str = DIFFUSE_LAYER) -> tuple[list[np.ndarray], dict[str, int]]:
     """``arrays`` drawn once from each of ``cams`` by a renderer of its own in ``layout`` (exact depth order, on
@@ -493,10 +462,3 @@ def draw_views(ctx: moderngl.Context, arrays: Mapping[str, np.ndarray], cams: Se
         return images, renderer.gl_memory()
     finally:
         renderer.release()
-
-
-def read_rgb_float(fbo: moderngl.Framebuffer) -> np.ndarray:
-    """Read a float FBO as float32 [H, W, 3], row 0 = top."""
-    width, height = fbo.size
-    data = np.frombuffer(fbo.read(components=3, alignment=1, dtype="f4"), np.float32).reshape(height, width, 3)
-    return data[::-1].copy()

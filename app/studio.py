@@ -24,12 +24,13 @@ from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
 from .edit_history import EditHistory
+from .gl_io import read_rgb, target_size
 from .keys import KeyPresses
 from .open_files import LoadedScene, OpenFiles
 from .paintings import Paintings
 from .panels import Command, PanelState, draw_panel
 from .region_tool import RegionTool
-from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer, read_rgb, target_size
+from .renderer import DIFFUSE_LAYER, SH_LAYER, SplatRenderer
 from .result_files import ResultInfo, read_result
 from .result_undo import ResultUndo
 from .scene_view import SceneView, ViewPass

@@ -93,7 +93,7 @@ class TakesView:
         output folder's ``.thumbs`` (a failure leaves the take without one)."""
         from PIL import Image
 
-        from .renderer import read_rgb
+        from .gl_io import read_rgb
 
         if self.stylized.count == 0:
             return

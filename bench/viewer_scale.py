@@ -64,8 +64,9 @@ from app.depth_sort import (  # noqa: E402
     exact_sort_request,
     key_bits,
 )
+from app.gl_io import read_rgb  # noqa: E402
 from app.main import parse_size  # noqa: E402
-from app.renderer import NEAR, SplatRenderer, read_rgb  # noqa: E402
+from app.renderer import NEAR, SplatRenderer  # noqa: E402
 from app.scene_view import SceneView, ViewPass  # noqa: E402
 from app.splat_data import (  # noqa: E402
     LAYOUTS,

@@ -10,7 +10,7 @@ from imgui_bundle import imgui  # noqa: E402, I001 - before glfw (gl-stack.md)
 
 from app.keys import KeyPress  # noqa: E402
 from app.panels import Command, PanelState, draw_panel, format_eta  # noqa: E402
-from app.renderer import read_rgb  # noqa: E402
+from app.gl_io import read_rgb  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
 from fakes import make_fake_engine  # noqa: E402
 from gstyle_core.scene import GaussianScene, logit, rgb_to_sh_dc  # noqa: E402

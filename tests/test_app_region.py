@@ -15,8 +15,8 @@ from imgui_driver import studio_driver  # noqa: E402
 from PIL import Image  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
+from app.gl_io import read_rgb  # noqa: E402
 from app.panels import PANEL_WIDTH, Command  # noqa: E402
-from app.renderer import read_rgb  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
 from gstyle_core.pipeline.region import box_mask, rect_mask  # noqa: E402
 

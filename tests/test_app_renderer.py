@@ -9,7 +9,8 @@ moderngl = pytest.importorskip("moderngl")
 
 from synthetic import blob_scene, look_at_camera  # noqa: E402
 
-from app.renderer import SplatRenderer, read_rgb_float  # noqa: E402
+from app.gl_io import read_rgb_float  # noqa: E402
+from app.renderer import SplatRenderer  # noqa: E402
 from app.splat_data import back_to_front_order, rotation_matrices  # noqa: E402
 from gstyle_core.cameras.camera import Camera  # noqa: E402
 
@@ -238,7 +239,7 @@ BIKER = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "scenes
 @pytest.mark.skipif(not BIKER.is_file(), reason="shared/data playcanvas/biker.spz absent")
 def test_quantised_order_draws_the_exact_orders_image_on_a_real_capture(ctx):
     from app.depth_sort import DepthSorter, exact_sort_request, key_bits
-    from app.renderer import read_rgb
+    from app.gl_io import read_rgb
     from app.splat_data import scene_arrays
     from gstyle_core.cameras.generate import finite_points, robust_centre_radius
     from gstyle_core.io import load_scene

@@ -116,7 +116,8 @@ def test_unknown_layout_is_a_clear_error(ctx):
 def test_a_draw_in_chunks_is_the_same_image_as_one_draw(ctx):
     """On a software GL the splats are drawn in chunks (each waiting for the one before it, which bounds
     llvmpipe's binned scenes in flight); the chunks blend in the same order, so the image is the same."""
-    from app.renderer import SOFTWARE_DRAW_CHUNK, is_software_gl, read_rgb_float
+    from app.gl_io import is_software_gl, read_rgb_float
+    from app.renderer import SOFTWARE_DRAW_CHUNK
 
     scene = blob_scene(3000, seed=8, spread=0.5, scale=0.04)
     r = SplatRenderer(ctx)

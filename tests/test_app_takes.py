@@ -16,8 +16,8 @@ from fakes import ring_studio  # noqa: E402
 from imgui_driver import studio_driver  # noqa: E402
 from synthetic import blob_scene  # noqa: E402
 
+from app.gl_io import read_rgb  # noqa: E402
 from app.panels import Command  # noqa: E402
-from app.renderer import read_rgb  # noqa: E402
 from app.studio import StudioApp  # noqa: E402
 from app.takes import TAKES_FILE, TakeShelf  # noqa: E402
 from gstyle_core.io import save_scene  # noqa: E402

@@ -331,7 +331,8 @@ def test_renderer_unchanged_frame_does_no_sort_or_upload_and_colours_upload_alon
 
 
 def test_renderer_evaluates_sh_on_the_gpu_for_real_sh_only_and_uploads_nothing_when_the_camera_moves(ctx):
-    from app.renderer import SH_LAYER, SplatRenderer, read_rgb_float
+    from app.gl_io import read_rgb_float
+    from app.renderer import SH_LAYER, SplatRenderer
     from app.splat_data import sh_colors
 
     fbo = ctx.framebuffer([ctx.texture((64, 48), 4, dtype="f4")])

@@ -7,7 +7,8 @@ moderngl = pytest.importorskip("moderngl")
 
 from synthetic import blob_scene, look_at_camera  # noqa: E402
 
-from app.renderer import SplatRenderer, read_rgb  # noqa: E402
+from app.gl_io import read_rgb  # noqa: E402
+from app.renderer import SplatRenderer  # noqa: E402
 from app.scene_view import ResolutionGovernor, SceneView, ViewPass  # noqa: E402
 from app.studio import scene_arrays  # noqa: E402
 
