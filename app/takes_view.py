@@ -59,7 +59,7 @@ class TakesView:
             self._say(f"no finished jobs in {folder / BATCH_TABLE}")
             return False
         self.show_take(0, compare=True)
-        self._say(f"opened the batch {folder.name}: {len(new)} takes to compare ({new[0].name}, …)")
+        self._say(f"opened the batch {folder.name}: {len(new)} takes to compare ({new[0].name}, ...)")
         return True
 
     def compare_with_original(self) -> None:

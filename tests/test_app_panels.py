@@ -207,3 +207,23 @@ def test_a_take_carries_its_settings_in_one_line(tmp_path):
     (tmp_path / "a.ply").write_bytes(b"x")
     TakeShelf(tmp_path).add(tmp_path / "a.ply", 10, settings=line)
     assert TakeShelf(tmp_path).takes[0].settings == line
+
+
+def test_status_and_tooltips_reach_imgui_in_the_fonts_characters(monkeypatch):
+    """The status box and tooltips show the engine's words (λ, ≥, …) spelled in the default font's Latin-1: a
+    character outside it would be drawn as "?" (the studio said "(fountain after starry_night, ?)" once)."""
+    from app.panels import run_sections, widgets
+
+    drawn: list[str] = []
+    monkeypatch.setattr(imgui, "text_wrapped", lambda text: drawn.append(text))
+    for name in ("begin_child", "end_child", "begin_tooltip", "end_tooltip", "push_text_wrap_pos",
+                 "pop_text_wrap_pos"):
+        monkeypatch.setattr(imgui, name, lambda *a, **k: True)
+    monkeypatch.setattr(imgui, "get_text_line_height_with_spacing", lambda: 17.0)
+    monkeypatch.setattr(imgui, "is_item_hovered", lambda *a: True)
+    monkeypatch.setattr(imgui, "get_main_viewport", lambda: type("V", (), {"size": imgui.ImVec2(800, 600)})())
+    run_sections.status_box("opened the batch b: 6 takes (a, …); λ_NNFM ≥ 200 → 400 – σ")
+    widgets.tooltip("stroke size × 2 … λ")
+    assert len(drawn) == 3 and all(c == "\n" or 32 <= ord(c) < 256 for text in drawn for c in text), drawn
+    assert drawn[0] == "opened the batch b: 6 takes (a, ...); lambda_NNFM >= 200 -> 400 - sigma"
+    assert drawn[2] == "stroke size × 2 ... lambda"

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from .run_sections import font_safe, format_eta
+from .run_sections import format_eta
 from .state import Command, PanelState
-from .widgets import button, tooltip
+from .widgets import button, font_safe, tooltip
 
 QUALITIES = {
     "preview": "Preview: the working width only (256 px on 360° scenes); first strokes in seconds.",

@@ -14,7 +14,7 @@ from gstyle_core.pipeline.controls import control, term_label
 
 from .decision_words import artist_lines
 from .state import Command, PanelState
-from .widgets import button, button_row, thumbnail, tooltip
+from .widgets import button, button_row, font_safe, thumbnail, tooltip
 
 
 def files_section(state: PanelState, out: list[Command]) -> None:
@@ -152,7 +152,7 @@ def status_box(text: str) -> None:
     height = STATUS_LINES * imgui.get_text_line_height_with_spacing()
     flags = imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_scroll_with_mouse
     imgui.begin_child("##status", imgui.ImVec2(-1, height), 0, flags)
-    imgui.text_wrapped(text)
+    imgui.text_wrapped(font_safe(text))
     imgui.end_child()
     if text:
         tooltip(text)
@@ -212,18 +212,6 @@ def loss_plot(state: PanelState) -> None:
         for label, xs, ys in series:
             implot.plot_line(label, xs, ys)
         implot.end_plot()
-
-
-# The panel's font (ImGui's default) has Latin-1 glyphs only: the engine's words outside it, spelled out.
-FONT_SPELLINGS = str.maketrans({"λ": "lambda", "σ": "sigma", "γ": "gamma", "≥": ">=", "≤": "<=", "→": "->",
-                                "–": "-", "—": "-", "…": "...", "≈": "~", "′": "'", "∂": "d", "‖": "|"})
-
-
-def font_safe(text: str) -> str:
-    """``text`` with the characters the panel's font lacks spelled out (``FONT_SPELLINGS``; others outside Latin-1
-    become "?" as the font would show them, so a test can see them)."""
-    text = text.translate(FONT_SPELLINGS)
-    return "".join(c if ord(c) < 256 else "?" for c in text)
 
 
 def decision_lines(decisions: dict[str, Any]) -> list[str]:

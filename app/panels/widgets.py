@@ -14,6 +14,18 @@ def param_slider(label: str, value: float, low: float, high: float, fmt: str = "
     return imgui.slider_float(label, float(value), low, high, fmt, flags)
 
 
+# The panel's font (ImGui's default) has Latin-1 glyphs only: the engine's words outside it, spelled out.
+FONT_SPELLINGS = str.maketrans({"λ": "lambda", "σ": "sigma", "γ": "gamma", "≥": ">=", "≤": "<=", "→": "->",
+                                "–": "-", "—": "-", "…": "...", "≈": "~", "′": "'", "∂": "d", "‖": "|"})
+
+
+def font_safe(text: str) -> str:
+    """``text`` with the characters the panel's font lacks spelled out (``FONT_SPELLINGS``; others outside Latin-1
+    become "?" as the font would show them, so a test can see them)."""
+    text = text.translate(FONT_SPELLINGS)
+    return "".join(c if ord(c) < 256 else "?" for c in text)
+
+
 TOOLTIP_WIDTH = 420.0  # pixels of text per tooltip line at most
 
 
@@ -24,7 +36,7 @@ def tooltip(text: str) -> None:
         width = imgui.get_main_viewport().size.x
         imgui.begin_tooltip()
         imgui.push_text_wrap_pos(max(min(TOOLTIP_WIDTH, width - 40.0), 120.0))
-        imgui.text_wrapped(text)
+        imgui.text_wrapped(font_safe(text))
         imgui.pop_text_wrap_pos()
         imgui.end_tooltip()
 
