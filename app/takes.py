@@ -39,6 +39,7 @@ class Take:
     view_key: str = ""  # what the view showed when it was exported (``StudioApp.view_key``): T skips a take equal to it
     settings: str = ""  # one line: the run's preset, widths and the controls set (``settings_line``)
     batch: str = ""  # the batch folder it came from ("" for an export)
+    scene: str = ""  # a batch job's input scene (the studio opens a take of another scene as its scene)
 
     @property
     def label(self) -> str:
@@ -86,7 +87,8 @@ class TakeShelf:
         try:
             entries = json.loads((self.folder / TAKES_FILE).read_text())
             takes = [Take(str(e["name"]), str(e["path"]), int(e["gaussians"]), float(e["created"]),
-                          str(e.get("view_key", "")), str(e.get("settings", "")), str(e.get("batch", "")))
+                          str(e.get("view_key", "")), str(e.get("settings", "")), str(e.get("batch", "")),
+                          str(e.get("scene", "")))
                      for e in entries]
         except (OSError, ValueError, TypeError, KeyError):
             return []
@@ -184,5 +186,5 @@ def batch_takes(folder: str | Path) -> list[Take]:
         name = f"{output_base(Path(row['scene']).name).name} after {Path(row['painting']).stem}"
         name += f", {row['run']}" if row.get("run") else ""
         takes.append(Take(name[:MAX_NAME], str(path), gaussians, path.stat().st_mtime, settings=line,
-                          batch=str(folder)))
+                          batch=str(folder), scene=row["scene"] or ""))
     return takes

@@ -33,6 +33,8 @@ class TakesView:
         if not 0 <= index < len(self.takes.takes):
             return False
         take = self.takes.takes[index]
+        if not self._same_input(take):
+            return self._open_take_of_another_scene(take, compare)
         if self.take_shown != take.path:
             try:
                 scene = self.takes.load(index)
@@ -44,6 +46,25 @@ class TakesView:
         self.compare_with_take = compare
         self.view_mode = "compare" if compare else "take"
         self.panel.status = f"{'comparing with' if compare else 'showing'} {take.name} ({Path(take.path).name})"
+        return True
+
+    def _same_input(self, take) -> bool:
+        """Whether ``take`` was made from the scene on show (its input: a result's original, else the file itself);
+        takes of unknown input (exports) are taken to be."""
+        if not take.scene or self.loaded is None:
+            return True
+        shown = self.result.source if self.result is not None and self.result.source else self.loaded.path
+        return Path(take.scene).resolve() == Path(shown).resolve()
+
+    def _open_take_of_another_scene(self, take, compare: bool) -> bool:
+        """A batch's take of another scene is opened as the studio's scene (a result, framed as its input was and
+        compared with its original), not drawn from this scene's cameras; False when it cannot be opened."""
+        if not self.open_path(take.path):
+            return False
+        self.take_shown, self.compare_with_take = None, False
+        self.view_mode = "compare" if compare else "stylized"
+        self.panel.status = (f"opened {take.name} ({Path(take.path).name}), a take of another scene, as the scene"
+                             + ("; comparing with its original" if compare else ""))
         return True
 
     def open_batch(self, folder: str | Path) -> bool:

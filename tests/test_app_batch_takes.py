@@ -5,6 +5,7 @@ batch.csv dropped on the window or chosen in the file browser. The batch runs th
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -43,8 +44,8 @@ def test_a_batch_s_finished_jobs_are_takes_that_exports_do_not_push_off(batch_di
     shelf.add(save_export(tmp_path / "studio" / "early.ply"), 30)
     new = shelf.add_batch(batch_dir)
     assert [t.name for t in new] == FINISHED and [t.name for t in shelf.takes] == [*FINISHED, "take 1"]
-    assert {(t.path, t.gaussians, t.settings, t.batch) for t in new} == {
-        (str(batch_dir / f"scene{k}__red.ply"), 40, "preview, 32 px", str(batch_dir)) for k in (1, 2)}
+    assert {(t.path, t.gaussians, t.settings, t.batch, Path(t.scene).name) for t in new} == {
+        (str(batch_dir / f"scene{k}__red.ply"), 40, "preview, 32 px", str(batch_dir), f"scene{k}.ply") for k in (1, 2)}
     for k in (2, 3):  # more exports than the limit: the oldest export goes, the batch's takes stay
         shelf.add(save_export(tmp_path / "studio" / f"e{k}.ply"), 30)
     assert [t.name for t in shelf.takes] == ["take 3", "take 2", *FINISHED]
@@ -70,12 +71,21 @@ def studio(window, tmp_path):
 def test_a_batch_folder_or_its_table_dropped_opens_its_jobs_as_takes_to_compare(studio, batch_dir, tmp_path):
     studio.on_drop([str(batch_dir)])
     assert [t.name for t in studio.takes.takes] == FINISHED
-    assert studio.panel.status == "opened the batch batch: 2 takes to compare (scene1 after red, …)"
-    assert studio.view_mode == "compare" and studio.compare_with_take
-    assert studio.take_shown == str(batch_dir / "scene1__red.ply") and studio.take_view.count == 40
+    assert studio.panel.status == "opened the batch batch: 2 takes to compare (scene1 after red, ...)"
+    # the studio showed another scene: the first take opens as the scene, compared with its original
+    assert studio.loaded.path == str(batch_dir / "scene1__red.ply") and studio.result is not None
+    assert studio.view_mode == "compare" and not studio.compare_with_take and studio.take_shown is None
     texture = studio.take_texture(studio.takes.takes[1])  # its after picture, fitted in the thumbnail
     assert texture is not None and texture[1] == (96, 32)
-    assert studio.show_take(1, compare=False) and studio.take_shown == str(batch_dir / "scene2__red.ply")
+    assert studio.show_take(1, compare=False) and studio.loaded.path == str(batch_dir / "scene2__red.ply")
+    assert studio.view_mode == "stylized" and studio.panel.status == (
+        "opened scene2 after red (scene2__red.ply), a take of another scene, as the scene")
+    # a take of the scene on show (scene2's input) is drawn beside it from the same camera
+    same = replace(studio.takes.takes[0], name="scene2 again", path=str(batch_dir / "scene1__red.ply"),
+                   scene=studio.takes.takes[1].scene)
+    studio.takes.takes.append(same)
+    assert studio.show_take(2, compare=True) and studio.loaded.path == str(batch_dir / "scene2__red.ply")
+    assert studio.take_shown == same.path and studio.compare_with_take and studio.take_view.count == 40
 
     assert studio.open_path(str(batch_dir / "batch.csv")) and len(studio.takes.takes) == 2  # the same takes
     empty = tmp_path / "empty"
