@@ -7,9 +7,9 @@ of stylization), after the stylization at the working width (before any finer le
 chroma added since the input, against the painting's at its matched size in display pixels), per view and over the
 views, the added chroma's fine and whole energy (summed over the views), the energy and fine share of the stage's own
 change (against the stage before), the fringe halo and the fringe's near-saturated share (``style/fringe.py``), and the
-seconds the engine had spent by then. After pre-processing the new geometry
-is rendered with the ground-truth colours. Last a ``RESULT`` line with the ratio after the working width and
-at the end.
+seconds the engine had spent by then, and the structure kept at that width (``evaluate.structure_kept``: the
+input's edges against the stage's). After pre-processing the new geometry is rendered with the ground-truth colours.
+Last a ``RESULT`` line with the ratio after the working width and at the end, and the result's structure.
 
     python bench/display_phases.py --style ../shared/data/styles/the_scream_munch.jpg --refine-widths 512,1024
 """
@@ -30,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
 from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.pipeline.evaluate import structure_kept  # noqa: E402
 from gstyle_core.pipeline.run_figures import evaluation_cameras  # noqa: E402
 from gstyle_core.render_cli import render_scene_image  # noqa: E402
 from gstyle_core.style.fringe import fringe_halo  # noqa: E402
@@ -49,8 +50,9 @@ def ground_truth_scene(engine):
     return scene
 
 
-def stage_speckles(engine, scene_in, style, width: int) -> list[dict]:
-    """Run ``engine`` to the end; the speckle figure at each phase boundary (module docstring), in order."""
+def stage_speckles(engine, scene_in, style, width: int, on_row=None) -> list[dict]:
+    """Run ``engine`` to the end; the speckle figure at each phase boundary (module docstring), in order
+    (``on_row``: called with each row as it is measured)."""
     s = engine.settings
     cameras = evaluation_cameras(engine, EVAL_VIEWS, width)
     before, alphas = zip(*(render_scene_image(scene_in, c, with_alpha=True) for c in cameras), strict=True)
@@ -72,10 +74,14 @@ def stage_speckles(engine, scene_in, style, width: int) -> list[dict]:
         step = sum(chroma_energies(np.asarray(a, np.float64) - b, w, channels)
                    for a, b, w in zip(after, previous["images"], alphas, strict=True))
         previous["images"] = after
-        return {"stage": name, "seconds": round(seconds, 1), "gaussians": engine.gaussian_count,
+        row = {"stage": name, "seconds": round(seconds, 1), "gaussians": engine.gaussian_count,
                 "added_fine_energy": float(added[:FINE_BANDS].sum()), "added_energy": float(added.sum()),
                 "change_fine_share": fine_share(step), "change_energy": float(step.sum()), **fig.to_dict(),
-                "fringe_halo": fringe.halo, "fringe_near_saturated": fringe.bright_after}
+                "fringe_halo": fringe.halo, "fringe_near_saturated": fringe.bright_after,
+                "structure": structure_kept(list(before), after, list(alphas))}
+        if on_row is not None:
+            on_row(row)
+        return row
 
     def current() -> str:  # the phase object that runs now (a refit belongs to the stylization)
         return next((ph.name for ph in engine.phases if not ph.finished), "done")
@@ -121,27 +127,32 @@ def built_engine(p: argparse.ArgumentParser, argv: list[str] | None):
     return args, engine, scene_in, style
 
 
+def print_row(r: dict) -> None:
+    """One stage's line of the table, printed as soon as it is measured."""
+    views = " / ".join("-" if v is None else f"{v:.2f}" for v in r["speckle_ratio_per_view"])
+    ratio = "-" if r["speckle_ratio"] is None else f"{r['speckle_ratio']:.2f}"
+    print(f"{r['stage']:28s} {r['seconds']:9.1f} {r['gaussians']:10,d} {ratio:>8s}  {views:18s} "
+          f"{r['added_fine_energy']:8.0f} / {r['added_energy']:7.0f}  {r['change_energy']:19.0f}, "
+          f"{r['change_fine_share']:.2f}  {r['fringe_halo']:+6.3f} {r['fringe_near_saturated']:10.1%} "
+          f"{r['structure']:9.3f}", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--json", default=None, help="also write the rows to this file")
     args, engine, scene_in, style = built_engine(p, argv)
     width = args.display_width or 1024
-    rows = stage_speckles(engine, scene_in, style, width)
     print(f"{args.scene or 'demo'} × {', '.join(args.style or ['the bundled painting'])}: preset "
           f"{engine.settings.preset}, working width {engine.settings.working_width}, levels "
-          f"{list(engine.settings.refine_widths)} ({engine.settings.refine_mode}); speckle at {width} px, painting "
-          f"at {rows[-1]['painting_side']} px (fine share {rows[-1]['painting_fine_share']})")
+          f"{list(engine.settings.refine_widths)} ({engine.settings.refine_mode}); speckle at {width} px")
     print(f"{'stage':28s} {'engine s':>9s} {'Gaussians':>10s} {'speckle':>8s}  {'per view':18s} "
-          f"{'added fine / all':>18s}  {'this stage: energy, fine share':>30s}  {'halo':>6s} {'saturated':>10s}")
-    for r in rows:
-        views = " / ".join("-" if v is None else f"{v:.2f}" for v in r["speckle_ratio_per_view"])
-        ratio = "-" if r["speckle_ratio"] is None else f"{r['speckle_ratio']:.2f}"
-        print(f"{r['stage']:28s} {r['seconds']:9.1f} {r['gaussians']:10,d} {ratio:>8s}  {views:18s} "
-              f"{r['added_fine_energy']:8.0f} / {r['added_energy']:7.0f}  {r['change_energy']:19.0f}, "
-              f"{r['change_fine_share']:.2f}  {r['fringe_halo']:+6.3f} {r['fringe_near_saturated']:10.1%}")
+          f"{'added fine / all':>18s}  {'this stage: energy, fine share':>30s}  {'halo':>6s} {'saturated':>10s} "
+          f"{'structure':>9s}", flush=True)
+    rows = stage_speckles(engine, scene_in, style, width, on_row=print_row)
+    print(f"painting at {rows[-1]['painting_side']} px (fine share {rows[-1]['painting_fine_share']})")
     working = next((r for r in rows if r["stage"] == "after stylize"), rows[-1])
     print(f"RESULT speckle_after_working_width={working['speckle_ratio']} speckle_result={rows[-1]['speckle_ratio']} "
-          f"engine_seconds={rows[-1]['seconds']}")
+          f"structure_result={rows[-1]['structure']:.3f} engine_seconds={rows[-1]['seconds']}")
     if args.json:
         Path(args.json).write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1, default=str))
     return 0

@@ -1,7 +1,7 @@
-"""The 360° preview's and balanced tier's pre-processing split keeps the scene's coverage (issue #50 item 4, the
-fringe halo): children of a flat Gaussian that cover only a fifth of their parent's footprint left the soft fringe
-they made as specks, which a short refit could not close and stylization turned into a halo of bright strokes
-(docs/display-size.md, "The fringe halo"; docs/tradeoffs.md for balanced)."""
+"""The 360° pre-processing split of every CPU tier (preview, balanced, final) keeps the scene's coverage (issue #50
+item 4, the fringe halo): children of a flat Gaussian that cover only a fifth of their parent's footprint left the
+soft fringe they made as specks, which a short refit could not close and stylization turned into a halo of bright
+strokes (docs/display-size.md, "The fringe halo"; docs/tradeoffs.md for balanced and final)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ def _coverage(scene, cameras) -> float:
     return float(sum(render_scene_image(scene, c, with_alpha=True)[1].sum() for c in cameras))
 
 
-@pytest.mark.parametrize("preset", ["preview", "balanced"])
+@pytest.mark.parametrize("preset", ["preview", "balanced", "final"])
 def test_the_360_split_keeps_the_scene_coverage(preset):
     scene = blob_scene(200, seed=5, scale=0.04)
     scene.log_scales[:12, :2] += np.log(5.0)  # a few large flat Gaussians: the ones the split picks

@@ -180,8 +180,10 @@ CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0,  # stro
                           # balanced's 140-iteration refit does not close 1/6.4 children's gaps either
                           # (docs/tradeoffs.md: the demo in bf16, structure at 1024 px 0.58 -> 0.69 / 0.60 -> 0.67,
                           # speckle 0.59 -> 0.47 / 1.03 -> 0.80, drop at 512 px 25.3 -> 26.5 % / 29.8 -> 30.9 %).
-                          # final keeps 1/6.4: not measured.
-                          "balanced": dict(preprocess_scale_divisor=2.5)}
+                          "balanced": dict(preprocess_scale_divisor=2.5),
+                          # nor final's 300 (the demo after The Starry Night, bf16: structure at 1024 px 0.41 -> 0.61,
+                          # speckle 0.72 -> 0.49, bench/display_phases.py; docs/tradeoffs.md)
+                          "final": dict(preprocess_scale_divisor=2.5)}
 # Calibrated 360° runs with finer levels (balanced, final): the content term (VGG block 3) does not hold edges as fine
 # as a 512- or 1024-px pixel, so the edge-keeping term holds them there, with twice the style weight for the drop it
 # costs (docs/display-size.md, "Edges kept": balanced over 3 captures × 3 paintings, structure at 512 px 0.72-0.82
