@@ -78,7 +78,9 @@ def test_calibrated_360_defaults_and_the_clip_substitute():
     assert cal.weights.clip == 0.0 and paper.weights.clip == 10.0
     assert resolve_settings("preview", "360", 16, clip_available=True).weights.clip == 10.0
     assert resolve_settings("preview", "360", 16, clip_available=False, lambda_clip=2.0).weights.clip == 2.0
-    assert cal.working_width == 256 and resolve_settings("preview", "forward", 16).working_width == 192
+    assert cal.working_width == 256 and (cal.epochs, paper.epochs) == (8.0, 4.0)
+    assert (resolve_settings("preview", "forward", 16).working_width, resolve_settings("preview", "forward").epochs) \
+        == (256, 4.0)
     forward = resolve_settings("preview", "forward", 16, clip_available=False)
     assert (forward.weights.clip, forward.weights.multiscale) == (10.0, 0.0)  # the paper's, with the substitute
     assert cal.weights.multiscale == cal.weights.nnfm and paper.weights.multiscale == 0.0

@@ -133,10 +133,12 @@ KIND_DEFAULTS = {
 
 # CPU budgets. Rounds/iterations for "final" follow the paper (rounds: 5 forward-facing, 10 for 360°).
 PRESETS = {
-    # preview = the "epochs 3" point of the old bench/tradeoff.py (docs/tradeoffs-history.md): on the Pareto front of
-    # every group measured then.
+    # preview = the "epochs 3" point of the old bench/tradeoff.py (docs/tradeoffs-history.md) at 256 px and 4 epochs:
+    # at 192 px and 3 epochs the fern after The Great Wave stopped at an NNFM drop of 24.9 %; at 256 px and 4 epochs
+    # the fern after three paintings reached 32.4-36.4 % and kept a structure at 1024 px of 0.55-0.57 instead of
+    # 0.47-0.49 (docs/tradeoffs.md, "What each preset was picked from").
     # Splits happen at fractions of the stylization (split_at), so every preset performs them.
-    "preview": dict(working_width=192, epochs=3.0, min_steps=30, preprocess_rounds=1, refit_iterations=60,
+    "preview": dict(working_width=256, epochs=4.0, min_steps=30, preprocess_rounds=1, refit_iterations=60,
                     max_views=16),
     # balanced and final go on coarse to fine (phases/refine.py): to 512 and to 1024 px, a display's size.
     # balanced refits 140 iterations (not 200): biker.spz 192 -> 164 s for the same figures (docs/display-size.md)
@@ -175,8 +177,7 @@ BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0, colour_field=
 # cover a fifth of their parent's footprint, and the preview's 60 refit iterations do not regrow them, so the soft
 # fringe that large Gaussians made fell apart into specks that stylization turned into a halo of bright strokes
 # (docs/display-size.md, "The fringe halo"; the forward-facing preview keeps 3DGS's 1/1.6 for the same reason).
-CALIBRATED_360_PRESETS = {"preview": dict(working_width=256, epochs=8.0,  # strokes need 256 px; 32 steps of 4 views
-                                          preprocess_scale_divisor=2.5),
+CALIBRATED_360_PRESETS = {"preview": dict(epochs=8.0, preprocess_scale_divisor=2.5),  # 32 steps of 4 views
                           # balanced's 140-iteration refit does not close 1/6.4 children's gaps either
                           # (docs/tradeoffs.md: the demo in bf16, structure at 1024 px 0.58 -> 0.69 / 0.60 -> 0.67,
                           # speckle 0.59 -> 0.47 / 1.03 -> 0.80, drop at 512 px 25.3 -> 26.5 % / 29.8 -> 30.9 %).
