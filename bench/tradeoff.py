@@ -216,9 +216,12 @@ def consistency(scene: Path, cameras: Path | None, out_ply: Path) -> tuple[float
 
 
 def point_figures(summaries: list[Path], scene: Path, cameras: Path | None) -> dict:
-    """A point's figures from the OUT.json of each repeat: seconds (median, min, max), the quality of the first."""
+    """A point's figures from the OUT.json of each repeat: seconds (median, min, max), the quality of the first, and
+    how far the repeats' drop and structure at 1024 px spread (max − min; 0 with one repeat)."""
     runs = [json.loads(p.read_text(encoding="utf-8")) for p in summaries]
     seconds = [r["seconds_total"] for r in runs]
+    drops = [r["quality"]["nnfm_drop"] for r in runs]
+    structures = [r["quality"]["display"]["structure"] for r in runs]
     s, q = runs[0], runs[0]["quality"]
     end = q.get("at_final_width") or {"width": q["width"], "nnfm_drop": q["nnfm_drop"], "structure": q["structure"]}
     display = q["display"]
@@ -229,7 +232,8 @@ def point_figures(summaries: list[Path], scene: Path, cameras: Path | None) -> d
             "nnfm_drop_end": end["nnfm_drop"], "structure_end": end["structure"],
             "speckle_1024": display["speckle_ratio"], "structure_1024": display["structure"],
             "coarse_ratio": q["texture_scale"]["coarse_ratio"], "colour": q["final"]["colour"],
-            "consistency": after, "consistency_input": before}
+            "consistency": after, "consistency_input": before,
+            "nnfm_drop_spread": max(drops) - min(drops), "structure_1024_spread": max(structures) - min(structures)}
 
 
 def run_group(tier: str, device: str, knob: tuple[str, list[str]], scenes: dict, paintings: dict, args) -> list[dict]:

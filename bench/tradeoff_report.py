@@ -17,7 +17,7 @@ from pathlib import Path
 KEY = ("tier", "device", "scene", "painting", "knob")  # a point; rows of the same key replace each other (--merge)
 FIGURES = ("seconds", "seconds_min", "seconds_max", "repeats", "gaussians", "working_width", "end_width",
            "nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "speckle_1024", "structure_1024",
-           "coarse_ratio", "colour", "consistency", "consistency_input")
+           "coarse_ratio", "colour", "consistency", "consistency_input", "nnfm_drop_spread", "structure_1024_spread")
 CONTEXT = ("machine", "torch", "code", "measured", "load_before", "load_after", "pareto")
 COLUMNS = KEY + FIGURES + CONTEXT
 INTEGERS = ("repeats", "gaussians", "working_width", "end_width")
@@ -174,11 +174,13 @@ def markdown_table(rows: list[dict]) -> list[str]:
 
     lines = ["| " + " | ".join(TABLE_HEAD) + " |", "|" + "---|" * len(TABLE_HEAD)]
     for r in rows:
-        spread = (f" ({num(r, 'seconds_min', '.0f')}–{num(r, 'seconds_max', '.0f')})"
-                  if int(r.get("repeats", 1)) > 1 else "")
+        repeated = int(r.get("repeats", 1)) > 1
+        spread = f" ({num(r, 'seconds_min', '.0f')}–{num(r, 'seconds_max', '.0f')})" if repeated else ""
+        drop_spread = (f" (Δ {100 * float(r['nnfm_drop_spread']):.1f})"  # the repeats' spread, in points
+                       if repeated and r.get("nnfm_drop_spread") not in (None, "") else "")
         lines.append(
             f"| {point_label(r)} | {r['device']} | {r['scene']} / {r['painting']} | {num(r, 'seconds', '.0f')}{spread}"
-            f" | {100 * float(r['nnfm_drop']):.1f} % | {num(r, 'structure', '.2f')} | {r['end_width']}: "
+            f" | {100 * float(r['nnfm_drop']):.1f} %{drop_spread} | {num(r, 'structure', '.2f')} | {r['end_width']}: "
             f"{100 * float(r['nnfm_drop_end']):.1f} % / {num(r, 'structure_end', '.2f')} | "
             f"{num(r, 'structure_1024', '.2f')} / {num(r, 'speckle_1024', '.2f')} | {num(r, 'coarse_ratio', '.2f')} | "
             f"{num(r, 'colour', '.3f')} | {num(r, 'consistency', '.4f')} ({num(r, 'consistency_input', '.4f')}) | "
