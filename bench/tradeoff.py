@@ -165,7 +165,8 @@ def scene_paths(names: list[str], fern: Path) -> dict[str, tuple[Path, Path | No
 
 def write_plan(path: Path, scenes: dict[str, tuple[Path, Path | None]], paintings: dict[str, Path]) -> Path:
     """A ``gstyle batch`` plan (docs/batch.md) at ``path``: every painting, a run per scene named after it, with the
-    scene's own cameras where it has them (the fern's LLFF poses)."""
+    scene's own cameras where it has them (the fern's LLFF poses); the paths given whole (a plan's relative paths are
+    read from the plan's folder)."""
     def quoted(value: Path) -> str:
         return json.dumps(str(value))  # a TOML basic string
 
@@ -344,8 +345,9 @@ def main(argv: list[str] | None = None) -> int:
         missing = [n for n in painting_names if not PAINTINGS[n].is_file()]
         if missing:
             raise GStyleError(f"painting {missing[0]}: {PAINTINGS[missing[0]]} not found")
-        new = run_group(tier, device, knob, scene_paths(scene_names, fern),
-                        {n: PAINTINGS[n] for n in painting_names}, args)
+        scenes = {n: (scene.resolve(), None if cams is None else cams.resolve())  # whole: as batch.csv names them
+                  for n, (scene, cams) in scene_paths(scene_names, fern).items()}
+        new = run_group(tier, device, knob, scenes, {n: PAINTINGS[n].resolve() for n in painting_names}, args)
         rows = report.merged(rows, new)
         report.write_rows(rows, out)  # after every group: nothing measured is lost
     finish(rows, out)

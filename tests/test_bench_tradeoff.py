@@ -28,7 +28,8 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
     tradeoff = load_bench("tradeoff")
     style = np.random.default_rng(0).uniform(size=(16, 16, 3)).astype(np.float32)
     scene, painting = tiny_bench_inputs(cli, vgg, style, tmp_path, monkeypatch)  # every job: TINY settings
-    monkeypatch.setattr(tradeoff, "SCENES", {"tiny": (scene, None)})
+    monkeypatch.chdir(tmp_path)  # the scene given relative to here (as --fern out/fern.ply): the plan holds it whole
+    monkeypatch.setattr(tradeoff, "SCENES", {"tiny": (Path(scene).relative_to(tmp_path), None)})
     monkeypatch.setattr(tradeoff, "PAINTINGS", {"noise": painting})
     monkeypatch.setattr(tradeoff, "DISPLAY_WIDTH", 64)
     out, work = tmp_path / "atlas.csv", tmp_path / "work"
@@ -39,8 +40,9 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
         assert tradeoff.main(argv) == 0
     finally:
         torch.set_num_threads(threads)
-    printed = capsys.readouterr().out.strip().splitlines()
-    assert printed[-1] == "RESULT points=1 pareto=1 groups=1"
+    captured = capsys.readouterr()
+    printed = captured.out.strip().splitlines()
+    assert printed[-1] == "RESULT points=1 pareto=1 groups=1", captured.out + captured.err
     for k in (1, 2):  # one batch per repeat, each with its job's outputs and batch.csv (the plan's run per scene)
         folder = work / "preview_cpu-fp32_as_shipped" / f"repeat{k}"
         assert (folder / "batch.csv").is_file() and (folder / "tiny__style__tiny.ply").is_file()
@@ -54,7 +56,8 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
     assert int(row["repeats"]) == 2 and int(row["working_width"]) == 32 and int(row["end_width"]) == 256
     assert 0 < float(row["seconds_min"]) <= float(row["seconds"]) <= float(row["seconds_max"])
     for key in ("nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "speckle_1024", "structure_1024",
-                "coarse_ratio", "colour", "consistency", "consistency_input", "load_before", "load_after"):
+                "coarse_ratio", "colour", "consistency", "consistency_input", "load_before", "load_after",
+                "nnfm_drop_spread", "structure_1024_spread"):
         assert math.isfinite(float(row[key])), key
     assert row["nnfm_drop"] == row["nnfm_drop_end"]  # a preview ends at the width it is measured at
     assert "cores" in row["machine"] and row["torch"] == torch.__version__
@@ -67,6 +70,7 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
     assert tradeoff.main(["--table", "--out", str(out)]) == 0
     table = capsys.readouterr().out.strip().splitlines()
     assert len(table) == 3 and table[2].startswith("| preview | cpu-fp32 | tiny / noise |")
+    assert float(row["nnfm_drop_spread"]) < 0.01 and f"% (Δ {100 * float(row['nnfm_drop_spread']):.1f})" in table[2]
 
 
 def test_a_point_that_loses_the_structure_at_1024_px_is_never_on_the_front(report):

@@ -67,13 +67,16 @@ VARIANTS = {  # the refits train the parameters themselves / a copy of the seen 
     "whole scene, all seen, forward-facing settings": dict(kind="forward", unseen=False),
     "a region, some unseen, 360° settings (4 views a step, random order, visible-rows Adam)": dict(
         kind="360", unseen=True, region=(-10.0, -10.0, -10.0, 0.2, 10.0, 10.0)),
+    "a finer level: the pre-processing refits fit windows of the end width's ground truth": dict(
+        kind="360", unseen=False, refine_widths=(64,)),
 }
 
 
-def make_engine(kind: str, unseen: bool, region=None) -> Stylizer:
+def make_engine(kind: str, unseen: bool, region=None, refine_widths=()) -> Stylizer:
     settings = resolve_settings("preview", kind, 4, max_views=4, epochs=3, min_steps=0, working_width=32,
                                 refit_iterations=REFIT_ITERATIONS, preprocess_rounds=2, force_preprocess=True,
-                                split_at=(0.4,), split_rate=0.1, max_gaussians=10_000, region=region)
+                                split_at=(0.4,), split_rate=0.1, max_gaussians=10_000, region=region,
+                                refine_widths=refine_widths, refine_epochs=1.0)
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0
     style[::2, :, 2] = 0.6

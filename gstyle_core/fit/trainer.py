@@ -141,14 +141,18 @@ class Trainer:
             self._order = list(self._rng.permutation(len(self.cameras)))
         return int(self._order.pop())
 
-    def step(self) -> FitReport:
-        """Run one optimisation iteration on the next view of a shuffled epoch."""
+    def step(self, view: tuple[Camera, torch.Tensor] | None = None) -> FitReport:
+        """Run one optimisation iteration on the next view of a shuffled epoch, or on ``view`` (a camera and its
+        target image [H, W, 3], e.g. a window of a finer view; the epoch's order is left as it is)."""
         t0 = time.perf_counter()
         if "means" in self.optimizers:
             for g in self.optimizers["means"].param_groups:
                 g["lr"] = self._means_lr()
-        idx = self._next_view()
-        cam, gt = self.cameras[idx], self.images[idx]
+        if view is None:
+            idx = self._next_view()
+            cam, gt = self.cameras[idx], self.images[idx]
+        else:
+            cam, gt = view[0], torch.as_tensor(view[1], dtype=torch.float32).to(self.device)
         out = render_params(self.params, cam, sh_degree=self.active_sh_degree, background=self.background,
                             backend=self.config.backend, device=self.device)
         info = StepInfo(self.step_index, cam.width, cam.height, out.means2d, out.radii, out.visible)

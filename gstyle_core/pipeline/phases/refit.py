@@ -1,6 +1,8 @@
 """A refit: geometry and c_gt of the seen Gaussians fitted to the ground truth again, c_s held; one iteration a step.
 
-Used after each pre-processing split (with elongation clamps) and after each colour-gradient split (no strategy).
+Used after each pre-processing split (with elongation clamps; in a run with finer levels every other iteration on a
+window of the ground truth at the width the run ends at, ``end_width_crops.py``) and after each colour-gradient split
+(no strategy).
 When some Gaussians are unseen (or a region is selected), the refit trains a copy of the seen rows and writes it
 back after every iteration; in a region run the unselected rows render as they are but never move. A checkpoint
 holds the rows it works on, the trainer's Adam moments, its view order and step count, so a resumed refit goes on
@@ -21,6 +23,7 @@ from ...fit.strategy import Strategy
 from ...fit.trainer import FitConfig, Trainer
 from ..preprocess import ElongationClampStrategy
 from .base import Phase, StepReport
+from .end_width_crops import EndWidthCrops, end_width
 
 GEOMETRY_AND_GT = ("means", "log_scales", "quats", "opacity_logits", "sh_dc")  # refit: all but c_s
 
@@ -47,6 +50,7 @@ class Refit(Phase):
         self._ids: torch.Tensor | None = None  # rows of run.params the trainer's copy holds (None: every row)
         self._frozen: tuple[torch.Tensor, dict[str, torch.Tensor]] | None = None  # region: rows that stay put
         self._seed = 0  # the trainer's view order, drawn at start
+        self.crops: EndWidthCrops | None = None  # windows at the end width for every other iteration
 
     @classmethod
     def after_split(cls, run) -> Refit:
@@ -55,9 +59,15 @@ class Refit(Phase):
 
     @classmethod
     def preprocessing(cls, run) -> Refit:
-        """The refit of a pre-processing round: elongation clamped at points derived from its length."""
+        """The refit of a pre-processing round: elongation clamped at points derived from its length; in a run with
+        finer levels every other iteration fits a window of the ground truth at the width the run ends at
+        (``end_width_crops.py``)."""
         s = run.settings
-        return cls(run, ElongationClampStrategy(s.refit_iterations, s.elongation_limit), "preprocess")
+        refit = cls(run, ElongationClampStrategy(s.refit_iterations, s.elongation_limit), "preprocess")
+        width = end_width(s)
+        if width > s.working_width:
+            refit.crops = EndWidthCrops(run, width)
+        return refit
 
     @property
     def finished(self) -> bool:
@@ -98,7 +108,11 @@ class Refit(Phase):
     def step(self) -> StepReport:
         if self.trainer is None:  # the first step, or a first step that failed
             self._build(self.run.active.refit_ids(), seed=self._seed)
-        rep = self.trainer.step()
+        view = None
+        if self.crops is not None and self.steps_done % 2 == 1:
+            whole = self.run.cameras[0]
+            view = self.crops.window(self._seed, self.steps_done, (whole.width, whole.height))
+        rep = self.trainer.step(view=view)
         with torch.no_grad():
             if self._frozen is not None:  # undo whatever the strategy (elongation clamps) did to unselected rows
                 rows, values = self._frozen
