@@ -337,10 +337,15 @@ def test_raster_backend_setting_reaches_ground_truth_and_refits_with_the_same_re
         resolve_settings("preview", "forward", 4, raster_backend="opengl")
 
 
-def test_forward_preview_children_keep_the_parents_footprint():
-    """The preview's short refit cannot regrow children at the reference's 1/16 scale (docs/tradeoffs-history.md:
-    fern)."""
+def test_forward_children_keep_the_parents_footprint():
+    """The CPU tiers' short refits cannot regrow children at the reference's 1/16 scale (docs/tradeoffs-history.md
+    and docs/tradeoffs.md: fern); forward-facing balanced stylizes on the preview's budget before its finer level."""
     assert resolve_settings("preview", "forward", 20).split_scale_divisor == 1.6
     assert resolve_settings("preview", "forward", 20, defaults="paper").split_scale_divisor == 1.6
-    assert resolve_settings("balanced", "forward", 20).split_scale_divisor == 16.0
+    assert resolve_settings("balanced", "forward", 20).split_scale_divisor == 1.6  # 140 refit iterations
+    assert resolve_settings("final", "forward", 20).split_scale_divisor == 1.6  # 300
+    assert resolve_settings("balanced", "forward", 20, defaults="paper").split_scale_divisor == 1.6
     assert resolve_settings("preview", "360", 20).split_scale_divisor == 8.0
+    forward = [resolve_settings(preset, "forward", 20) for preset in ("preview", "balanced")]
+    assert [(s.epochs, s.min_steps, s.working_width) for s in forward] == [(4.0, 30, 256)] * 2
+    assert forward[1].refine_widths == (512,) and resolve_settings("balanced", "360", 20).epochs == 8.0

@@ -195,7 +195,14 @@ CALIBRATED_360_LEVELS = dict(nnfm=400.0, edges=4000.0)
 # max(5·n_views, 2000) iterations regrow them; the preview refits 60, so its children keep 3DGS's 1/1.6 and cover
 # the parent's footprint (fern, measured: Mandelbrot −30.4 % / structure 0.49 at 1/16, −35.9 % / 0.55 at 1/1.6,
 # −38.0 % / 0.56 without the split; The Starry Night −31.1 % / 0.58 and −31.4 % / 0.62).
-FORWARD_PRESETS = {"preview": dict(split_scale_divisor=1.6)}
+# balanced and final refit 140 and 300 iterations, short of the reference's too: they keep 1/1.6 as well. balanced takes
+# the preview's stylization budget (4 epochs at 256 px, not 8 and 150 steps), then its 512-px level: with 8 epochs and
+# 1/16 children it kept less structure at 1024 px than the preview (fern × The Great Wave 0.52 against 0.57); with
+# these, over three paintings, 0.58-0.59 against 0.55-0.57, speckle 0.33-0.89 against 0.35-0.95, NNFM drop at 256 px
+# 32.6-36.8 % against 32.3-36.4 % (docs/tradeoffs.md, "Where the structure at 1024 px goes").
+FORWARD_PRESETS = {"preview": dict(split_scale_divisor=1.6),
+                   "balanced": dict(split_scale_divisor=1.6, epochs=4.0, min_steps=30),
+                   "final": dict(split_scale_divisor=1.6)}
 # The settings that take one of a few words, and the words.
 CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS,
            "refine_mode": ("crops", "whole"), "device": DEVICES}
