@@ -67,6 +67,28 @@ def test_a_summary_without_a_record_leaves_the_cameras_generated(tmp_path):
     assert cams.source == "generated-orbit"
 
 
+def test_a_result_of_given_cameras_opens_with_them_while_they_are_there(tmp_path):
+    """A run given its cameras (a cameras.json, an LLFF or COLMAP folder) names them in OUT.json (``camera_source``):
+    the result renders and opens in the studio from them, not from an orbit around its Gaussians."""
+    from gstyle_core.cameras.gs_json import save_cameras_json
+
+    scene = blob_scene(60)
+    save_scene(scene, tmp_path / "s.ply")
+    given = generate_cameras(scene.means, kind="orbit", count=5)
+    save_cameras_json(given, tmp_path / "cameras.json")
+    (tmp_path / "s.json").write_text(json.dumps({"camera_source": str(tmp_path / "cameras.json")}))
+    cams = recorded_cameras(tmp_path / "s.ply")
+    assert cams is not None and len(cams.cameras) == 5 and cams.source.endswith(", the input's, named in s.json")
+    assert np.allclose(cams.cameras[3].world_to_cam, given.cameras[3].world_to_cam, atol=1e-5)
+    _scene, _report, loaded = load_scene_and_cameras(str(tmp_path / "s.ply"), None)
+    assert len(loaded.cameras) == 5 and not loaded.source.startswith("generated")
+    (tmp_path / "cameras.json").write_text("[]")  # changed since: unreadable as cameras
+    assert recorded_cameras(tmp_path / "s.ply") is None
+    (tmp_path / "cameras.json").unlink()  # moved: generated around the result again
+    assert recorded_cameras(tmp_path / "s.ply") is None
+    assert load_scene_and_cameras(str(tmp_path / "s.ply"), None)[2].source == "generated-orbit"
+
+
 def test_a_grown_result_renders_camera_k_framed_as_its_input(tiny, tmp_path, monkeypatch, capsys):  # noqa: F811
     source = blob_scene(40, seed=7)
     input_cams = generate_cameras(source.means)

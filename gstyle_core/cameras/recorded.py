@@ -66,10 +66,9 @@ def record_box(record: dict | None) -> tuple[np.ndarray, np.ndarray] | None:
     return (lo, hi) if np.isfinite(lo).all() and np.isfinite(hi).all() and (hi >= lo).all() else None
 
 
-def summary_record(scene_path: str | os.PathLike) -> tuple[dict, Path] | None:
-    """The camera record of the summary beside ``scene_path`` (``outputs.companion``: ``OUT.json`` beside
-    ``OUT.ply``) and that summary's path; None when there is no summary, it is no JSON object, or it records no
-    generated cameras (a summary of another kind)."""
+def _summary(scene_path: str | os.PathLike) -> tuple[dict, Path] | None:
+    """The summary beside ``scene_path`` (``outputs.companion``: ``OUT.json`` beside ``OUT.ply``) and its path; None
+    when there is none or it is no JSON object."""
     from gstyle_core.outputs import SUMMARY, companion
 
     path = companion(scene_path, SUMMARY)
@@ -79,17 +78,38 @@ def summary_record(scene_path: str | os.PathLike) -> tuple[dict, Path] | None:
         summary = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    record = summary.get(RECORD_KEY) if isinstance(summary, dict) else None
-    return (record, path) if isinstance(record, dict) else None
+    return (summary, path) if isinstance(summary, dict) else None
+
+
+def summary_record(scene_path: str | os.PathLike) -> tuple[dict, Path] | None:
+    """The camera record of the summary beside ``scene_path`` and that summary's path; None when there is no
+    summary, it is no JSON object, or it records no generated cameras (a summary of another kind)."""
+    found = _summary(scene_path)
+    record = found[0].get(RECORD_KEY) if found else None
+    return (record, found[1]) if isinstance(record, dict) else None
 
 
 def recorded_cameras(scene_path: str | os.PathLike) -> CameraSet | None:
-    """The input's generated cameras recorded in the summary beside ``scene_path``, or None when it records none."""
-    found = summary_record(scene_path)
+    """The input's cameras as the summary beside ``scene_path`` records them: generated ones from their record, or
+    the cameras file or folder the run was given (``camera_source``) while it is still there; None otherwise."""
+    found = _summary(scene_path)
     if found is None:
         return None
-    record, path = found
-    cams = cameras_from_record(record, str(path))
-    cams.source = f"{cams.source}, the input's, recorded in {path.name}"
-    cams.generated = record
-    return cams
+    summary, path = found
+    record = summary.get(RECORD_KEY)
+    if isinstance(record, dict):
+        cams = cameras_from_record(record, str(path))
+        cams.source = f"{cams.source}, the input's, recorded in {path.name}"
+        cams.generated = record
+        return cams
+    given = summary.get("camera_source")
+    if isinstance(given, str) and given and Path(given).exists():
+        from . import load_cameras
+
+        try:
+            cams = load_cameras(given)
+        except (GStyleError, OSError, ValueError):
+            return None  # moved or changed since: generated around the result instead
+        cams.source = f"{cams.source}, the input's, named in {path.name}"
+        return cams
+    return None
