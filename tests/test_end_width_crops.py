@@ -13,7 +13,8 @@ from fakes import MeanColourPull
 from synthetic import blob_scene, ring_cameras
 
 from gstyle_core.fit.model import params_from_scene, render_params
-from gstyle_core.pipeline.phases.end_width_crops import EndWidthCrops, end_width
+from gstyle_core.pipeline.levels import end_width
+from gstyle_core.pipeline.phases.end_width_crops import EndWidthCrops
 from gstyle_core.pipeline.phases.refit import Refit
 from gstyle_core.pipeline.settings import resolve_settings
 from gstyle_core.pipeline.stylizer import Stylizer

@@ -81,14 +81,6 @@ def _summary(scene_path: str | os.PathLike) -> tuple[dict, Path] | None:
     return (summary, path) if isinstance(summary, dict) else None
 
 
-def summary_record(scene_path: str | os.PathLike) -> tuple[dict, Path] | None:
-    """The camera record of the summary beside ``scene_path`` and that summary's path; None when there is no
-    summary, it is no JSON object, or it records no generated cameras (a summary of another kind)."""
-    found = _summary(scene_path)
-    record = found[0].get(RECORD_KEY) if found else None
-    return (record, found[1]) if isinstance(record, dict) else None
-
-
 def recorded_cameras(scene_path: str | os.PathLike) -> CameraSet | None:
     """The input's cameras as the summary beside ``scene_path`` records them: generated ones from their record, or
     the cameras file or folder the run was given (``camera_source``) while it is still there; None otherwise."""

@@ -31,6 +31,11 @@ def level_widths(working_width: int, refine_widths: Sequence[int]) -> tuple[int,
     return (int(working_width), *(int(w) for w in refine_widths))
 
 
+def end_width(settings) -> int:
+    """The width a run with these settings ends at: its last level (the working width without finer levels)."""
+    return level_widths(settings.working_width, settings.refine_widths)[-1]
+
+
 def next_width(widths: Sequence[int]) -> int:
     """The width of the level after ``widths`` (the last one doubled, at most ``MAX_LEVEL_WIDTH``)."""
     return min(MAX_LEVEL_WIDTH, 2 * int(widths[-1]))

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 
 from ..style.speckle import DEFAULT_DISPLAY_WIDTH
-from .levels import level_widths
+from .levels import end_width
 
 
 def evaluation_cameras(engine, n_views: int = 3, width: int = 256) -> list:
@@ -48,7 +48,7 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     out = {"views": len(cams), "width": width, "initial": initial, "final": final,
            "nnfm_drop": nnfm_drop, "structure": structure_kept(before, after, alpha),
            "texture_scale": run_texture_scale(engine, style, before, after, alpha, width).to_dict()}
-    final_width = level_widths(engine.settings.working_width, engine.settings.refine_widths)[-1]
+    final_width = end_width(engine.settings)
     if final_width > width:  # the run ended at a finer level: its figures there too
         out["at_final_width"] = width_figures(engine, scene, after_scene, style, vgg, n_views, final_width)
     if display_width and display_width > 0:

@@ -164,6 +164,13 @@ CALIBRATED_360 = dict(
     # result as plain Adam at 4 views per step)
     view_order="random", views_per_step=4,  # each Gaussian updated more often, less view-to-view zigzag
     lr_start=5e-2, lr_end=2.5e-2,
+    # pre-processing children at 1/2.5 of their parent's scale (not the paper's 1/6.4) in every CPU tier: eight
+    # children at 1/6.4 cover a fifth of their parent's footprint, and refits of 60 (preview), 140 (balanced) and 300
+    # (final) iterations do not regrow them, so the soft fringe large Gaussians made fell apart into specks that
+    # stylization turned into a halo of bright strokes (docs/display-size.md, "The fringe halo"). Measured per tier:
+    # balanced, the demo in bf16, structure at 1024 px 0.58 -> 0.69 / 0.60 -> 0.67, speckle 0.59 -> 0.47 / 1.03 ->
+    # 0.80; final, the demo after The Starry Night, 0.41 -> 0.61, speckle 0.72 -> 0.49 (docs/tradeoffs.md).
+    preprocess_scale_divisor=2.5,
 )
 # Calibrated 360° defaults without CLIP weights (docs/texture-scale.md): the large scale comes from the broad-strokes
 # term (style/multiscale.py) at λ = λ_NNFM, and the coarse CLIP substitute is off (at λ_NNFM 100 and weight 100 it
@@ -173,36 +180,25 @@ CALIBRATED_360 = dict(
 # With the term the coarse colour field (pipeline/colour_field.py) is on: over 9 captures × paintings it raised the
 # coarse ratio and the structure on all nine (docs/texture-scale.md).
 BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0, colour_field=True)
-# The 360° preview's split children at 1/2.5 of their parent's scale (not the paper's 1/6.4): eight children at 1/6.4
-# cover a fifth of their parent's footprint, and the preview's 60 refit iterations do not regrow them, so the soft
-# fringe that large Gaussians made fell apart into specks that stylization turned into a halo of bright strokes
-# (docs/display-size.md, "The fringe halo"; the forward-facing preview keeps 3DGS's 1/1.6 for the same reason).
-CALIBRATED_360_PRESETS = {"preview": dict(epochs=8.0, preprocess_scale_divisor=2.5),  # 32 steps of 4 views
-                          # balanced's 140-iteration refit does not close 1/6.4 children's gaps either
-                          # (docs/tradeoffs.md: the demo in bf16, structure at 1024 px 0.58 -> 0.69 / 0.60 -> 0.67,
-                          # speckle 0.59 -> 0.47 / 1.03 -> 0.80, drop at 512 px 25.3 -> 26.5 % / 29.8 -> 30.9 %).
-                          "balanced": dict(preprocess_scale_divisor=2.5),
-                          # nor final's 300 (the demo after The Starry Night, bf16: structure at 1024 px 0.41 -> 0.61,
-                          # speckle 0.72 -> 0.49, bench/display_phases.py; docs/tradeoffs.md)
-                          "final": dict(preprocess_scale_divisor=2.5)}
+CALIBRATED_360_PRESETS = {"preview": dict(epochs=8.0)}  # 32 steps of 4 views
 # Calibrated 360° runs with finer levels (balanced, final): the content term (VGG block 3) does not hold edges as fine
 # as a 512- or 1024-px pixel, so the edge-keeping term holds them there, with twice the style weight for the drop it
 # costs (docs/display-size.md, "Edges kept": balanced over 3 captures × 3 paintings, structure at 512 px 0.72-0.82
 # against 0.46-0.67, drop at 512 px 0.2-3.3 points lower; final on biker.spz, structure at 1024 px 0.42 against
 # 0.21 at the same drop). At the working width the content term keeps the structure, so the preview keeps its weights.
 CALIBRATED_360_LEVELS = dict(nnfm=400.0, edges=4000.0)
-# Forward-facing preview: the reference splits into children at 1/16 of the parent's scale and lets a refit of
-# max(5·n_views, 2000) iterations regrow them; the preview refits 60, so its children keep 3DGS's 1/1.6 and cover
-# the parent's footprint (fern, measured: Mandelbrot −30.4 % / structure 0.49 at 1/16, −35.9 % / 0.55 at 1/1.6,
-# −38.0 % / 0.56 without the split; The Starry Night −31.1 % / 0.58 and −31.4 % / 0.62).
-# balanced and final refit 140 and 300 iterations, short of the reference's too: they keep 1/1.6 as well. balanced takes
-# the preview's stylization budget (4 epochs at 256 px, not 8 and 150 steps), then its 512-px level: with 8 epochs and
-# 1/16 children it kept less structure at 1024 px than the preview (fern × The Great Wave 0.52 against 0.57); with
-# these, over three paintings, 0.58-0.59 against 0.55-0.57, speckle 0.33-0.89 against 0.35-0.95, NNFM drop at 256 px
-# 32.6-36.8 % against 32.3-36.4 % (docs/tradeoffs.md, "Where the structure at 1024 px goes").
-FORWARD_PRESETS = {"preview": dict(split_scale_divisor=1.6),
-                   "balanced": dict(split_scale_divisor=1.6, epochs=4.0, min_steps=30),
-                   "final": dict(split_scale_divisor=1.6)}
+# Forward-facing scenes, every CPU tier, either defaults: the reference splits into children at 1/16 of the parent's
+# scale and lets a refit of max(5·n_views, 2000) iterations regrow them; the tiers refit 60, 140 and 300, so their
+# children keep 3DGS's 1/1.6 and cover the parent's footprint (fern, preview: Mandelbrot −30.4 % / structure 0.49 at
+# 1/16, −35.9 % / 0.55 at 1/1.6, −38.0 % / 0.56 without the split; The Starry Night −31.1 % / 0.58 and −31.4 % /
+# 0.62; balanced × The Great Wave, structure at 1024 px 0.52 -> 0.55).
+FORWARD_SPLIT = dict(split_scale_divisor=1.6)
+# Forward-facing balanced takes the preview's stylization budget (4 epochs at 256 px, not 8 and 150 steps), then its
+# 512-px level: with 8 epochs and 1/16 children it kept less structure at 1024 px than the preview (fern × The Great
+# Wave 0.52 against 0.57); with these, over three paintings, 0.58-0.59 against 0.55-0.57, speckle 0.33-0.89 against
+# 0.35-0.95, NNFM drop at 256 px 32.6-36.8 % against 32.3-36.4 % (docs/tradeoffs.md, "Where the structure at 1024 px
+# goes").
+FORWARD_PRESETS = {"balanced": dict(epochs=4.0, min_steps=30)}
 # The settings that take one of a few words, and the words.
 CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS,
            "refine_mode": ("crops", "whole"), "device": DEVICES}
@@ -239,6 +235,7 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         kind.update(CALIBRATED_360)
         p.update(CALIBRATED_360_PRESETS.get(preset, {}))
     if scene_kind == "forward":
+        kind.update(FORWARD_SPLIT)
         p.update(FORWARD_PRESETS.get(preset, {}))
     nnfm = kind.pop("nnfm")
     s = StylizeSettings(preset=preset, scene_kind=scene_kind, defaults=defaults,

@@ -16,14 +16,9 @@ import torch
 
 from ...cameras.camera import Camera
 from ...fit.model import params_from_scene
-from ..levels import MAX_LEVEL_VIEWS, level_widths
+from ..levels import MAX_LEVEL_VIEWS
 from ..view_choice import choose_views
 from .ground_truth import ground_truth_view
-
-
-def end_width(settings) -> int:
-    """The width a run with these settings ends at (its last level; the working width without levels)."""
-    return int(level_widths(settings.working_width, settings.refine_widths)[-1])
 
 
 class EndWidthCrops:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..levels import level_widths
+from ..levels import end_width
 from ..preprocess import (
     evenness_verdict,
     flat_split_mask,
@@ -82,7 +82,7 @@ class Preprocess(Phase):
         log_scales = run.params["log_scales"]
         mask = run.active.expand(flat_split_mask(run.active.gather(log_scales), gamma, s.preprocess_cap), fill=False)
         flat = int(mask.sum())
-        final_cams = [c.resized_to_width(level_widths(s.working_width, s.refine_widths)[-1]) for c in run.cameras]
+        final_cams = [c.resized_to_width(end_width(s)) for c in run.cameras]
         mask = shown_split_mask(mask, projected_size_px(run.params["means"], log_scales, final_cams),
                                 s.preprocess_scale_divisor, s.preprocess_min_child_px)
         n = run.split(mask, s.preprocess_children, s.preprocess_scale_divisor,

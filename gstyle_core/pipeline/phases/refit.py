@@ -21,9 +21,10 @@ import torch
 
 from ...fit.strategy import Strategy
 from ...fit.trainer import FitConfig, Trainer
+from ..levels import end_width
 from ..preprocess import ElongationClampStrategy
 from .base import Phase, StepReport
-from .end_width_crops import EndWidthCrops, end_width
+from .end_width_crops import EndWidthCrops
 
 GEOMETRY_AND_GT = ("means", "log_scales", "quats", "opacity_logits", "sh_dc")  # refit: all but c_s
 
