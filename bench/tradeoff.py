@@ -76,9 +76,9 @@ KNOBS = [  # (label, tier, gstyle stylize options): the controls an artist moves
     ("palette match 0", "preview", ["--palette-match", "0"]),
     ("palette match 0.5", "preview", ["--palette-match", "0.5"]),
     ("edges kept 0", "balanced", ["--lambda-edges", "0"]),
-    ("refine 512", "preview", ["--refine-widths", "512"]),
+    ("refine 512, 1024", "balanced", ["--refine-widths", "512,1024"]),  # the 1024-px level final had before
     ("refine whole views", "balanced", ["--refine-mode", "whole"]),
-    ("no refine", "balanced", ["--refine-widths", "0"]),
+    ("refine 1024 whole", "final", ["--refine-widths", "512,1024"]),
 ]
 NEARBY_SHIFT = 0.03  # consistency: the second view is moved sideways by 3 % of the scene's median depth
 EVAL_VIEWS, EVAL_WIDTH = 3, 256  # the evaluation views of OUT.json's figures (run_figures.evaluate_run's defaults)
@@ -216,7 +216,30 @@ def consistency(scene: Path, cameras: Path | None, out_ply: Path) -> tuple[float
     return view_consistency(load_scene(out_ply)[0], pairs), view_consistency(before, pairs)
 
 
-def point_figures(summaries: list[Path], scene: Path, cameras: Path | None) -> dict:
+def display_drop(scene: Path, cameras: Path | None, out_ply: Path, painting: Path) -> float:
+    """NNFM drop of the stylized scene at the display's width (``DISPLAY_WIDTH``) on the evaluation views, measured
+    as OUT.json's figures at a finer level's width are (``run_figures.width_figures``: the painting resized to that
+    width, at most ``EVAL_MAX_VECTORS`` of its vectors), for every tier, the ones that end below it included."""
+    from gstyle_core.images import load_style_image
+    from gstyle_core.io import load_scene
+    from gstyle_core.pipeline.evaluate import Evaluator
+    from gstyle_core.pipeline.run_figures import EVAL_MAX_VECTORS
+    from gstyle_core.pipeline.view_choice import choose_views
+    from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image
+    from gstyle_core.style.vgg import load_vgg
+
+    before_scene, _, cams = load_scene_and_cameras(str(scene), None if cameras is None else str(cameras))
+    views = [cams.cameras[i].resized_to_width(DISPLAY_WIDTH) for i in choose_views(cams.cameras, EVAL_VIEWS)]
+    before, alpha = zip(*(render_scene_image(before_scene, c, with_alpha=True) for c in views), strict=True)
+    after_scene = load_scene(out_ply)[0]
+    after = [render_scene_image(after_scene, c) for c in views]
+    ev = Evaluator(load_vgg(), load_style_image(painting), DISPLAY_WIDTH, max_vectors=EVAL_MAX_VECTORS)
+    initial = ev.measure(list(before), list(before), list(alpha), whole_frame=False)["nnfm"]
+    final = ev.measure(after, list(before), list(alpha), whole_frame=False)["nnfm"]
+    return 1.0 - final / max(initial, 1e-12)
+
+
+def point_figures(summaries: list[Path], scene: Path, cameras: Path | None, painting: Path) -> dict:
     """A point's figures from the OUT.json of each repeat: seconds (median, min, max), the quality of the first, and
     how far the repeats' drop and structure at 1024 px spread (max − min; 0 with one repeat)."""
     runs = [json.loads(p.read_text(encoding="utf-8")) for p in summaries]
@@ -231,6 +254,8 @@ def point_figures(summaries: list[Path], scene: Path, cameras: Path | None) -> d
             "repeats": len(runs), "gaussians": s["gaussians_after"], "working_width": s["settings"]["working_width"],
             "end_width": end["width"], "nnfm_drop": q["nnfm_drop"], "structure": q["structure"],
             "nnfm_drop_end": end["nnfm_drop"], "structure_end": end["structure"],
+            "nnfm_drop_1024": (end["nnfm_drop"] if end["width"] == DISPLAY_WIDTH
+                               else display_drop(scene, cameras, summaries[0].with_suffix(".ply"), painting)),
             "speckle_1024": display["speckle_ratio"], "structure_1024": display["structure"],
             "coarse_ratio": q["texture_scale"]["coarse_ratio"], "colour": q["final"]["colour"],
             "consistency": after, "consistency_input": before,
@@ -263,7 +288,7 @@ def run_group(tier: str, device: str, knob: tuple[str, list[str]], scenes: dict,
                 print(f"{tier} {device} {scene_name} / {painting_name} {label}: a job failed, no point")
                 continue
             rows.append({"tier": tier, "device": device, "scene": scene_name, "painting": painting_name,
-                         "knob": label, **point_figures([d[key] for d in done], scene, cams), **context})
+                         "knob": label, **point_figures([d[key] for d in done], scene, cams, painting), **context})
             print_point(rows[-1])
     print(f"group {tier} / {device} / {label}: {time.perf_counter() - t0:.0f} s, load average "
           f"{loads[0]:.2f} -> {loads[1]:.2f}", flush=True)
@@ -275,7 +300,8 @@ def print_point(r: dict) -> None:
     print(f"{r['tier']:<9}{r['device']:<10}{r['scene']:>9} / {r['painting']:<8}{r['knob']:<20}"
           f"{r['seconds']:6.0f} s ({r['seconds_min']:.0f}-{r['seconds_max']:.0f})  drop {100 * r['nnfm_drop']:4.1f} %"
           f"  structure {r['structure']:.2f}  at {r['end_width']} px {100 * r['nnfm_drop_end']:4.1f} % / "
-          f"{r['structure_end']:.2f}  1024 px structure {r['structure_1024']:.2f} speckle {r['speckle_1024']:.2f}"
+          f"{r['structure_end']:.2f}  1024 px drop {100 * r['nnfm_drop_1024']:4.1f} % structure "
+          f"{r['structure_1024']:.2f} speckle {r['speckle_1024']:.2f}"
           f"  coarse {r['coarse_ratio']:.2f}  colour {r['colour']:.3f}  consistency {r['consistency']:.4f} "
           f"({r['consistency_input']:.4f})", flush=True)
 

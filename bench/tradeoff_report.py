@@ -16,12 +16,13 @@ from pathlib import Path
 
 KEY = ("tier", "device", "scene", "painting", "knob")  # a point; rows of the same key replace each other (--merge)
 FIGURES = ("seconds", "seconds_min", "seconds_max", "repeats", "gaussians", "working_width", "end_width",
-           "nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "speckle_1024", "structure_1024",
-           "coarse_ratio", "colour", "consistency", "consistency_input", "nnfm_drop_spread", "structure_1024_spread")
+           "nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "nnfm_drop_1024", "speckle_1024",
+           "structure_1024", "coarse_ratio", "colour", "consistency", "consistency_input", "nnfm_drop_spread",
+           "structure_1024_spread")
 CONTEXT = ("machine", "torch", "code", "measured", "load_before", "load_after", "pareto")
 COLUMNS = KEY + FIGURES + CONTEXT
 INTEGERS = ("repeats", "gaussians", "working_width", "end_width")
-PERCENT = ("nnfm_drop", "nnfm_drop_end")  # README figures written as percentages
+PERCENT = ("nnfm_drop", "nnfm_drop_end", "nnfm_drop_1024")  # README figures written as percentages
 MIN_STRUCTURE = 0.5  # edge correlation (at 1024 px) below which the scene is considered lost (issue #14's threshold)
 SHIPPED = "as shipped"
 MARK = re.compile(r"(\d+(?:\.\d+)?)\s*(?:%|s)?\s*<!-- atlas ([^>]*?) -->")
@@ -163,7 +164,7 @@ def draw_group(ax, points: list[dict]) -> None:
 
 
 TABLE_HEAD = ("tier / knob", "device", "scene / painting", "s (min–max)", "drop 256 px", "structure 256 px",
-              "end px: drop / structure", "1024 px: structure / speckle", "coarse", "colour",
+              "end px: drop / structure", "1024 px: drop / structure / speckle", "coarse", "colour",
               "consistency (input)", "front")
 
 
@@ -171,6 +172,9 @@ def markdown_table(rows: list[dict]) -> list[str]:
     """The table of docs/tradeoffs.md from the CSV's rows."""
     def num(r: dict, key: str, fmt: str) -> str:
         return "—" if r.get(key) in (None, "") else format(float(r[key]), fmt)
+
+    def percent(r: dict, key: str) -> str:
+        return "—" if r.get(key) in (None, "") else f"{100 * float(r[key]):.1f} %"
 
     lines = ["| " + " | ".join(TABLE_HEAD) + " |", "|" + "---|" * len(TABLE_HEAD)]
     for r in rows:
@@ -182,7 +186,8 @@ def markdown_table(rows: list[dict]) -> list[str]:
             f"| {point_label(r)} | {r['device']} | {r['scene']} / {r['painting']} | {num(r, 'seconds', '.0f')}{spread}"
             f" | {100 * float(r['nnfm_drop']):.1f} %{drop_spread} | {num(r, 'structure', '.2f')} | {r['end_width']}: "
             f"{100 * float(r['nnfm_drop_end']):.1f} % / {num(r, 'structure_end', '.2f')} | "
-            f"{num(r, 'structure_1024', '.2f')} / {num(r, 'speckle_1024', '.2f')} | {num(r, 'coarse_ratio', '.2f')} | "
+            f"{percent(r, 'nnfm_drop_1024')} / {num(r, 'structure_1024', '.2f')} / {num(r, 'speckle_1024', '.2f')} | "
+            f"{num(r, 'coarse_ratio', '.2f')} | "
             f"{num(r, 'colour', '.3f')} | {num(r, 'consistency', '.4f')} ({num(r, 'consistency_input', '.4f')}) | "
             f"{'yes' if r.get('pareto') else ''} |")
     return lines

@@ -47,3 +47,11 @@ def test_the_clip_stand_in_and_one_unseen_splat_read_right():
                      "1 splat no camera sees is left as it is"]
     assert artist_lines({"clip": "CLIP weights from /x/ViT-B-32.pt"}) == ["Large shapes: CLIP"]
     assert artist_lines({"clip": "CLIP term off (λ_CLIP = 0)"}) == []
+
+
+def test_a_run_capped_at_its_photos_width_says_where_it_ends():
+    lines = artist_lines({"levels": "256 px → 504 px, coarse to fine: crops",
+                          "levels_capped": "levels 512 px, 1024 px asked for; the photos are 504 px wide, so the run "
+                                           "ends at 504 px (a wider level would fit enlarged photos)"})
+    assert lines == ["Paints at 256 px wide first, then sharpens at 504 px",
+                     "Ends at the photos' width, 504 px: a wider level would only enlarge them"]

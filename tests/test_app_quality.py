@@ -18,6 +18,7 @@ from gstyle_core.pipeline.plan import (  # noqa: E402
     StepTimes,
     estimate_seconds,
     planned_steps,
+    step_kind,
 )
 from gstyle_core.pipeline.settings import resolve_settings  # noqa: E402
 
@@ -109,8 +110,9 @@ def _steps(rates: MachineRates, phase: str, seconds, **report) -> None:
 def test_a_plan_prices_each_kind_of_step_and_grows_with_the_preset():
     plans = {name: planned_steps(resolve_settings(name, "360", 24, clip_available=False), 24)
              for name in ("preview", "balanced", "final")}
-    assert "refine_512" not in plans["preview"] and plans["balanced"]["refine_targets_512"] == 24
-    assert set(plans["final"]) >= {"refine_512", "refine_1024", "refine_targets_1024"}
+    assert "refine_512" not in plans["preview"] and plans["balanced"]["refine_targets_512"] == 16  # its 16 views
+    assert set(plans["final"]) >= {"refine_whole_512", "refine_targets_512"}  # every camera, whole views at 512 px
+    assert plans["final"]["refine_targets_512"] == 24 and "refine_512" not in plans["final"]
     rates = MachineRates()
     assert estimate_seconds(plans["preview"], rates, 256) is None  # nothing measured: no figure
     warm = [9.0] * WARMUP_STEPS  # a phase's first steps (builds, caches, the UI's start): not its rate
@@ -123,6 +125,14 @@ def test_a_plan_prices_each_kind_of_step_and_grows_with_the_preset():
     assert rates.median("refine_512") == 2.0 and rates.median("stylize") == 1.0
     preview, balanced, final = (estimate_seconds(plans[n], rates, 256) for n in ("preview", "balanced", "final"))
     assert 0 < preview < balanced < final
+    # a whole-view level's steps are priced apart from a crop level's: every other one renders 4x the pixels
+    assert rates.median("refine_whole_512") is None
+    _steps(rates, "refine", [*warm, *[5.0] * MIN_SAMPLES], width=512,
+           message="level 512 px (whole views): views at 512 px (views 1, 2, 3, 4)")
+    assert rates.median("refine_whole_512") == 5.0 and rates.median("refine_512") == 2.0
+    assert estimate_seconds(plans["final"], rates, 256) > final
+    assert step_kind({"phase": "refine", "width": 512, "message": "level 512 px (whole views): ground truth 1/4"}) \
+        == "refine_targets_512"
     p = plans["preview"]
     assert preview == pytest.approx(p["stylize"] * 1.0 + p["ground_truth"] * 0.2 + p["refit"] * 0.15)
 

