@@ -34,15 +34,22 @@ def keeps_structure(point: dict) -> bool:
     return value in (None, "") or float(value) >= MIN_STRUCTURE
 
 
+def front_figure(points: list[dict]) -> str:
+    """The style figure a group's front and plot use: the NNFM drop at 1024 px, a display's size, where every point
+    of the group has it (every tier is measured there on the same views against the painting at that width; what a
+    finer level buys shows there, not at 256 px), else the drop at 256 px (rows of atlases before it)."""
+    return "nnfm_drop_1024" if points and all(p.get("nnfm_drop_1024") not in (None, "") for p in points) \
+        else "nnfm_drop"
+
+
 def pareto(points: list[dict]) -> list[bool]:
-    """True for points that keep the structure and that no such point beats on both time (lower) and NNFM drop at
-    256 px (higher; every tier is measured there, on the same views against the same painting, while the drop where
-    a run ends is measured against the painting at that width): a stronger style bought by losing the scene is not a
-    trade-off."""
+    """True for points that keep the structure and that no such point beats on both time (lower) and NNFM drop
+    (higher; ``front_figure``): a stronger style bought by losing the scene is not a trade-off."""
     kept = [p for p in points if keeps_structure(p)]
+    key = front_figure(points)
 
     def beats(q: dict, p: dict) -> bool:
-        t_q, t_p, d_q, d_p = float(q["seconds"]), float(p["seconds"]), float(q["nnfm_drop"]), float(p["nnfm_drop"])
+        t_q, t_p, d_q, d_p = float(q["seconds"]), float(p["seconds"]), float(q[key]), float(p[key])
         return q is not p and t_q <= t_p and d_q >= d_p and (t_q < t_p or d_q > d_p)
 
     return [keeps_structure(p) and not any(beats(q, p) for q in kept) for p in points]
@@ -100,7 +107,7 @@ def write_rows(rows: list[dict], path: Path) -> None:
 
 
 def plot(rows: list[dict], folder: Path, stem: str) -> list[Path]:
-    """A plot per device (``folder/STEM_DEVICE.png``): NNFM drop at 256 px against wall time, a panel per
+    """A plot per device (``folder/STEM_DEVICE.png``): NNFM drop (``front_figure``) against wall time, a panel per
     scene / painting, the Pareto front in red, points that lose the structure at 1024 px as ×. [] without
     matplotlib."""
     try:
@@ -141,23 +148,24 @@ def point_label(r: dict) -> str:
 
 
 def draw_group(ax, points: list[dict]) -> None:
-    """One panel: the points (× where the structure is lost), their names, the front."""
+    """One panel: the points (× where the structure is lost), their names, the front (``front_figure`` up)."""
+    key = front_figure(points)
     kept = [r for r in points if keeps_structure(r)]
     lost = [r for r in points if not keeps_structure(r)]
-    ax.scatter([r["seconds"] for r in kept], [100 * r["nnfm_drop"] for r in kept], c="tab:blue", s=22)
+    ax.scatter([r["seconds"] for r in kept], [100 * r[key] for r in kept], c="tab:blue", s=22)
     if lost:
-        ax.scatter([r["seconds"] for r in lost], [100 * r["nnfm_drop"] for r in lost], c="tab:gray", s=30,
+        ax.scatter([r["seconds"] for r in lost], [100 * r[key] for r in lost], c="tab:gray", s=30,
                    marker="x", label=f"structure at 1024 px < {MIN_STRUCTURE:g}")
     for r in points:
         if "seconds_min" in r and "seconds_max" in r:
-            ax.plot([r["seconds_min"], r["seconds_max"]], [100 * r["nnfm_drop"]] * 2, c="tab:blue", lw=1)
-        ax.annotate(point_label(r), (r["seconds"], 100 * r["nnfm_drop"]), fontsize=7, xytext=(3, 3),
+            ax.plot([r["seconds_min"], r["seconds_max"]], [100 * r[key]] * 2, c="tab:blue", lw=1)
+        ax.annotate(point_label(r), (r["seconds"], 100 * r[key]), fontsize=7, xytext=(3, 3),
                     textcoords="offset points")
     front = sorted((r for r in points if r.get("pareto")), key=lambda r: r["seconds"])
-    ax.plot([r["seconds"] for r in front], [100 * r["nnfm_drop"] for r in front], "-o", c="tab:red", ms=5,
+    ax.plot([r["seconds"] for r in front], [100 * r[key] for r in front], "-o", c="tab:red", ms=5,
             label="Pareto front")
     ax.set_xlabel("wall time (s, median of the repeats)")
-    ax.set_ylabel("NNFM drop at 256 px, every tier (%)")
+    ax.set_ylabel("NNFM drop at 1024 px (%)" if key == "nnfm_drop_1024" else "NNFM drop at 256 px, every tier (%)")
     ax.grid(alpha=0.3)
     ax.margins(0.15)
     ax.legend(fontsize=7, loc="best")

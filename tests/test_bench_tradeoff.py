@@ -79,6 +79,10 @@ def test_a_point_that_loses_the_structure_at_1024_px_is_never_on_the_front(repor
               {"seconds": 20.0, "nnfm_drop": 0.35, "structure_1024": 0.6},
               {"seconds": 30.0, "nnfm_drop": 0.32, "structure_1024": 0.7}]  # slower and less than the third
     assert report.pareto(points) == [True, False, True, False]
+    # with the drop at 1024 px on every point the front is drawn on it: the slow point with the most there joins
+    at_display = [{**p, "nnfm_drop_1024": d} for p, d in zip(points, (0.05, 0.20, 0.06, 0.12), strict=True)]
+    assert report.front_figure(at_display) == "nnfm_drop_1024" and report.front_figure(points) == "nnfm_drop"
+    assert report.pareto(at_display) == [True, False, True, True]
 
 
 def test_merge_replaces_the_points_measured_again_and_keeps_the_others(report):

@@ -11,9 +11,11 @@ from .state import Command, PanelState
 from .widgets import button, font_safe, tooltip
 
 QUALITIES = {
-    "preview": "Preview: the working width only (256 px on 360° scenes); first strokes in seconds.",
-    "balanced": "Balanced: more steps, then a finer level at 512 px, so strokes hold up at a display's size.",
-    "final": "Final: more pre-processing and steps, then levels at 512 and 1024 px: painted at a display's size.",
+    "preview": "Preview: the working width only (256 px); first strokes in seconds.",
+    "balanced": "Balanced: the preview, then a finer level at 512 px on crops: fewer specks and sharper edges at a "
+                "display's size.",
+    "final": "Final: the preview, then 512 px on whole views with twice the steps and every camera: more of the "
+             "painting's strokes at a display's size, fewer specks.",
 }
 
 
