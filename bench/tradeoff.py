@@ -203,40 +203,36 @@ def median_depth(scene, camera) -> float:
     return float(np.median(z)) if z.size else 1.0
 
 
-def consistency(scene: Path, cameras: Path | None, out_ply: Path) -> tuple[float, float]:
-    """View consistency of the stylized scene and of the input, on the evaluation views of OUT.json's figures."""
+def evaluation_views(scene: Path, cameras: Path | None, out_ply: Path):
+    """The input scene, the stylized one (OUT.ply) and the cameras of the evaluation views of OUT.json's figures."""
     from gstyle_core.io import load_scene
-    from gstyle_core.pipeline.consistency import nearby_camera, view_consistency
     from gstyle_core.pipeline.view_choice import choose_views
     from gstyle_core.render_cli import load_scene_and_cameras
 
     before, _, cams = load_scene_and_cameras(str(scene), None if cameras is None else str(cameras))
-    views = [cams.cameras[i].resized_to_width(EVAL_WIDTH) for i in choose_views(cams.cameras, EVAL_VIEWS)]
-    pairs = [(c, nearby_camera(c, NEARBY_SHIFT * median_depth(before, c))) for c in views]
-    return view_consistency(load_scene(out_ply)[0], pairs), view_consistency(before, pairs)
+    return before, load_scene(out_ply)[0], [cams.cameras[i] for i in choose_views(cams.cameras, EVAL_VIEWS)]
 
 
-def display_drop(scene: Path, cameras: Path | None, out_ply: Path, painting: Path) -> float:
+def consistency(before, after, views: list) -> tuple[float, float]:
+    """View consistency of the stylized scene and of the input, on the evaluation views at ``EVAL_WIDTH``."""
+    from gstyle_core.pipeline.consistency import nearby_camera, view_consistency
+
+    small = [c.resized_to_width(EVAL_WIDTH) for c in views]
+    pairs = [(c, nearby_camera(c, NEARBY_SHIFT * median_depth(before, c))) for c in small]
+    return view_consistency(after, pairs), view_consistency(before, pairs)
+
+
+def display_drop(before, after, views: list, painting: Path) -> float:
     """NNFM drop of the stylized scene at the display's width (``DISPLAY_WIDTH``) on the evaluation views, measured
-    as OUT.json's figures at a finer level's width are (``run_figures.width_figures``: the painting resized to that
+    as OUT.json's figures at a finer level's width are (``run_figures.views_figures``: the painting resized to that
     width, at most ``EVAL_MAX_VECTORS`` of its vectors), for every tier, the ones that end below it included."""
     from gstyle_core.images import load_style_image
-    from gstyle_core.io import load_scene
     from gstyle_core.pipeline.evaluate import Evaluator
-    from gstyle_core.pipeline.run_figures import EVAL_MAX_VECTORS
-    from gstyle_core.pipeline.view_choice import choose_views
-    from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image
+    from gstyle_core.pipeline.run_figures import EVAL_MAX_VECTORS, views_figures
     from gstyle_core.style.vgg import load_vgg
 
-    before_scene, _, cams = load_scene_and_cameras(str(scene), None if cameras is None else str(cameras))
-    views = [cams.cameras[i].resized_to_width(DISPLAY_WIDTH) for i in choose_views(cams.cameras, EVAL_VIEWS)]
-    before, alpha = zip(*(render_scene_image(before_scene, c, with_alpha=True) for c in views), strict=True)
-    after_scene = load_scene(out_ply)[0]
-    after = [render_scene_image(after_scene, c) for c in views]
     ev = Evaluator(load_vgg(), load_style_image(painting), DISPLAY_WIDTH, max_vectors=EVAL_MAX_VECTORS)
-    initial = ev.measure(list(before), list(before), list(alpha), whole_frame=False)["nnfm"]
-    final = ev.measure(after, list(before), list(alpha), whole_frame=False)["nnfm"]
-    return 1.0 - final / max(initial, 1e-12)
+    return views_figures(before, after, [c.resized_to_width(DISPLAY_WIDTH) for c in views], ev)["nnfm_drop"]
 
 
 def point_figures(summaries: list[Path], scene: Path, cameras: Path | None, painting: Path) -> dict:
@@ -249,13 +245,14 @@ def point_figures(summaries: list[Path], scene: Path, cameras: Path | None, pain
     s, q = runs[0], runs[0]["quality"]
     end = q.get("at_final_width") or {"width": q["width"], "nnfm_drop": q["nnfm_drop"], "structure": q["structure"]}
     display = q["display"]
-    after, before = consistency(scene, cameras, summaries[0].with_suffix(".ply"))
+    before_scene, after_scene, views = evaluation_views(scene, cameras, summaries[0].with_suffix(".ply"))
+    after, before = consistency(before_scene, after_scene, views)
     return {"seconds": statistics.median(seconds), "seconds_min": min(seconds), "seconds_max": max(seconds),
             "repeats": len(runs), "gaussians": s["gaussians_after"], "working_width": s["settings"]["working_width"],
             "end_width": end["width"], "nnfm_drop": q["nnfm_drop"], "structure": q["structure"],
             "nnfm_drop_end": end["nnfm_drop"], "structure_end": end["structure"],
             "nnfm_drop_1024": (end["nnfm_drop"] if end["width"] == DISPLAY_WIDTH
-                               else display_drop(scene, cameras, summaries[0].with_suffix(".ply"), painting)),
+                               else display_drop(before_scene, after_scene, views, painting)),
             "speckle_1024": display["speckle_ratio"], "structure_1024": display["structure"],
             "coarse_ratio": q["texture_scale"]["coarse_ratio"], "colour": q["final"]["colour"],
             "consistency": after, "consistency_input": before,

@@ -108,12 +108,18 @@ def network_area_note(s: StylizeSettings, from_photos: bool, coverage: list, reg
             f"frame's pixels on average")
 
 
-def note_levels(decisions: Decisions, s: StylizeSettings) -> None:
+def note_levels(decisions: Decisions, s: StylizeSettings, asked: tuple[int, ...] | None = None,
+                limit: int | None = None) -> None:
     """The widths the run works at, coarse to fine (``phases/refine.py``), and how the colour matches treat each
-    Gaussian's own colour difference (``phases/colour_match.py``)."""
+    Gaussian's own colour difference (``phases/colour_match.py``). ``asked``: the levels asked for, where the photos'
+    width (``limit``) capped them to ``s.refine_widths`` (``levels.capped_levels``): ``levels_capped`` says so."""
     from .levels import level_widths
 
     widths = level_widths(s.working_width, s.refine_widths)
+    if asked is not None and tuple(asked) != tuple(s.refine_widths):
+        decisions["levels_capped"] = (
+            f"levels {', '.join(f'{w} px' for w in asked)} asked for; the photos are {limit} px wide, so the run "
+            f"ends at {widths[-1]} px (a wider level would fit enlarged photos)")
     if len(widths) == 1:
         decisions["levels"] = f"{widths[0]} px only (no finer level)"
     else:

@@ -76,16 +76,21 @@ def width_figures(engine, scene, after_scene, style, vgg, n_views: int, width: i
     """NNFM drop and structure of the evaluation views rendered ``width`` px wide (the width a run with finer levels
     ends at), the painting resized to that width; only the covered feature vectors are searched, against at most
     ``EVAL_MAX_VECTORS`` of the painting's (a random subset, the same for before and after)."""
+    cams = evaluation_cameras(engine, n_views, width)
+    return views_figures(scene, after_scene, cams, figure_evaluator(engine, vgg, style, width, whole_frame=False))
+
+
+def views_figures(scene, after_scene, cams: list, ev) -> dict:
+    """``width_figures`` on given cameras (``cams``, all ``ev.width`` px wide) with a given ``Evaluator``: the NNFM
+    drop of ``after_scene`` against ``scene``'s renders over the covered feature vectors, and the structure kept."""
     from ..render_cli import render_scene_image
     from .evaluate import structure_kept
 
-    cams = evaluation_cameras(engine, n_views, width)
-    ev = figure_evaluator(engine, vgg, style, width, whole_frame=False)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
     after = [render_scene_image(after_scene, c) for c in cams]
     initial = ev.measure(list(before), list(before), list(alpha), whole_frame=False)
     final = ev.measure(after, list(before), list(alpha), whole_frame=False)
-    return {"width": width, "nnfm_initial": initial["nnfm"], "nnfm_final": final["nnfm"],
+    return {"width": ev.width, "nnfm_initial": initial["nnfm"], "nnfm_final": final["nnfm"],
             "nnfm_drop": 1.0 - final["nnfm"] / max(initial["nnfm"], 1e-12),
             "structure": structure_kept(list(before), after, list(alpha))}
 

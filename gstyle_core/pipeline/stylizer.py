@@ -90,9 +90,12 @@ class Stylizer:
         note_planned_clip(run.decisions, settings)
         note_loss_terms(run.decisions, settings, None)
         note_style(run.decisions, settings, None, len(styles))
+        # a run on photos ends at most at their width: a level's ground truth is the photos resized, and photos
+        # enlarged hold no finer detail to fit (the run's decisions say so)
         self.level_limit = min(c.width for c in run.full_cameras) if photos is not None else None
-        self._cap_levels()
-        note_levels(run.decisions, settings)
+        asked = tuple(settings.refine_widths)
+        settings.refine_widths = capped_levels(asked, settings.working_width, self.level_limit)
+        note_levels(run.decisions, settings, asked=asked, limit=self.level_limit)
         self.ground_truth, self.preprocess, self.colour_match = GroundTruth(run), Preprocess(run), ColourMatch(run)
         self.stylize = Stylize(run)
         levels = [Refine(run, width, i) for i, width in enumerate(settings.refine_widths)]
@@ -296,18 +299,6 @@ class Stylizer:
         if current is None or isinstance(current, ColourMatch) and current.final:
             return self.levels[-1]
         return int(self.settings.working_width)
-
-    def _cap_levels(self) -> None:
-        """A run on photos ends at most at the photos' width (``level_limit``): a level's ground truth is the photos
-        resized, and photos enlarged hold no finer detail to fit (``capped_levels``; the run's decisions say so)."""
-        s = self.settings
-        capped = capped_levels(s.refine_widths, s.working_width, self.level_limit)
-        if capped != tuple(s.refine_widths):
-            self.run_state.decisions["levels_capped"] = (
-                f"levels {', '.join(f'{w} px' for w in s.refine_widths)} asked for; the photos are {self.level_limit}"
-                f" px wide, so the run ends at {level_widths(s.working_width, capped)[-1]} px (a wider level would fit"
-                " enlarged photos)")
-            s.refine_widths = capped
 
     def next_level_width(self) -> int | None:
         """The width ``refine()`` would add (twice the last, at most the photos' width), None where the run already
