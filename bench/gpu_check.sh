@@ -2,7 +2,7 @@
 # The GPU check, on a machine with an NVIDIA GPU, from the repository root (under 8 minutes on an H100/H200 with a
 # module built before; about one more minute when it builds gsplat's):
 #
-#   bash bench/gpu_check.sh [quick|full|studio]
+#   bash bench/gpu_check.sh [quick|full|studio|atlas]
 #
 # 1. the machine: the card, its driver, nvcc, torch;
 # 2. packages: wheels in .whl/ are installed into /tmp/site first where the machine has no internet (gsplat 1.5.3,
@@ -58,6 +58,20 @@ import time, torch
 from gstyle_core.raster.gsplat_module import ensure_gsplat, built_module_path
 t = time.perf_counter(); ensure_gsplat(); print(f'gsplat ready in {time.perf_counter() - t:.1f} s: {built_module_path()}')
 " || exit 1
+
+if [[ $MODE == atlas ]]; then  # the GPU's cells of the atlas, then the batch on 16 cores
+  export GSTYLE_SHARED_DATA=${GSTYLE_SHARED_DATA:-$PWD/.gpu/shared/data}
+  fern=${FERN:-.gpu/fern.ply}
+  tar -cf "$OUT/gsplat_module.tar" -C "$GSTYLE_CACHE" gsplat && ls -la "$OUT/gsplat_module.tar"
+  stage "the atlas on CUDA: every tier, the demo and the fern x three paintings"
+  cp docs/atlas.csv "$OUT/atlas.csv"
+  timeout "${ATLAS_SECONDS:-330}" "$PY" bench/tradeoff.py --devices cuda --fern "$fern" --merge --out "$OUT/atlas.csv"
+  rm -f "$OUT"/atlas_*.png  # the plots are redrawn from the CSV where it lands (bench/tradeoff.py --replot)
+  stage "gstyle batch on the CPU: 2 scenes x 3 paintings at preview, one after another against 4 jobs at once"
+  timeout "${BATCH_SECONDS:-170}" "$PY" bench/batch_speedup.py --jobs 4 --threads 4 --fern "$fern"
+  stage "done"
+  exit 0
+fi
 
 gpu_memory() {  # the card's memory per Gaussian (what a cap on Gaussians from the card's memory needs)
   stage "GPU memory per Gaussian: the demo x1 and x4 at 512 px, a stand-in objective"

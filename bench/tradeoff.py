@@ -20,7 +20,8 @@ machine, ``--repeats`` times (each repeat a batch of its own, ``--force``: every
 
 Scenes: the bundled 360° demo (``fountain``), the fern (forward-facing, its LLFF cameras and photos; a fitted fern is
 made once with ``gstyle fit`` into the cache folder when missing, or ``--fern PATH``), and from ``../shared/data``
-when present ``winter`` and ``biker``. ``--knobs`` adds the knob sweep (style strength, stroke size, palette match,
+(``$GSTYLE_SHARED_DATA`` where a copy lies elsewhere, as on a lent GPU machine) when present ``winter`` and
+``biker``. ``--knobs`` adds the knob sweep (style strength, stroke size, palette match,
 edges kept, refine widths and mode) on ``fountain / starry`` at the first device. Rows carry the code measured (its
 commit, ``+changes`` when the checkout differs), the machine (CPU model, cores, GPU or none), torch's version, the
 date and the load average before and after their group.
@@ -53,7 +54,7 @@ import tradeoff_report as report  # noqa: E402
 from gstyle_core.errors import GStyleError  # noqa: E402
 from gstyle_core.outputs import BATCH_TABLE  # noqa: E402
 
-SHARED = ROOT.parent / "shared" / "data"
+SHARED = Path(os.environ.get("GSTYLE_SHARED_DATA", ROOT.parent / "shared" / "data"))  # a copy elsewhere: the env
 FERN_PHOTOS = SHARED / "scenes" / "llff_fern"  # photos + poses: the fern's cameras and ground truth
 FERN_FIT_ITERATIONS = 600  # the fitted fern the earlier docs used (out/fern.json: 600 iterations, 714 s here)
 SCENES: dict[str, tuple[Path, Path | None]] = {  # name -> (scene, its own cameras; None: generated around it)
