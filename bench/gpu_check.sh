@@ -2,7 +2,7 @@
 # The GPU check, on a machine with an NVIDIA GPU, from the repository root (under 8 minutes on an H100/H200 with a
 # module built before; about one more minute when it builds gsplat's):
 #
-#   bash bench/gpu_check.sh [quick|full|studio|atlas]
+#   bash bench/gpu_check.sh [quick|full|studio|atlas|batch]
 #
 # 1. the machine: the card, its driver, nvcc, torch;
 # 2. packages: wheels in .whl/ are installed into /tmp/site first where the machine has no internet (gsplat 1.5.3,
@@ -21,6 +21,16 @@
 # operators a step dispatches and its waits for the GPU (bench/studio_rate.py, device_stylize.py,
 # device_profile.py), the GPU's memory per Gaussian (bench/bench_memory_per_gaussian.py --device cuda), and the
 # worker again at 4 torch threads. "full" also ends with the GPU's memory per Gaussian.
+# "atlas" (issue #50): after 1-3, the atlas's CUDA groups (bench/tradeoff.py --devices cuda $ATLAS_ARGS, by default
+# every tier, the demo and the fern x three paintings) into $OUT/atlas.csv with docs/atlas.csv's rows kept, each group
+# written as it ends, for at most $ATLAS_SECONDS (330). On an H200 the previews' group took 186 s (the process's
+# start on the card in its first job) and a group of three points after it 110-121 s: the whole 18 points need about
+# 11 minutes, more than one call, so split them with ATLAS_ARGS (e.g. "--tiers final --scenes fern").
+# "batch": after 1-2, gstyle batch on the machine's CPU cores (bench/batch_speedup.py: six runs one after another
+# against 4 jobs at once, for at most $BATCH_SECONDS, 400; on the H200's 16-core host the six runs alone took more
+# than 165 s). Both modes' data travel in .gpu/: shared/data (the fern's photos, the two paintings from ../shared),
+# fern.ply (the fitted fern), cache/ (the VGG weights, and gsplat's built module once it came back: "atlas" returns
+# it as $OUT/gsplat_module.tar, to unpack into .gpu/cache).
 # Every figure is printed and kept in $OUT/gpu_check.log (OUT defaults to out/gpu_check).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -52,6 +62,15 @@ if [[ ${GSTYLE_GSPLAT_SLIM:-0} == 1 ]]; then  # compile the 1-5 channel kernels 
     "$site"/cuda/csrc/*.cu "$site"/cuda/csrc/*.cpp
 fi
 
+export GSTYLE_SHARED_DATA=${GSTYLE_SHARED_DATA:-$PWD/.gpu/shared/data}  # the atlas's and the batch's data
+FERN=${FERN:-.gpu/fern.ply}
+if [[ $MODE == batch ]]; then  # the batch on the machine's cores: no GPU, no gsplat module
+  stage "gstyle batch on the CPU: 2 scenes x 3 paintings at preview, one after another against 4 jobs at once"
+  timeout "${BATCH_SECONDS:-400}" "$PY" bench/batch_speedup.py --jobs 4 --threads 4 --fern "$FERN"
+  stage "done"
+  exit 0
+fi
+
 stage "gsplat module"
 "$PY" -c "
 import time, torch
@@ -59,16 +78,14 @@ from gstyle_core.raster.gsplat_module import ensure_gsplat, built_module_path
 t = time.perf_counter(); ensure_gsplat(); print(f'gsplat ready in {time.perf_counter() - t:.1f} s: {built_module_path()}')
 " || exit 1
 
-if [[ $MODE == atlas ]]; then  # the GPU's cells of the atlas, then the batch on 16 cores
-  export GSTYLE_SHARED_DATA=${GSTYLE_SHARED_DATA:-$PWD/.gpu/shared/data}
-  fern=${FERN:-.gpu/fern.ply}
+if [[ $MODE == atlas ]]; then  # the GPU's cells of the atlas
   tar -cf "$OUT/gsplat_module.tar" -C "$GSTYLE_CACHE" gsplat && ls -la "$OUT/gsplat_module.tar"
-  stage "the atlas on CUDA: every tier, the demo and the fern x three paintings"
+  stage "the atlas on CUDA: ${ATLAS_ARGS:-every tier, the demo and the fern x three paintings}"
   cp docs/atlas.csv "$OUT/atlas.csv"
-  timeout "${ATLAS_SECONDS:-330}" "$PY" bench/tradeoff.py --devices cuda --fern "$fern" --merge --out "$OUT/atlas.csv"
+  # shellcheck disable=SC2086  # ATLAS_ARGS: options, split on purpose
+  timeout "${ATLAS_SECONDS:-330}" "$PY" bench/tradeoff.py --devices cuda --fern "$FERN" --merge --out "$OUT/atlas.csv" \
+    ${ATLAS_ARGS:-}
   rm -f "$OUT"/atlas_*.png  # the plots are redrawn from the CSV where it lands (bench/tradeoff.py --replot)
-  stage "gstyle batch on the CPU: 2 scenes x 3 paintings at preview, one after another against 4 jobs at once"
-  timeout "${BATCH_SECONDS:-170}" "$PY" bench/batch_speedup.py --jobs 4 --threads 4 --fern "$fern"
   stage "done"
   exit 0
 fi

@@ -20,11 +20,13 @@ machine, ``--repeats`` times (each repeat a batch of its own, ``--force``: every
 
 Scenes: the bundled 360° demo (``fountain``), the fern (forward-facing, its LLFF cameras and photos; a fitted fern is
 made once with ``gstyle fit`` into the cache folder when missing, or ``--fern PATH``), and from ``../shared/data``
-(``$GSTYLE_SHARED_DATA`` where a copy lies elsewhere, as on a lent GPU machine) when present ``winter`` and
-``biker``. ``--knobs`` adds the knob sweep (style strength, stroke size, palette match,
-edges kept, refine widths and mode) on ``fountain / starry`` at the first device. Rows carry the code measured (its
-commit, ``+changes`` when the checkout differs), the machine (CPU model, cores, GPU or none), torch's version, the
-date and the load average before and after their group.
+(``$GSTYLE_SHARED_DATA`` where a copy lies elsewhere, as on a lent GPU machine) when present ``winter``, ``biker``
+and ``guitar``; paintings beyond the atlas's three (``hat``, Matisse's *Woman with a Hat*; ``scream``) by name, for
+pairs off the atlas's own. ``--knobs`` adds the knob sweep (style strength, stroke size, palette match, edges kept,
+refine widths and mode) on ``fountain / starry`` at the first device (``--knob-pairs``: on every pair of
+``--scenes`` × ``--paintings``). Rows carry the code measured (its commit, ``+changes`` when the checkout differs),
+the machine (CPU model, cores, GPU or none), torch's version, the date and the load average before and after their
+group.
 
 Writes ``docs/atlas.csv`` (``--merge``: the rows of other points kept) and ``docs/atlas_DEVICE.png`` (NNFM drop
 at 256 px against time, the Pareto front per scene / painting among the points that keep the structure at 1024 px);
@@ -61,10 +63,14 @@ SCENES: dict[str, tuple[Path, Path | None]] = {  # name -> (scene, its own camer
     "fountain": (ROOT / "assets" / "demo" / "fountain.splat", None),
     "winter": (SHARED / "scenes" / "splat" / "winter_fountain.cropped.splat", None),
     "biker": (SHARED / "scenes" / "playcanvas" / "biker.spz", None),
+    "guitar": (SHARED / "scenes" / "playcanvas" / "guitar.compressed.ply", None),
 }
 PAINTINGS = {"starry": ROOT / "assets" / "styles" / "starry_night.jpg",
              "wave": SHARED / "styles" / "great_wave_hokusai.jpg",
-             "autumn": SHARED / "styles" / "extra_autumn_landscape_kandinsky.jpg"}  # the smooth one
+             "autumn": SHARED / "styles" / "extra_autumn_landscape_kandinsky.jpg",  # the smooth one
+             "hat": SHARED / "styles" / "extra_woman_with_hat_matisse.jpg",  # pairs off the atlas's own, by name
+             "scream": SHARED / "styles" / "the_scream_munch.jpg"}
+ATLAS_PAINTINGS = ("starry", "wave", "autumn")  # the atlas's three, its default
 TIERS = ("preview", "balanced", "final")
 DEVICES = {"cpu-fp32": ["--device", "cpu", "--precision", "fp32"],
            "cpu-bf16": ["--device", "cpu", "--precision", "bf16"],
@@ -319,10 +325,13 @@ def parse_args(argv: list[str] | None):
     p.add_argument("--devices", default=None, help="comma-separated, of cpu-fp32, cpu-bf16, cuda (default: those "
                                                    "this machine runs)")
     p.add_argument("--scenes", default="fountain,fern", help="comma-separated, of fountain, fern, winter, biker")
-    p.add_argument("--paintings", default=",".join(PAINTINGS), help=f"comma-separated, of {', '.join(PAINTINGS)}")
+    p.add_argument("--paintings", default=None, help=f"comma-separated, of {', '.join(PAINTINGS)} (default: "
+                                                     f"{', '.join(ATLAS_PAINTINGS)})")
     p.add_argument("--repeats", type=int, default=1, help="batches per group; a point's seconds: their median")
     p.add_argument("--knobs", nargs="?", const="all", default=None, metavar="LABELS",
                    help="the knob sweep on fountain / starry instead of the tiers (all, or comma-separated labels)")
+    p.add_argument("--knob-pairs", action="store_true",
+                   help="the knobs on every --scenes x --paintings pair instead of fountain / starry alone")
     p.add_argument("--jobs", type=int, default=1, help="the batch's jobs at a time (default 1: each job alone)")
     p.add_argument("--threads", type=int, default=None, help="torch threads per job (default: the batch's)")
     p.add_argument("--fern", default=None, help="a fitted fern (default: fitted once into the cache folder)")
@@ -353,19 +362,9 @@ def main(argv: list[str] | None = None) -> int:
     from gstyle_core.paths import cache_dir
 
     fern = Path(args.fern) if args.fern else cache_dir() / "atlas" / "fern.ply"
-    tiers = selected(args.tiers, TIERS, "tier")
     devices = selected(args.devices, devices_here() if args.devices is None else DEVICES, "device")
-    if args.knobs is not None:
-        labels = selected(None if args.knobs == "all" else args.knobs, [k[0] for k in KNOBS], "knob")
-        scene, painting = KNOB_PAIR
-        points = [(tier, devices[0], (label, opts), [scene], [painting]) for label, tier, opts in KNOBS
-                  if label in labels]
-    else:
-        names = selected(args.scenes, ["fern", *SCENES], "scene")
-        points = [(tier, device, (report.SHIPPED, []), names, selected(args.paintings, PAINTINGS, "painting"))
-                  for tier in tiers for device in devices]
     rows = report.read_rows(out) if args.merge else []
-    for tier, device, knob, scene_names, painting_names in points:
+    for tier, device, knob, scene_names, painting_names in atlas_groups(args, devices):
         missing = [n for n in painting_names if not PAINTINGS[n].is_file()]
         if missing:
             raise GStyleError(f"painting {missing[0]}: {PAINTINGS[missing[0]]} not found")
@@ -376,6 +375,20 @@ def main(argv: list[str] | None = None) -> int:
         report.write_rows(rows, out)  # after every group: nothing measured is lost
     finish(rows, out)
     return 0
+
+
+def atlas_groups(args, devices: list[str]) -> list[tuple[str, str, tuple[str, list[str]], list[str], list[str]]]:
+    """The groups to run, each (tier, device, (knob label, its options), scene names, painting names): every tier on
+    every device, or with ``--knobs`` each knob at the first device on the demo × The Starry Night (every pair of
+    ``--scenes`` × ``--paintings`` with ``--knob-pairs``)."""
+    names = selected(args.scenes, ["fern", *SCENES], "scene")
+    painting_names = selected(args.paintings or ",".join(ATLAS_PAINTINGS), PAINTINGS, "painting")
+    if args.knobs is None:
+        return [(tier, device, (report.SHIPPED, []), names, painting_names)
+                for tier in selected(args.tiers, TIERS, "tier") for device in devices]
+    labels = selected(None if args.knobs == "all" else args.knobs, [k[0] for k in KNOBS], "knob")
+    names, painting_names = (names, painting_names) if args.knob_pairs else ([KNOB_PAIR[0]], [KNOB_PAIR[1]])
+    return [(tier, devices[0], (label, opts), names, painting_names) for label, tier, opts in KNOBS if label in labels]
 
 
 def finish(rows: list[dict], out: Path) -> None:

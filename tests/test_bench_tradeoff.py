@@ -73,6 +73,24 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
     assert float(row["nnfm_drop_spread"]) < 0.01 and f"% (Δ {100 * float(row['nnfm_drop_spread']):.1f})" in table[2]
 
 
+def test_the_groups_are_every_tier_on_every_device_or_the_knobs_on_their_pairs():
+    tradeoff = load_bench("tradeoff")
+    groups = tradeoff.atlas_groups(tradeoff.parse_args(["--tiers", "preview,final"]), ["cpu-fp32", "cuda"])
+    assert [(g[0], g[1], g[2][0]) for g in groups] == [("preview", "cpu-fp32", "as shipped"),
+                                                       ("preview", "cuda", "as shipped"),
+                                                       ("final", "cpu-fp32", "as shipped"),
+                                                       ("final", "cuda", "as shipped")]
+    assert groups[0][3:] == (["fountain", "fern"], list(tradeoff.ATLAS_PAINTINGS))  # the extra paintings by name only
+    whole = ["--knobs", "refine whole views", "--scenes", "fern", "--paintings", "hat,wave"]
+    (alone,) = tradeoff.atlas_groups(tradeoff.parse_args(whole), ["cpu-bf16", "cuda"])
+    assert alone == ("balanced", "cpu-bf16", ("refine whole views", ["--refine-mode", "whole"]), ["fountain"],
+                     ["starry"])  # the knob's own pair, whatever --scenes says
+    (paired,) = tradeoff.atlas_groups(tradeoff.parse_args([*whole, "--knob-pairs"]), ["cpu-bf16"])
+    assert paired[3:] == (["fern"], ["hat", "wave"])
+    with pytest.raises(tradeoff.GStyleError, match="unknown knob"):
+        tradeoff.atlas_groups(tradeoff.parse_args(["--knobs", "louder"]), ["cpu-bf16"])
+
+
 def test_a_point_that_loses_the_structure_at_1024_px_is_never_on_the_front(report):
     points = [{"seconds": 10.0, "nnfm_drop": 0.30, "structure_1024": 0.8},
               {"seconds": 10.0, "nnfm_drop": 0.45, "structure_1024": 0.3},  # more style, scene lost
