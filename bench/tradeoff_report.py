@@ -208,13 +208,13 @@ def readme_figures(text: str) -> list[tuple[str, list[str]]]:
 
 def atlas_figure(rows: list[dict], words: list[str], decimals: int) -> str:
     """What the atlas's rows say for a marker's ``words`` (tier device scene painting column [min|max]), written as
-    the README writes it: ``decimals`` places, an NNFM drop in percent. Raises ValueError for a marker no row
-    matches."""
+    the README writes it: ``decimals`` places, an NNFM drop in percent. A scene or painting is a name, names joined
+    by commas (``fountain,fern``) or ``*`` (any). Raises ValueError for a marker no row matches."""
     if len(words) not in (5, 6) or len(words) == 6 and words[5] not in ("min", "max"):
         raise ValueError(f"atlas marker {' '.join(words)!r}: want tier device scene painting column [min|max]")
     pattern, column = words[:4], words[4]
     matching = [r for r in rows if r.get("knob") == SHIPPED and column in r
-                and all(w == "*" or r[k] == w for k, w in zip(KEY[:4], pattern, strict=True))]
+                and all(w == "*" or r[k] in w.split(",") for k, w in zip(KEY[:4], pattern, strict=True))]
     if not matching:
         raise ValueError(f"atlas marker {' '.join(words)!r}: no row of the atlas has it")
     values = [float(r[column]) for r in matching]
