@@ -79,17 +79,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--preset", default="preview")
     p.add_argument("--device", default="cpu", help="both parts' --device")
     p.add_argument("--fern", default=None, help="a fitted fern (default: bench/tradeoff.py's)")
-    p.add_argument("--paintings", default=",".join(tradeoff.PAINTINGS))
+    p.add_argument("--paintings", default=",".join(tradeoff.ATLAS_PAINTINGS))
     p.add_argument("--work", default=str(ROOT / "out" / "batch_speedup"))
     args = p.parse_args(argv)
     from gstyle_core.machine import cpu_info
     from gstyle_core.paths import cache_dir
 
     fern = Path(args.fern) if args.fern else cache_dir() / "atlas" / "fern.ply"
+    paintings = {n: tradeoff.PAINTINGS[n].resolve()  # checked before the fern, which may be fitted first
+                 for n in tradeoff.selected(args.paintings, tradeoff.PAINTINGS, "painting")}
     scenes = {n: (s.resolve(), None if c is None else c.resolve())
               for n, (s, c) in tradeoff.scene_paths(["fountain", "fern"], fern).items()}
-    paintings = {n: tradeoff.PAINTINGS[n].resolve()
-                 for n in tradeoff.selected(args.paintings, tradeoff.PAINTINGS, "painting")}
     options = ["--preset", args.preset, "--device", args.device]
     work = Path(args.work)
     cpu = cpu_info()
@@ -118,8 +118,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    try:
-        raise SystemExit(main())
-    except GStyleError as exc:
-        print(f"batch_speedup.py: error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
+    tradeoff.run_script(main, "batch_speedup.py")

@@ -400,9 +400,14 @@ def finish(rows: list[dict], out: Path) -> None:
           f"groups={len({(r['tier'], r['device'], r['knob']) for r in rows})}")
 
 
-if __name__ == "__main__":
+def run_script(main_function, name: str) -> None:
+    """A bench script's entry: ``main_function()``'s exit status; a ``GStyleError`` is one line on stderr, status 2."""
     try:
-        raise SystemExit(main())
+        raise SystemExit(main_function())
     except GStyleError as exc:
-        print(f"tradeoff.py: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
+
+
+if __name__ == "__main__":
+    run_script(main, "tradeoff.py")
