@@ -133,7 +133,7 @@ def plot(rows: list[dict], folder: Path, stem: str) -> list[Path]:
             draw_group(ax, [r for r in mine if (r["scene"], r["painting"]) == (scene, painting)])
             ax.set_title(f"{scene} / {painting}", fontsize=10)
         fig.suptitle(f"{device}: {mine[0].get('machine', '')}", fontsize=9)
-        fig.tight_layout()
+        fig.tight_layout(rect=(0, 0, 1, 1 - 0.35 / (3.8 * nrows)))  # room for the suptitle
         path = folder / f"{stem}_{device}.png"
         with atomic_write(path, "wb") as fh:
             fig.savefig(fh, format="png", dpi=100)
