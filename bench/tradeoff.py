@@ -324,9 +324,8 @@ def parse_args(argv: list[str] | None):
     p.add_argument("--tiers", default="preview,balanced,final", help=f"comma-separated, of {', '.join(TIERS)}")
     p.add_argument("--devices", default=None, help="comma-separated, of cpu-fp32, cpu-bf16, cuda (default: those "
                                                    "this machine runs)")
-    p.add_argument("--scenes", default="fountain,fern", help="comma-separated, of fountain, fern, winter, biker")
-    p.add_argument("--paintings", default=None, help=f"comma-separated, of {', '.join(PAINTINGS)} (default: "
-                                                     f"{', '.join(ATLAS_PAINTINGS)})")
+    p.add_argument("--scenes", default="fountain,fern", help=f"comma-separated, of fern, {', '.join(SCENES)}")
+    p.add_argument("--paintings", default=",".join(ATLAS_PAINTINGS), help=f"comma-separated, of {', '.join(PAINTINGS)}")
     p.add_argument("--repeats", type=int, default=1, help="batches per group; a point's seconds: their median")
     p.add_argument("--knobs", nargs="?", const="all", default=None, metavar="LABELS",
                    help="the knob sweep on fountain / starry instead of the tiers (all, or comma-separated labels)")
@@ -382,7 +381,7 @@ def atlas_groups(args, devices: list[str]) -> list[tuple[str, str, tuple[str, li
     every device, or with ``--knobs`` each knob at the first device on the demo × The Starry Night (every pair of
     ``--scenes`` × ``--paintings`` with ``--knob-pairs``)."""
     names = selected(args.scenes, ["fern", *SCENES], "scene")
-    painting_names = selected(args.paintings or ",".join(ATLAS_PAINTINGS), PAINTINGS, "painting")
+    painting_names = selected(args.paintings, PAINTINGS, "painting")
     if args.knobs is None:
         return [(tier, device, (report.SHIPPED, []), names, painting_names)
                 for tier in selected(args.tiers, TIERS, "tier") for device in devices]

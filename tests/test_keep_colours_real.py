@@ -93,17 +93,20 @@ def scene_hue_gaps(snapshot: dict) -> np.ndarray:
     return hue_gap_deg(colours[inside], gt[inside])
 
 
+MIN_COLOURED, MAX_HUE_GAP_P99 = 1000, 1.0  # the scene's hues: this many coloured Gaussians, 99 % within 1 degree
+
+
 def hues_of_the_scene(snapshot: dict) -> bool:
     """Whether the snapshot's colours have the scene's hues (``assert_hues_of_the_scene``'s test)."""
     gap = scene_hue_gaps(snapshot)
-    return gap.size > 1000 and float(np.percentile(gap, 99)) < 1.0
+    return gap.size > MIN_COLOURED and float(np.percentile(gap, 99)) < MAX_HUE_GAP_P99
 
 
 def assert_hues_of_the_scene(snapshot: dict) -> None:
     """Every coloured Gaussian's c_s has its c_gt's hue (the chroma restored after every step)."""
     gap = scene_hue_gaps(snapshot)
-    assert gap.size > 1000
-    assert np.percentile(gap, 99) < 1.0, (np.percentile(gap, [50, 90, 95, 99, 99.9]), gap.max())
+    assert gap.size > MIN_COLOURED
+    assert np.percentile(gap, 99) < MAX_HUE_GAP_P99, (np.percentile(gap, [50, 90, 95, 99, 99.9]), gap.max())
 
 
 def test_keep_colours_ticked_before_the_run_goes_through_the_stylization(worker):
