@@ -84,8 +84,8 @@ def stage_speckles(engine, scene_in, style, width: int, on_row=None) -> list[dic
     working_drop = working_width_drop(engine, scene_in, style)
 
     def figure(name: str, seconds: float, scene=None) -> dict:
-        after, after_alphas = zip(*(render_scene_image(scene or engine.stylized_scene(), c, with_alpha=True)
-                                    for c in cameras), strict=True)
+        scene = scene or engine.stylized_scene()  # built once a stage: every render and the drop measure it
+        after, after_alphas = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cameras), strict=True)
         after = list(after)
         fig = display_speckle(list(before), after, list(alphas), paintings, side,
                               None if len(paintings) == 1 else s.style_weights, channels)
@@ -100,7 +100,7 @@ def stage_speckles(engine, scene_in, style, width: int, on_row=None) -> list[dic
                 "change_fine_share": fine_share(step), "change_energy": float(step.sum()), **fig.to_dict(),
                 "fringe_halo": fringe.halo, "fringe_near_saturated": fringe.bright_after,
                 "structure": structure_kept(list(before), after, list(alphas)),
-                "nnfm_drop_working": working_drop(scene or engine.stylized_scene())}
+                "nnfm_drop_working": working_drop(scene)}
         if on_row is not None:
             on_row(row)
         return row
