@@ -1,9 +1,8 @@
 """The viewer at 0.2-6 M Gaussians: the depth sort off the frame, frame rates, load time and host memory.
 
-Scenes are built by densifying a real capture (``biker.spz``, 152,746 Gaussians): each Gaussian is copied
-k = ceil(n / 152,746) times (the first n copies kept), every copy moved by a jitter drawn within the Gaussian's own
-ellipsoid (a normal of 0.5 sigma along each of its axes) and its scales shrunk by k^(-1/3), so the copies fill the
-original's volume as a denser capture would. Per size:
+Scenes are built by densifying a real capture (``biker.spz``, 152,746 Gaussians; ``densify.py``): each Gaussian is
+copied k = ceil(n / 152,746) times, every copy moved within the Gaussian's own ellipsoid and its scales shrunk by
+k^(-1/3), so the copies fill the original's volume as a denser capture would. Per size:
 
 * sort: the old order (numpy argsort of float64 depths, as ``splat_data.back_to_front_order``) against the new
   one (``app/depth_sort.py``: a numba counting sort of 16-bit keys, and of ``key_bits(n)`` keys) and numpy's
@@ -54,6 +53,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import moderngl  # noqa: E402
+from densify import densify  # noqa: E402
 
 from app.camera_control import CameraControl  # noqa: E402
 from app.depth_sort import (  # noqa: E402
@@ -72,7 +72,6 @@ from app.splat_data import (  # noqa: E402
     LAYOUTS,
     back_to_front_order,
     importance_order,
-    rotation_matrices,
     scene_arrays,
 )
 from gstyle_core.cameras.camera import Camera  # noqa: E402
@@ -84,25 +83,6 @@ from gstyle_core.scene import GaussianScene  # noqa: E402
 
 SOURCE = ROOT.parent / "shared" / "data" / "scenes" / "playcanvas" / "biker.spz"
 BACKGROUND = (0.1, 0.1, 0.12)
-
-
-def densify(scene: GaussianScene, n: int, seed: int = 0) -> GaussianScene:
-    """``n`` Gaussians: copies of ``scene``'s, each moved within its own ellipsoid, scales shrunk by k^(-1/3)."""
-    k = math.ceil(n / scene.count)
-    index = np.tile(np.arange(scene.count), k)[:n]
-    rng = np.random.default_rng(seed)
-    means = np.empty((n, 3), np.float32)
-    chunk = 1 << 20
-    for start in range(0, n, chunk):  # in chunks: [chunk, 3, 3] float64 rotations at a time
-        part = index[start:start + chunk]
-        scales = np.exp(scene.log_scales[part].astype(np.float64))
-        jitter = rng.normal(0, 0.5, (part.size, 3)) * scales  # along the Gaussian's own axes
-        offset = np.einsum("nij,nj->ni", rotation_matrices(scene.quats[part]), jitter)
-        means[start:start + chunk] = scene.means[part] + offset
-    shrink = np.float32(math.log(k) / 3)
-    return GaussianScene(means, scene.log_scales[index] - shrink, scene.quats[index].copy(),
-                         scene.opacity_logits[index].copy(), scene.sh_dc[index].copy(),
-                         np.zeros((n, 0, 3), np.float32))
 
 
 def rss_bytes(trim: bool = True) -> int:

@@ -236,7 +236,7 @@ def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, styl
         "settings": s.to_dict(), "scene_kind": s.scene_kind, "camera_source": cams.source,
         "clip": engine.decisions.get("clip"), "decisions": engine.decisions,
         "seconds_per_phase": {k: round(v, 2) for k, v in engine.timings.items()},
-        "seconds_total": round(time.perf_counter() - t0, 1),
+        "seconds_total": round(time.perf_counter() - t0, 1), "steps": engine.global_step,
         "gaussians_before": scene.count, "gaussians_after": stylized.count, "quality": quality,
         "region": region_summary(engine), RECORD_KEY: camera_record(cams, scene.means), **run,
     }

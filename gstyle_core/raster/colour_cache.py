@@ -18,6 +18,12 @@ from .fast import build_tile_lists
 from .projection_kernels import project_gaussians_fast
 
 
+def index_dtype(largest: int) -> type:
+    """The CSR index type for a matrix whose counts reach ``largest``: int32 where it fits (a third less memory
+    than int64, and torch's sparse product runs faster on it), int64 beyond."""
+    return np.int32 if largest < np.iinfo(np.int32).max else np.int64
+
+
 class SparseProduct(torch.autograd.Function):
     """y = W x for a constant sparse W; the backward multiplies by the stored W^T (``apply(x, W, W^T)``)."""
 
@@ -70,9 +76,12 @@ class ColourCache:
         args = (lists.offsets, lists.ids, lists.records, lists.tile_order, self.width, self.height, tile_size,
                 lists.tiles_x)
         counts, t_final = kernels.count_blend_weights(*args)
-        row_ptr = np.zeros(counts.shape[0] + 1, np.int64)
+        nnz = int(counts.sum())
+        index = index_dtype(max(nnz, counts.shape[0], self.n_gaussians))
+        row_ptr = np.zeros(counts.shape[0] + 1, index)
         np.cumsum(counts, out=row_ptr[1:])
-        cols, vals = kernels.fill_blend_weights(*args, row_ptr)
+        del counts
+        cols, vals = kernels.fill_blend_weights(*args, row_ptr, index_dtype=index)
         shape = (self.height * self.width, self.n_gaussians)
         t_ptr, t_cols, t_vals = kernels.csr_transpose(row_ptr, cols, vals, self.n_gaussians)
         with warnings.catch_warnings():
@@ -97,7 +106,8 @@ class ColourCache:
     def nbytes(self) -> int:
         """Approximate memory held by the two sparse matrices."""
         nnz = int(self.weights.values().shape[0])
-        return 2 * nnz * (4 + 8) + 8 * (self.height * self.width + self.n_gaussians + 2)
+        index = self.weights.col_indices().element_size()
+        return 2 * nnz * (4 + index) + index * (self.height * self.width + self.n_gaussians + 2)
 
     def render(self, colors: Tensor, background: Tensor | None = None) -> Tensor:
         """Image [H, W, 3] for colours [N, 3] (float32), differentiable w.r.t. colours and background."""

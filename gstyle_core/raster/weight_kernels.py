@@ -15,15 +15,14 @@ from .pixel_kernels import ONE32, TRANSMITTANCE_MIN, column_span, pair_alpha, ro
 
 @njit(parallel=True, cache=True)
 def _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x, row_ptr,
-                        fill):  # pragma: no cover - numba
+                        fill, gaussian_ids, vals):  # pragma: no cover - numba
     """The loops of ``blend_forward`` recording the blend weights alpha_i * T_i of every pixel x Gaussian pair.
     ``fill`` False: count them per pixel ([H * W] int64) and keep the final transmittance [H, W]; True: write the
-    Gaussian ids and weights into the CSR rows that ``row_ptr`` (from the counts) lays out. Returns (counts,
-    t_final, ids, weights); the arrays of the other pass are empty."""
+    Gaussian ids and weights into ``gaussian_ids`` and ``vals`` (allocated by the caller, of the index type it
+    chose) at the CSR rows that ``row_ptr`` (from the counts) lays out. Returns (counts, t_final); the arrays of
+    the other pass are empty."""
     counts = np.zeros(0 if fill else height * width, np.int64)
     t_final = np.ones((0, 0) if fill else (height, width), np.float32)
-    gaussian_ids = np.empty(row_ptr[-1] if fill else 0, np.int64)
-    vals = np.empty(row_ptr[-1] if fill else 0, np.float32)
     for k in prange(tile_order.shape[0]):
         row0, col0, rows, cols, cand, n_cand, coef = tile_setup(offsets, rec, tile_order[k], width, height,
                                                                  tile_size, tiles_x)
@@ -72,39 +71,47 @@ def _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size,
             for lr in range(rows):
                 for lc in range(cols):
                     t_final[row0 + lr, col0 + lc] = trans[lr * cols + lc]
-    return counts, t_final, gaussian_ids, vals
+    return counts, t_final
 
 
 def count_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x):
     """Number of Gaussians that contribute to each pixel, [H * W] int64, and the final transmittance [H, W]."""
-    counts, t_final, _, _ = _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x,
-                                                np.zeros(1, np.int64), False)
-    return counts, t_final
+    return _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x,
+                               np.zeros(1, np.int64), False, np.empty(0, np.int64), np.empty(0, np.float32))
 
 
-def fill_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x, row_ptr):
-    """CSR columns (Gaussian ids) and values (alpha_i * T_i) of the pixel x Gaussian blend matrix whose rows
-    ``row_ptr`` lays out (the prefix sums of ``count_blend_weights``)."""
-    _, _, gaussian_ids, vals = _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x,
-                                                   row_ptr, True)
+def fill_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x, row_ptr,
+                       index_dtype=np.int64):
+    """CSR columns (Gaussian ids, ``index_dtype``) and values (alpha_i * T_i) of the pixel x Gaussian blend matrix
+    whose rows ``row_ptr`` lays out (the prefix sums of ``count_blend_weights``)."""
+    gaussian_ids = np.empty(int(row_ptr[-1]), index_dtype)
+    vals = np.empty(int(row_ptr[-1]), np.float32)
+    _walk_blend_weights(offsets, ids, rec, tile_order, width, height, tile_size, tiles_x, row_ptr, True,
+                        gaussian_ids, vals)
     return gaussian_ids, vals
 
 
+def csr_transpose(row_ptr, cols, vals, n_cols):
+    """The transpose of a CSR matrix [R, n_cols] as CSR [n_cols, R] (column indices sorted in each row), its
+    indices of ``cols``' type."""
+    t_ptr = np.zeros(n_cols + 1, cols.dtype)
+    t_cols = np.empty(cols.shape[0], cols.dtype)
+    t_vals = np.empty(cols.shape[0], vals.dtype)
+    _fill_transpose(row_ptr, cols, vals, n_cols, t_ptr, t_cols, t_vals)
+    return t_ptr, t_cols, t_vals
+
+
 @njit(cache=True)
-def csr_transpose(row_ptr, cols, vals, n_cols):  # pragma: no cover - numba
-    """The transpose of a CSR matrix [R, n_cols] as CSR [n_cols, R] (column indices sorted in each row)."""
-    t_ptr = np.zeros(n_cols + 1, np.int64)
+def _fill_transpose(row_ptr, cols, vals, n_cols, t_ptr, t_cols, t_vals):  # pragma: no cover - numba
+    """``csr_transpose``'s loops, into the arrays it allocated."""
     for k in range(cols.shape[0]):
         t_ptr[cols[k] + 1] += 1
     for c in range(n_cols):
         t_ptr[c + 1] += t_ptr[c]
     cursor = t_ptr[:n_cols].copy()
-    t_cols = np.empty(cols.shape[0], np.int64)
-    t_vals = np.empty(cols.shape[0], vals.dtype)
     for r in range(row_ptr.shape[0] - 1):
         for k in range(row_ptr[r], row_ptr[r + 1]):
             c = cols[k]
             t_cols[cursor[c]] = r
             t_vals[cursor[c]] = vals[k]
             cursor[c] += 1
-    return t_ptr, t_cols, t_vals
