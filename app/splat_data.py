@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gstyle_core.scene import SH_C0, sigmoid
+from gstyle_core.scene import SH_C0, importance_order, sigmoid
 
 if TYPE_CHECKING:
     from gstyle_core.scene import GaussianScene
@@ -152,16 +152,6 @@ def back_to_front_order(means: np.ndarray, world_to_cam: np.ndarray, near: float
     visible = np.flatnonzero(np.isfinite(z) & (z > near))
     order = visible[np.argsort(-z[visible], kind="stable")]
     return order.astype(np.int32)
-
-
-def importance_order(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.ndarray:
-    """int32 Gaussian indices by opacity × area of their two largest axes, most important first.
-
-    The view-independent order in which a reduced-detail frame keeps Gaussians: small faint ones go first; the
-    ``keep`` most important are its first ``keep`` entries."""
-    s = np.sort(np.nan_to_num(np.asarray(log_scales, np.float64), nan=-30.0, posinf=30.0, neginf=-30.0), axis=1)
-    score = (s[:, 1] + s[:, 2]) + np.log(sigmoid(np.asarray(opacity_logits, np.float64)) + 1e-12)
-    return np.argsort(-score, kind="stable").astype(np.int32)
 
 
 def importance_ranks(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.ndarray:

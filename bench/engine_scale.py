@@ -40,7 +40,7 @@ from densify import densify  # noqa: E402
 from gstyle_core.io import load_scene, save_scene  # noqa: E402
 from gstyle_core.machine import cpu_description  # noqa: E402
 
-SHARED = ROOT.parent / "shared" / "data"
+SHARED = Path(os.environ.get("GSTYLE_SHARED_DATA", ROOT.parent / "shared" / "data"))  # a copy elsewhere: the env
 SOURCE = SHARED / "scenes" / "playcanvas" / "biker.spz"
 STYLE = SHARED / "styles" / "starry_night_vangogh.jpg"
 EXPORTS = (".ply", ".spz", ".compressed.ply")

@@ -15,7 +15,8 @@ after ``--settle`` seconds, once rendering on demand (the default) and once with
 ``RESULT idle_cpu_share=… always_draw_cpu_share=…`` (fractions of one core; target ≤ 0.05).
 
 Frame time = interval between consecutive frame starts (what the user sees), each frame ending with
-``ctx.finish()`` (a real window's swap waits for the rasteriser the same way). Prints a table, then
+``ctx.finish()`` (a real window's swap waits for the rasteriser the same way). Prints a table, the peak resident
+memory of the UI process and of the worker's (``VmHWM``, with their sum per Gaussian), then
 ``RESULT ui_fps=… ui_p95_ms=… worker_steps_per_s=… worker_share=…``.
 """
 
@@ -147,7 +148,9 @@ def ui_session(args, config: dict) -> dict:
         if args.worker == "thread":
             ui_cores -= worker_cores  # the worker thread is part of the UI process
         stats = app.view.stats
-        return {"frames": frames, "steps_per_s": steps, "steps": app.bridge.state.reports_received - start_steps,
+        memory = {"ui": peak_rss(), "worker": worker_peak_rss(app.bridge)}
+        return {"memory": memory, "frames": frames, "steps_per_s": steps,
+                "steps": app.bridge.state.reports_received - start_steps,
                 "median_scale": float(np.median(scales)),
                 "moving_detail": float(np.median(details)) if details else 1.0, "ui_cores": ui_cores,
                 "worker_cores": worker_cores,
@@ -155,6 +158,23 @@ def ui_session(args, config: dict) -> dict:
     finally:
         app.close()
         window.close()
+
+
+def peak_rss(pid: int | str = "self") -> int:
+    """Peak resident memory (``VmHWM``, bytes) of a process (Linux /proc); 0 where it cannot be read."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def worker_peak_rss(bridge: WorkerBridge) -> int:
+    """The worker process's peak resident memory; 0 for a worker thread (its memory is the UI process's)."""
+    process = getattr(bridge, "_process", None)
+    return peak_rss(process.pid) if process is not None and process.pid else 0
 
 
 def summary(ms: list[float]) -> tuple[float, float, float]:
@@ -240,6 +260,9 @@ def main() -> None:
     print(f"median render scale while measured: {ui['median_scale']:.2f}; median detail while moving: "
           f"{ui['moving_detail']:.2f} of the Gaussians; full-resolution builds completed: {ui['builds']}")
     share = ui["steps_per_s"] / max(alone, 1e-9)
+    memory = ui["memory"]
+    print(f"peak memory: UI process {memory['ui'] / 2**30:.2f} GiB, worker process {memory['worker'] / 2**30:.2f} GiB; "
+          f"{(memory['ui'] + memory['worker']) / ui['gaussians']:,.0f} bytes a Gaussian together")
     print(f"CPU used: UI process (all threads) {ui['ui_cores']:.2f}, worker {ui['worker_cores']:.2f} of "
           f"{os.cpu_count()} cores")
     print(f"worker steps/s: {ui['steps_per_s']:.2f} with the UI, {alone:.2f} alone ({100 * share:.0f} %)")

@@ -69,7 +69,8 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
                         "beside it (OUT: the name without .ply / .compressed.ply)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--max-gaussians", type=int, default=None,
-                   help="cap on the Gaussian count after splits (default: from the free memory)")
+                   help="the most Gaussians the run holds (default: from the free memory): splits stop there; a "
+                        "larger capture is stylized in part, the rest coloured from neighbours (docs/captures.md)")
     p.add_argument("--resume", action="store_true",
                    help="continue the interrupted run with the same inputs and --out from its checkpoint")
     p.add_argument("--checkpoint-every", type=float, default=120.0, metavar="SECONDS",
@@ -109,7 +110,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     engine, s = built.engine, built.engine.settings
     print(f"stylize: {built.scene.count} Gaussians, {len(engine.cameras)} views ({built.cameras.source}), scene kind "
           f"{s.scene_kind}, preset {s.preset} ({s.working_width} px wide)")
-    print(f"CLIP term: {engine.clip_name} ({engine.decisions['clip']})")
+    print(f"CLIP term: {engine.clip_name} ({engine.decisions['clip']})\ncapacity: {engine.decisions.get('capacity')}")
     fingerprint = engine_fingerprint(engine)
     resumed = _resume(engine, ckpt_path, saved, fingerprint) if saved else None
     if saved is None and ckpt_path.exists():

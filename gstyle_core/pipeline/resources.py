@@ -1,15 +1,15 @@
 """Bounded resources: the default cap on the Gaussian count, derived from the memory available at start.
 
-The estimate is the peak resident-memory growth per extra Gaussian of a stylization run (geometry and c_gt with
-their gradients and Adam moments in a refit, c_s with its Adam moments, the per-view colour caches of the
-rasterizer). ``bench/bench_memory_per_gaussian.py`` measured it as the slope of peak RSS (``ru_maxrss``) over
-the Gaussian count, in fresh processes that stylize the demo scene replicated 1x and 3-4x (16 views) through ground
-truth, a pre-processing refit, one stylization epoch and a colour-gradient split with its refit:
-1,646 bytes per Gaussian at 48 px working width, 1,588 at 192 px and 4,229 at 512 px. A fixed part (parameters,
-gradients, Adam moments, one cache record per Gaussian and view) dominates at small widths; the rest grows with
-the pixels a Gaussian covers, i.e. with the square of the width. The model ``BASE_BYTES + PER_WIDTH_SQUARED · w²``
-(1,700 + 0.012 · w²: 1,728 / 2,143 / 4,846 bytes at 48 / 192 / 512 px) lies above all three measurements; above
-512 px it is an extrapolation.
+The estimate is the peak resident-memory growth per extra Gaussian a run holds (geometry and c_gt with their
+gradients and Adam moments in a refit, c_s with its Adam moments, the per-view colour caches of the rasterizer, a
+step's per-entry transients). ``tests/scale_probe.py`` measured it as the slope of peak RSS (``VmHWM``) over the most
+Gaussians held, in fresh processes that stylize captures of 50k and 200k Gaussians made from the demo (generated
+orbit, 16 views; ground truth, a pre-processing split with its refit, one stylization epoch and a colour-gradient
+split with its refit; int32 colour caches): 1,350 bytes a Gaussian at 48 px working width, 1,159 at 256 px and
+1,738 at 512 px (Intel Xeon, 2 cores, 2026-12-01). ``bench/engine_scale.py`` measured 1,226 at 256 px for whole
+``preview`` runs from 150k to 1.2 M Gaussians held (docs/captures.md). The model ``BASE_BYTES + PER_WIDTH_SQUARED ·
+w²`` (1,500 + 0.004 · w²: 1,509 / 1,762 / 2,549 bytes at 48 / 256 / 512 px) lies above all of them; above 512 px it
+is an extrapolation. (The model before, 1,700 + 0.012 · w², came from int64 caches and the demo replicated in place.)
 
 On CUDA the card's memory bounds the count too: ``bench/bench_memory_per_gaussian.py --device cuda`` measured the peak
 of torch's reserved GPU memory growing by 825 bytes a Gaussian at 512 px (716 allocated; the demo ×1 and ×4, an
@@ -22,8 +22,8 @@ from __future__ import annotations
 import math
 import os
 
-BASE_BYTES = 1_700  # per Gaussian, at any width (module docstring)
-PER_WIDTH_SQUARED = 0.012  # per Gaussian and squared pixel of working width
+BASE_BYTES = 1_500  # per Gaussian, at any width (module docstring)
+PER_WIDTH_SQUARED = 0.004  # per Gaussian and squared pixel of working width
 MEMORY_FRACTION = 0.5  # of the memory available at start; the rest for networks, images, the app and others
 FALLBACK_MAX_GAUSSIANS = 2_000_000  # when the available memory cannot be read
 GPU_BYTES_AT_512 = 825  # torch's reserved GPU memory per Gaussian at 512 px (module docstring)
@@ -83,3 +83,15 @@ def default_max_gaussians(working_width: int, available: int | None = None,
             cap, how = card_cap, (f"{card_free / 2**30:.1f} GiB free on the GPU x {MEMORY_FRACTION:g} / "
                                   f"~{per_gpu:,} GPU bytes per Gaussian at {working_width} px")
     return cap, how
+
+
+def gaussian_cap(settings) -> tuple[int, str]:
+    """``(cap, how it was derived)`` of a run with ``settings``: its ``max_gaussians`` when set (> 0), else
+    ``default_max_gaussians`` at its working width (with the card's free memory on a CUDA run)."""
+    if settings.max_gaussians > 0:
+        return int(settings.max_gaussians), "the max_gaussians setting"
+    from ..device import resolve_device
+
+    device = resolve_device(settings.device).raster_device
+    card = card_free_bytes(device) if device.type == "cuda" else None
+    return default_max_gaussians(settings.working_width, card_free=card)

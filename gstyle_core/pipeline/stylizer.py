@@ -37,6 +37,7 @@ from ..raster.gsplat_module import RasterizerSetup
 from ..scene import GaussianScene, rgb_to_sh_dc
 from ..style.clip import clip_term_name
 from ..style.mix import normalise_style_weights
+from .capacity import held_part, with_neighbour_colours
 from .controls import Effect, apply_controls
 from .feather import feathered_colours, merge_unselected
 from .levels import capped_levels, check_refine_widths, level_widths, next_width
@@ -78,7 +79,11 @@ class Stylizer:
         # a selected region (settings.region and/or a ``selection`` mask, region.py): only these Gaussians are
         # pre-processed, split, refitted and stylized
         mask = selection_mask(scene.means, selected_box(settings), selection)
-        self.input_selection = mask  # over the input's Gaussians (None: all); in the checkpoint fingerprint
+        # a capture larger than the run can hold: its most visible part is stylized, the rest takes its colours
+        # from neighbours when the result is made (capacity.py); decided before anything large is built
+        self.full_input, self.full_selection = scene, mask
+        self.capacity, scene, mask = held_part(scene, mask, settings)
+        self.input_selection = mask  # over the held input Gaussians (None: all); in the checkpoint fingerprint
         self.run_state = run = RunState(
             scene, [cameras[i] for i in view_ids], [photos[i] for i in view_ids] if photos is not None else None,
             styles, settings, objective_factory=objective_factory, selection=mask)
@@ -102,13 +107,9 @@ class Stylizer:
         finish = [ColourMatch(run, final=True)] if settings.colour_match_after else []
         self.phases: list[Phase] = [self.ground_truth, self.preprocess, self.colour_match, self.stylize, *levels,
                                     *finish]
-        run.max_gaussians, how = settings.max_gaussians, "max_gaussians setting"
-        if run.max_gaussians <= 0:  # 0: derived from the memory available now (pipeline/resources.py)
-            from .resources import card_free_bytes, default_max_gaussians
-
-            card = card_free_bytes(run.raster_device) if run.raster_device.type == "cuda" else None
-            run.max_gaussians, how = default_max_gaussians(settings.working_width, card_free=card)
-        run.decisions["max_gaussians"] = f"at most {run.max_gaussians:,} Gaussians ({how})"
+        run.max_gaussians = self.capacity.max_gaussians
+        run.decisions["max_gaussians"] = f"at most {run.max_gaussians:,} Gaussians ({self.capacity.how})"
+        run.decisions["capacity"] = self.capacity.note
         self.phase_step = 0  # steps since the run entered the current phase
         self.rasterizer_setup = RasterizerSetup(run.raster_device)  # gsplat's module on CUDA, before the first step
         self.live = LiveControls(self)
@@ -368,7 +369,10 @@ class Stylizer:
         are the input's rows exactly (every attribute, their SH bands included; stylized ones get zero bands)."""
         scene = scene_from_params(self.params)
         scene.sh_dc = rgb_to_sh_dc(feathered_colours(self.run_state, self.c_s.detach()).clamp(0, 1).numpy())
-        return merge_unselected(scene, self.input_scene, self.run_state.active)
+        scene = merge_unselected(scene, self.input_scene, self.run_state.active)
+        selected = self.run_state.active.selected  # a capture larger than the run held: the rest joins it
+        return with_neighbour_colours(scene, self.full_input, self.capacity,
+                                      None if selected is None else selected.numpy(), self.full_selection)
 
     # ----------------------------------------------------------------- checkpoints
     def state_dict(self) -> dict[str, Any]:

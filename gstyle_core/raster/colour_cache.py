@@ -24,6 +24,29 @@ def index_dtype(largest: int) -> type:
     return np.int32 if largest < np.iinfo(np.int32).max else np.int64
 
 
+def _csr(ptr: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]) -> Tensor:
+    """A torch CSR tensor over numpy arrays (no copy, invariants not checked: the kernels guarantee them)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Sparse CSR tensor support is in beta")
+        return torch.sparse_csr_tensor(torch.from_numpy(ptr), torch.from_numpy(cols), torch.from_numpy(vals),
+                                       size=shape, check_invariants=False)
+
+
+def blend_matrices(walk_args: tuple, n_gaussians: int) -> tuple[Tensor, Tensor, np.ndarray]:
+    """The blend-weight matrix W [pixels, Gaussians] of a tile walk (``kernels.count_blend_weights``' arguments),
+    its transpose, both CSR with the narrowest index type that holds them, and the final transmittance [H, W]."""
+    width, height = walk_args[4], walk_args[5]
+    counts, t_final = kernels.count_blend_weights(*walk_args)
+    index = index_dtype(max(int(counts.sum()), counts.shape[0], n_gaussians))
+    row_ptr = np.zeros(counts.shape[0] + 1, index)
+    np.cumsum(counts, out=row_ptr[1:])
+    del counts
+    cols, vals = kernels.fill_blend_weights(*walk_args, row_ptr, index_dtype=index)
+    t_ptr, t_cols, t_vals = kernels.csr_transpose(row_ptr, cols, vals, n_gaussians)
+    shape = (height * width, n_gaussians)
+    return _csr(row_ptr, cols, vals, shape), _csr(t_ptr, t_cols, t_vals, shape[::-1]), t_final
+
+
 class SparseProduct(torch.autograd.Function):
     """y = W x for a constant sparse W; the backward multiplies by the stored W^T (``apply(x, W, W^T)``)."""
 
@@ -75,31 +98,7 @@ class ColourCache:
             lists = build_tile_lists(proj, opacities.to(f32), features)
         args = (lists.offsets, lists.ids, lists.records, lists.tile_order, self.width, self.height, tile_size,
                 lists.tiles_x)
-        counts, t_final = kernels.count_blend_weights(*args)
-        nnz = int(counts.sum())
-        index = index_dtype(max(nnz, counts.shape[0], self.n_gaussians))
-        row_ptr = np.zeros(counts.shape[0] + 1, index)
-        np.cumsum(counts, out=row_ptr[1:])
-        del counts
-        cols, vals = kernels.fill_blend_weights(*args, row_ptr, index_dtype=index)
-        shape = (self.height * self.width, self.n_gaussians)
-        t_ptr, t_cols, t_vals = kernels.csr_transpose(row_ptr, cols, vals, self.n_gaussians)
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="Sparse CSR tensor support is in beta")
-            self.weights = torch.sparse_csr_tensor(
-                torch.from_numpy(row_ptr),
-                torch.from_numpy(cols),
-                torch.from_numpy(vals),
-                size=shape,
-                check_invariants=False,
-            )
-            self.weights_t = torch.sparse_csr_tensor(
-                torch.from_numpy(t_ptr),
-                torch.from_numpy(t_cols),
-                torch.from_numpy(t_vals),
-                size=shape[::-1],
-                check_invariants=False,
-            )
+        self.weights, self.weights_t, t_final = blend_matrices(args, self.n_gaussians)
         self.t_final = torch.from_numpy(t_final)  # [H, W]
 
     @property
