@@ -3,6 +3,7 @@ changed) and everything reaches the panel. ``StudioSync`` is a mixin of ``Studio
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING
 
 from .panels.quality import device_words
@@ -11,6 +12,9 @@ from .result_undo import in_history
 
 if TYPE_CHECKING:
     from .worker import WorkerState
+
+GEOMETRY_MIN_INTERVAL_S = 0.5  # streamed geometry shown at most this often while the engine steps
+GEOMETRY_DUTY = 0.1  # ... and so that its uploads take at most this share of the UI's time
 
 
 def stopped_reason(st: WorkerState) -> str:
@@ -35,6 +39,8 @@ class StudioSync:
     """``StudioApp``'s per-frame updates of its renderer and panel."""
 
     _run_status = ""  # the status line, when it describes the running engine (its resume, a move): ends with it
+    _geometry_shown_at = 0.0  # when streamed geometry was last uploaded (perf_counter seconds)
+    _geometry_cost = 0.0  # how long that upload took (s)
 
     def say_of_run(self, line: str) -> None:
         """A status line about the running engine: cleared when that run ends (``end_run_status``) if still shown."""
@@ -51,25 +57,41 @@ class StudioSync:
             return
         self.bridge.poll()
         st = self.bridge.state
-        if st.snapshots_received == self._snapshots_seen or not st.snapshot:
+        snap = st.snapshot
+        if not snap:
+            return
+        geometry_due = (snap.get("geometry_version") != self._geometry_version and "means" in snap
+                        and self._geometry_due(st))
+        if st.snapshots_received == self._snapshots_seen and not geometry_due:
             return
         self._snapshots_seen = st.snapshots_received
-        snap = st.snapshot
         try:  # upload only what changed: geometry by its version, colours by theirs (c_gt changes with geometry)
-            new_geometry = snap.get("geometry_version") != self._geometry_version and "means" in snap
-            if new_geometry:
+            if geometry_due:
+                t0 = time.perf_counter()
                 self.stylized.update_geometry(snap)
                 self._geometry_version = snap.get("geometry_version")
+                self._geometry_shown_at = time.perf_counter()
+                self._geometry_cost = self._geometry_shown_at - t0
             colour_key = (snap.get("colour_version"), self._geometry_version)
             new_colours = colour_key != self._colour_key or colour_key[0] is None
             if new_colours and "colors" in snap and len(snap["colors"]) == self.stylized.count:
                 self.stylized.update_colors(snap["colors"], DIFFUSE_LAYER)
                 self._colour_key = colour_key
-            gt_stale = new_geometry or "gt" not in self.stylized.layers or self._geometry_version is None
+            gt_stale = geometry_due or "gt" not in self.stylized.layers or self._geometry_version is None
             if gt_stale and "colors_gt" in snap and len(snap["colors_gt"]) == self.stylized.count:
                 self.stylized.update_colors(snap["colors_gt"], "gt")
         except ValueError as exc:
             self.panel.status = f"snapshot ignored: {exc}"
+
+    def _geometry_due(self, st: WorkerState) -> bool:
+        """Whether streamed geometry is shown now. A refit changes it every step (10 a second on the demo, each
+        upload re-packing every Gaussian's textures and re-sorting them): while the engine steps it is shown at most
+        every ``GEOMETRY_MIN_INTERVAL_S`` and so that uploads take at most ``GEOMETRY_DUTY`` of the UI's time
+        (docs/captures.md); the first geometry, and any once the engine stops stepping, at once."""
+        if self._geometry_version is None or not st.stepping:
+            return True
+        wait = max(GEOMETRY_MIN_INTERVAL_S, self._geometry_cost / GEOMETRY_DUTY)
+        return time.perf_counter() - self._geometry_shown_at >= wait
 
     def _fill_panel(self) -> None:
         p = self.panel

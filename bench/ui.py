@@ -16,7 +16,8 @@ after ``--settle`` seconds, once rendering on demand (the default) and once with
 
 Frame time = interval between consecutive frame starts (what the user sees), each frame ending with
 ``ctx.finish()`` (a real window's swap waits for the rasteriser the same way). Prints a table, the peak resident
-memory of the UI process and of the worker's (``VmHWM``, with their sum per Gaussian), then
+memory of the UI process and of the worker's (``VmHWM``, with their sum per Gaussian), with ``--controls`` the
+seconds each artist's control took to take effect (``drive_controls``), then
 ``RESULT ui_fps=… ui_p95_ms=… worker_steps_per_s=… worker_share=…``.
 """
 
@@ -100,6 +101,8 @@ def ui_session(args, config: dict) -> dict:
     app.progressive = args.pacing
     period = 1.0 / args.fps if args.fps > 0 else 0.0
     frames = {"moving": [], "still": []}
+    parts: list[dict[str, float]] = []  # per measured frame: where its time went (``frame_parts``)
+    timed = time_parts(app)
     scales: list[float] = []
     details: list[float] = []
     try:
@@ -124,6 +127,8 @@ def ui_session(args, config: dict) -> dict:
             if last_start is not None and t_measure is not None:
                 frames["moving" if moving else "still"].append((start - last_start) * 1e3)
             last_start = start
+            timed.clear()
+            t_frame = time.perf_counter()
             window.begin_frame()
             screen = window.ctx.screen
             screen.viewport = (0, 0, *window.framebuffer_size)
@@ -131,10 +136,13 @@ def ui_session(args, config: dict) -> dict:
             if moving:
                 app.control.orbit(4.0, 0.0)
             app.frame(screen)
+            t_ui = time.perf_counter()
             window.end_frame(swap=False)
             glfw.swap_buffers(window.handle)
             window.ctx.finish()
             if t_measure is not None:
+                parts.append({**timed, "imgui draw + finish": (time.perf_counter() - t_ui) * 1e3,
+                              "frame": (time.perf_counter() - t_frame) * 1e3, "moving": float(moving)})
                 scales.append(app.view.stats.last_scale)
                 if moving:
                     details.append(app.view.stats.last_detail)
@@ -149,15 +157,103 @@ def ui_session(args, config: dict) -> dict:
             ui_cores -= worker_cores  # the worker thread is part of the UI process
         stats = app.view.stats
         memory = {"ui": peak_rss(), "worker": worker_peak_rss(app.bridge)}
-        return {"memory": memory, "frames": frames, "steps_per_s": steps,
-                "steps": app.bridge.state.reports_received - start_steps,
-                "median_scale": float(np.median(scales)),
-                "moving_detail": float(np.median(details)) if details else 1.0, "ui_cores": ui_cores,
-                "worker_cores": worker_cores,
-                "builds": stats.builds_completed, "gaussians": app.stylized.count}
+        result = {"memory": memory, "parts": parts, "frames": frames, "steps_per_s": steps,
+                  "steps": app.bridge.state.reports_received - start_steps,
+                  "median_scale": float(np.median(scales)),
+                  "moving_detail": float(np.median(details)) if details else 1.0, "ui_cores": ui_cores,
+                  "worker_cores": worker_cores,
+                  "builds": stats.builds_completed, "gaussians": app.stylized.count}
+        result["controls"] = drive_controls(app, window, args.warmup_timeout) if args.controls else []
+        return result
     finally:
         app.close()
         window.close()
+
+
+PARTS = ("engine updates", "scene view")  # the studio's methods timed per frame: their names in the table
+
+
+def time_parts(app: StudioApp) -> dict[str, float]:
+    """Wrap the studio's per-frame work (``PARTS``) so that each frame's milliseconds in it land in the returned dict
+    (cleared by the caller at each frame's start)."""
+    timed: dict[str, float] = {}
+
+    def wrap(name: str, method):
+        def timed_method(*a, **k):
+            t0 = time.perf_counter()
+            try:
+                return method(*a, **k)
+            finally:
+                timed[name] = timed.get(name, 0.0) + (time.perf_counter() - t0) * 1e3
+        return timed_method
+
+    app._apply_engine_updates = wrap("engine updates", app._apply_engine_updates)
+    app.render_view = wrap("scene view", app.render_view)
+    return timed
+
+
+def draw_frame(app: StudioApp, window) -> None:
+    """One studio frame as the measured loop draws it (camera still)."""
+    import glfw
+
+    window.begin_frame()
+    screen = window.ctx.screen
+    screen.viewport = (0, 0, *window.framebuffer_size)
+    screen.use()
+    app.frame(screen)
+    window.end_frame(swap=False)
+    glfw.swap_buffers(window.handle)
+    window.ctx.finish()
+
+
+def drive_controls(app: StudioApp, window, timeout: float) -> list[tuple[str, float, str]]:
+    """``--controls``: after the measurement, with frames drawn all the while, the artist's controls one after
+    another: pause, the NNFM slider doubled, resume until a step lands, export (.ply), restart, then undo (the result
+    before the restart comes back). Returns (control, seconds until it took effect, what showed it)."""
+    from app.panels import Command
+
+    def until(predicate) -> float:
+        t0 = time.perf_counter()
+        while not predicate():
+            if time.perf_counter() - t0 > timeout:
+                raise SystemExit(f"a control did not take effect in {timeout:g} s: {app.panel.status}")
+            draw_frame(app, window)
+        return time.perf_counter() - t0
+
+    bridge, done = app.bridge, []
+    app.execute(Command("pause"))
+    done.append(("pause", until(lambda: bridge.state.paused), "the worker says it paused"))
+    value = 2 * float(bridge.state.params.get("lambda_nnfm", 1.0))
+    app.execute(Command("set_params", {"lambda_nnfm": value}))
+    done.append(("NNFM slider x2", until(lambda: bridge.state.params.get("lambda_nnfm") == value),
+                 "the worker echoes the new weight"))
+    steps = bridge.state.reports_received
+    app.execute(Command("resume"))
+    done.append(("resume", until(lambda: bridge.state.reports_received > steps), "a step lands"))
+    exported = len(bridge.state.exported)
+    app.execute(Command("export", {"format": "ply"}))
+    done.append(("export .ply", until(lambda: len(bridge.state.exported) > exported or bridge.state.error),
+                 f"written: {bridge.state.exported[-1] if bridge.state.exported else bridge.state.error}"))
+    app.execute(Command("restart"))
+    done.append(("restart", until(lambda: app.history.done and app.history.done[-1].action == "restart"),
+                 "the result before it is kept for undo"))
+    app.execute(Command("undo"))
+    done.append(("undo of the result", until(lambda: app.result is not None), f"{app.loaded.scene.count:,} Gaussians "
+                 "shown again" if app.loaded is not None else "shown"))
+    return done
+
+
+def print_slow_frames(parts: list[dict[str, float]], limit_ms: float = 50.0) -> None:
+    """Where the frames over ``limit_ms`` spent their time, against all frames (means, ms): the cause of the p95."""
+    slow = [p for p in parts if p["frame"] > limit_ms]
+    names = [*PARTS, "imgui draw + finish"]
+    print(f"frames over {limit_ms:g} ms: {len(slow)} of {len(parts)} ({sum(p['moving'] for p in slow):.0f} moving); "
+          "mean ms of each part, slow frames / all frames:")
+    for name in names:
+        mean_slow = np.mean([p.get(name, 0.0) for p in slow]) if slow else 0.0
+        print(f"  {name:<22} {mean_slow:8.1f} / {np.mean([p.get(name, 0.0) for p in parts]):6.1f}")
+    rest = [p["frame"] - sum(p.get(n, 0.0) for n in names) for p in slow]
+    print(f"  {'rest (panel, input)':<22} {np.mean(rest) if rest else 0.0:8.1f}")
 
 
 def peak_rss(pid: int | str = "self") -> int:
@@ -231,6 +327,8 @@ def main() -> None:
     p.add_argument("--worker-nice", type=int, default=None, help="niceness added to the worker (default: the app's)")
     p.add_argument("--worker", choices=["process", "thread"], default="process",
                    help="run the engine in a spawned process (the app's choice) or in a thread of the UI process")
+    p.add_argument("--controls", action="store_true",
+                   help="after the measurement, drive pause, a slider, resume, export, restart and undo (timed)")
     p.add_argument("--idle", action="store_true", help="measure the idle CPU share instead (module docstring)")
     p.add_argument("--idle-seconds", type=float, default=5.0)
     p.add_argument("--settle", type=float, default=10.0, help="--idle: seconds from start to the measurement")
@@ -261,6 +359,9 @@ def main() -> None:
           f"{ui['moving_detail']:.2f} of the Gaussians; full-resolution builds completed: {ui['builds']}")
     share = ui["steps_per_s"] / max(alone, 1e-9)
     memory = ui["memory"]
+    print_slow_frames(ui["parts"])
+    for name, seconds, shown in ui["controls"]:
+        print(f"control {name}: {seconds:.1f} s ({shown})")
     print(f"peak memory: UI process {memory['ui'] / 2**30:.2f} GiB, worker process {memory['worker'] / 2**30:.2f} GiB; "
           f"{(memory['ui'] + memory['worker']) / ui['gaussians']:,.0f} bytes a Gaussian together")
     print(f"CPU used: UI process (all threads) {ui['ui_cores']:.2f}, worker {ui['worker_cores']:.2f} of "

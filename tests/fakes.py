@@ -342,3 +342,19 @@ class GatedSort:
         self.started.set()
         assert self.gate.wait(30), "the test never opened the gate"
         return sort_request(request, scratch)
+
+
+def short_pull_run(scene, cameras, channel: int, **overrides):
+    """A short forward-facing ``preview`` engine on ``scene`` whose objective pulls the colours toward a painting of
+    one primary ``channel`` (``MeanColourPull``): four views, 40 px, a forced pre-processing round, one split;
+    ``overrides``: other settings."""
+    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.pipeline.stylizer import Stylizer
+
+    style = np.zeros((8, 8, 3), np.float32)
+    style[..., channel] = 1.0
+    opts = dict(max_views=4, epochs=4, min_steps=0, refit_iterations=2, split_at=(0.5,), working_width=40,
+                preprocess_rounds=1, force_preprocess=True, cull_unseen=False, preprocess_min_child_px=0.0)
+    opts.update(overrides)
+    settings = resolve_settings("preview", "forward", 4, **opts)
+    return Stylizer(scene, cameras, style, settings, objective_factory=MeanColourPull)

@@ -3,23 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
-from fakes import MeanColourPull
+from fakes import short_pull_run
 
 from gstyle_core.pipeline.capacity import nearest_rows, plan_capacity, with_neighbour_colours
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.scene import importance_order
 from tests.synthetic import blob_scene, ring_cameras
 
 
 def _engine(scene, **overrides):
-    style = np.zeros((8, 8, 3), np.float32)
-    style[..., 2] = 1.0
-    opts = dict(max_views=4, epochs=3, min_steps=0, refit_iterations=2, split_at=(0.5,), working_width=40,
-                preprocess_rounds=1, force_preprocess=True, cull_unseen=False, preprocess_min_child_px=0.0)
-    opts.update(overrides)
-    settings = resolve_settings("preview", "forward", 4, **opts)
-    return Stylizer(scene, ring_cameras(4), style, settings, objective_factory=MeanColourPull)
+    return short_pull_run(scene, ring_cameras(4), 2, epochs=3, **overrides)
 
 
 def test_a_capture_that_fits_is_stylized_whole_and_says_so():

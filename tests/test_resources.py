@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import numpy as np
 import torch
-from fakes import MeanColourPull
+from fakes import short_pull_run
 
 from gstyle_core.pipeline.resources import (
     FALLBACK_MAX_GAUSSIANS,
@@ -15,19 +14,11 @@ from gstyle_core.pipeline.resources import (
     default_max_gaussians,
     gpu_bytes_per_gaussian,
 )
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
 from tests.synthetic import blob_scene, ring_cameras
 
 
 def _engine(n=200, **overrides):
-    style = np.zeros((8, 8, 3), np.float32)
-    style[..., 0] = 1.0
-    opts = dict(max_views=4, epochs=4, min_steps=0, refit_iterations=2, split_at=(0.5,), working_width=40,
-                preprocess_rounds=1, force_preprocess=True, cull_unseen=False, preprocess_min_child_px=0.0)
-    opts.update(overrides)
-    settings = resolve_settings("preview", "forward", 4, **opts)
-    return Stylizer(blob_scene(n, seed=3), ring_cameras(4), style, settings, objective_factory=MeanColourPull)
+    return short_pull_run(blob_scene(n, seed=3), ring_cameras(4), 0, **overrides)
 
 
 def test_default_cap_follows_the_available_memory():
