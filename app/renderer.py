@@ -34,8 +34,6 @@ rasterizer's conventions (the original scene in the viewer); the stylized scene 
 from __future__ import annotations
 
 import contextlib
-import math
-import time
 from collections.abc import Mapping, Sequence
 
 import moderngl
@@ -44,8 +42,9 @@ import numpy as np
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.scene import used_sh_degree
 
-from .depth_sort import DEFAULT_BITS, DepthSorter, SortRequest, SortResult
-from .gl_io import gl_dtype, is_software_gl, read_rgb, target_size, texture_bytes
+from .depth_sort import DEFAULT_BITS, DepthSorter
+from .gl_io import gl_dtype, is_software_gl, target_size, texture_bytes
+from .renderer_order import NEAR, DrawOrderMixin
 from .shader_loader import program_sources, shader_source, with_defines
 from .splat_data import (
     TEXTURE_WIDTH,
@@ -63,7 +62,6 @@ from .splat_data import (
 SH_LAYER = "sh"
 DIFFUSE_LAYER = "diffuse"
 SELECTION_LAYER = "__selection__"  # the highlighted Gaussians (r = 1), see ``set_selection``
-NEAR = 0.01
 PROJECTED_VARYINGS = ("out_center", "out_conic", "out_axes")  # 2 + 4 + 4 floats per Gaussian
 PROJECTED_STRIDE = 40  # bytes per projected Gaussian
 PROJECTED_SH_STRIDE = 52  # with the SH colour (+ 3 floats, "out_rgb"): only a renderer with SH coefficients
@@ -71,7 +69,7 @@ SH_UNIT = 4  # texture unit of the SH coefficients in the projection pass (0-3: 
 SOFTWARE_DRAW_CHUNK = 32768  # splats a draw call on a software GL (``SplatRenderer.draw_chunk``)
 
 
-class SplatRenderer:
+class SplatRenderer(DrawOrderMixin):
     """Draw Gaussians into a moderngl framebuffer, matching ``gstyle_core.raster.rasterize``'s maths."""
 
     def __init__(self, ctx: moderngl.Context, sorter: DepthSorter | None = None, layout: str = "compact") -> None:
@@ -240,36 +238,6 @@ class SplatRenderer:
         self.ctx.scissor = None
         return self._instances if self.count else 0
 
-    def prepare(self, camera: Camera, detail: float = 1.0, wait: bool = True) -> bool:
-        """Bring the draw order up to date for ``camera``: submit a sort when the view's depth row, the detail or
-        the geometry changed, and use the newest finished order (``wait``: the order of this request, waiting for
-        it). True when the order in use is this request's."""
-        if not self.count:
-            return True
-        want = self._request_order(camera, detail)
-        self._use_order(self._sorter.take())
-        if wait and self._order_key != want:
-            t0 = time.perf_counter()
-            self._use_order(self._sorter.wait(want))
-            self.last_wait_ms = (time.perf_counter() - t0) * 1e3
-        else:
-            self.last_wait_ms = 0.0
-        return self._order_key == want
-
-    @property
-    def has_order(self) -> bool:
-        """An order of the current geometry's Gaussians is loaded (perhaps of an older view)."""
-        return self._order_key is not None or not self.count
-
-    @property
-    def order_detail(self) -> float:
-        """Fraction of the Gaussians the loaded order was sorted from (the detail it draws)."""
-        return self._order_key[1] / self.count if self._order_key is not None and self.count else 1.0
-
-    def order(self) -> np.ndarray:
-        """The draw order in use (int32 Gaussian indices, back to front), read back from the index buffer."""
-        return np.frombuffer(self._index_buffer.read(size=4 * self._instances), np.int32).copy()
-
     def projected(self) -> dict[str, np.ndarray]:
         """The last projection pass's output in draw order: ``center`` [M, 2] (pixels), ``conic`` [M, 4] (a, b, c,
         opacity), ``axes`` [M, 4] (the quad's half axes; zero = culled), ``rgb`` [M, 3] (SH colour, zero without)."""
@@ -286,11 +254,6 @@ class SplatRenderer:
                 "colours": sum(texture_bytes(t) for t in self._layers.values()),
                 "sh": texture_bytes(self._sh) if self._sh is not None else 0,
                 "projected": self._projected.size, "order": self._index_buffer.size}
-
-    @property
-    def sorter(self) -> DepthSorter:
-        """The thread that sorts this renderer's Gaussians."""
-        return self._sorter
 
     def release(self) -> None:
         """Stop the sorter and free all GL objects."""
@@ -387,30 +350,6 @@ class SplatRenderer:
             raise ValueError(f"unknown colour layer {layer!r}; have {', '.join(self.layers) or 'none'}")
         return self._layers[layer]
 
-    def _request_order(self, camera: Camera, detail: float) -> tuple:
-        """Submit a sort of the view's depth row at this detail unless it is the last one submitted; its key."""
-        keep = self.count if detail >= 1.0 else max(1, int(math.ceil(float(detail) * self.count)))
-        row = np.array(np.asarray(camera.world_to_cam, np.float64)[2], np.float64)
-        want = (row.tobytes(), keep, self.geometry_version, self.sort_bits)
-        if want != self._requested:
-            subset = self._by_importance[:keep] if keep < self.count else None
-            self._sorter.submit(SortRequest(want, self._means, row, NEAR, self.sort_bits, subset))
-            self._requested = want
-        return want
-
-    def _use_order(self, result: SortResult | None) -> None:
-        """Upload a finished order into the index buffer (one of an older geometry is dropped)."""
-        if result is None or result.order is None or result.key[2] != self.geometry_version:
-            return
-        order = result.order
-        if order.nbytes > self._index_buffer.size:
-            self._index_buffer.orphan(max(order.nbytes, 4))
-        if order.size:
-            self._index_buffer.write(order)
-        self._order_key = result.key
-        self._instances = int(order.size)
-        self.sort_count += 1
-
     def _upload_sh(self, sh_dc: np.ndarray, sh_rest: np.ndarray, degree: int) -> None:
         """Upload the coefficients of the SH layer once: a texture array written one layer at a time."""
         n = sh_dc.shape[0]
@@ -442,23 +381,3 @@ class SplatRenderer:
         prog["u_tex_width"].value = TEXTURE_WIDTH
         prog["u_target_size"].value = (float(width), float(height))
 
-
-def draw_views(ctx: moderngl.Context, arrays: Mapping[str, np.ndarray], cams: Sequence[Camera],
-               layout: str = "compact", layer: str = DIFFUSE_LAYER) -> tuple[list[np.ndarray], dict[str, int]]:
-    """``arrays`` drawn once from each of ``cams`` by a renderer of its own in ``layout`` (exact depth order, on
-    black): the 8-bit images (int16, for differences) and the renderer's GL bytes by part (``gl_memory``)."""
-    from .depth_sort import exact_sort_request
-
-    renderer = SplatRenderer(ctx, DepthSorter(exact_sort_request), layout=layout)
-    try:
-        renderer.set_scene(arrays)
-        images = []
-        for cam in cams:
-            fbo = ctx.framebuffer([ctx.texture((cam.width, cam.height), 4)])
-            renderer.render(cam, fbo, (0.0, 0.0, 0.0), layer=layer)
-            images.append(read_rgb(fbo).astype(np.int16))
-            fbo.color_attachments[0].release()
-            fbo.release()
-        return images, renderer.gl_memory()
-    finally:
-        renderer.release()

@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 import moderngl  # noqa: E402
 
 from app.main import parse_size  # noqa: E402
-from app.renderer import draw_views  # noqa: E402
+from app.renderer_views import draw_views  # noqa: E402
 from app.splat_data import LAYOUTS, scene_arrays  # noqa: E402
 from gstyle_core.cameras.generate import generate_cameras  # noqa: E402
 from gstyle_core.io import load_scene  # noqa: E402

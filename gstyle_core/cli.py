@@ -13,7 +13,7 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from .errors import GStyleError
+from .commands import run_parsed
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
@@ -112,6 +112,18 @@ def build_parser() -> argparse.ArgumentParser:
     add_fit_arguments(s)
     s.set_defaults(func=_cmd_fit)
 
+    _add_engine_commands(sub)
+
+    from .cache_cli import add_cache_arguments
+
+    s = sub.add_parser("cache", help="list the cache folder (converted weights, checkpoints) or --clear it")
+    add_cache_arguments(s)
+    s.set_defaults(func=_cmd_cache)
+    return p
+
+
+def _add_engine_commands(sub) -> None:
+    """``gstyle stylize`` and ``gstyle batch`` on the subcommand parsers ``sub``."""
     try:
         from .pipeline.cli import add_stylize_arguments
     except ImportError:  # the stylization engine is optional until it lands
@@ -127,13 +139,6 @@ def build_parser() -> argparse.ArgumentParser:
         add_batch_arguments(s)
         s.set_defaults(func=_cmd_batch)
 
-    from .cache_cli import add_cache_arguments
-
-    s = sub.add_parser("cache", help="list the cache folder (converted weights, checkpoints) or --clear it")
-    add_cache_arguments(s)
-    s.set_defaults(func=_cmd_cache)
-    return p
-
 
 def run(argv: Sequence[str] | None, func_wrapper: Callable[[Callable[[], int]], int] | None = None) -> int:
     """Parse ``argv`` and run the command; GStyleError and bad paths become one line and exit status 2 (writes
@@ -141,23 +146,7 @@ def run(argv: Sequence[str] | None, func_wrapper: Callable[[Callable[[], int]], 
     log and exit status 1."""
     args = build_parser().parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)  # as given: ``gstyle stylize``'s resume command
-    try:
-        return int(args.func(args) or 0)
-    except GStyleError as exc:
-        print(f"gstyle {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:  # a path that cannot be read (or another system error): one line all the same
-        where = f": {exc.filename}" if exc.filename else ""
-        print(f"gstyle {args.command}: error: {' '.join(str(exc.strerror or exc).split())}{where}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"gstyle {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:  # noqa: BLE001 - a bug: one line for the artist, its traceback in a crash log
-        from .crash import crash_line
-
-        print(crash_line(args.command, exc, args.argv), file=sys.stderr)
-        return 1
+    return run_parsed(args)
 
 
 def main() -> None:

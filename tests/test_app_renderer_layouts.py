@@ -10,7 +10,8 @@ moderngl = pytest.importorskip("moderngl")
 
 from synthetic import blob_scene, look_at_camera  # noqa: E402
 
-from app.renderer import SplatRenderer, draw_views  # noqa: E402
+from app.renderer import SplatRenderer  # noqa: E402
+from app.renderer_views import draw_views  # noqa: E402
 from app.splat_data import (  # noqa: E402
     geometry_textures,
     scale_exponent,

@@ -179,17 +179,28 @@ def write_results(jobs: list[Job], out_dir: Path) -> int:
     return 1 if failed else 0
 
 
-def run_in_process(jobs: list[Job], pending: list[Job]) -> None:
-    """Each job through ``gstyle_core.cli.run`` here, its output to its log; Ctrl+C stops the batch (the job
-    keeps its checkpoint: a rerun resumes it)."""
-    from ..cli import run
+def stylize_in_process(argv: list[str]) -> int:
+    """``gstyle stylize`` with a job's arguments (``job_argv``: "stylize" first) in this process, under the command
+    line's error contract (``commands.run_parsed``): its exit status."""
+    from ..commands import run_parsed
+    from .cli import add_stylize_arguments, stylize_command
 
+    parser = argparse.ArgumentParser(prog="gstyle stylize")
+    add_stylize_arguments(parser)
+    args = parser.parse_args(argv[1:])
+    args.command, args.func, args.argv = "stylize", stylize_command, list(argv)
+    return run_parsed(args)
+
+
+def run_in_process(jobs: list[Job], pending: list[Job]) -> None:
+    """Each job through ``stylize_in_process`` here, its output to its log; Ctrl+C stops the batch (the job
+    keeps its checkpoint: a rerun resumes it)."""
     for job in pending:
         job.status, t0 = "running", time.perf_counter()
         progress(jobs, 1)
         with open(job.log, "w", encoding="utf-8") as log, contextlib.redirect_stdout(log), \
                 contextlib.redirect_stderr(log):
-            code = run(job.argv)
+            code = stylize_in_process(job.argv)
         finish(job, code, time.perf_counter() - t0)
         if code == 130:
             raise KeyboardInterrupt

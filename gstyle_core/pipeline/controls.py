@@ -18,14 +18,15 @@ import copy
 import enum
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ..style.mix import weights_with_mix
 from ..style.painting_size import check_style_scale
 from .arg_types import check_palette_match, on_off_arg, palette_match_arg, style_scale_arg
 
-if TYPE_CHECKING:
-    from .settings import StylizeSettings
+# A ``settings.StylizeSettings``: settings.py imports this module, so nothing here imports it back (not even for
+# typing); the controls read and write its attributes by name.
+Settings = Any
 
 
 class Effect(enum.Flag):
@@ -66,8 +67,8 @@ class Control:
     log: bool  # the panel's slider is on a logarithmic scale
     tooltip: str
     effects: Effect
-    read: Callable[[StylizeSettings], float]
-    write: Callable[[StylizeSettings, Any], None]  # ValueError saying why a value is refused
+    read: Callable[[Settings], float]
+    write: Callable[[Settings, Any], None]  # ValueError saying why a value is refused
     widget: str = "slider"  # "slider" or "checkbox" (0/1)
     fmt: str = "%.3g"  # the slider's number format
     tolerance: float = 0.0  # a change of the read value by at most this is none (float noise)
@@ -81,52 +82,52 @@ class Control:
         return "--" + self.name.replace("_", "-")
 
 
-def _write_weight(term: str) -> Callable[[StylizeSettings, Any], None]:
-    def write(s: StylizeSettings, value: Any) -> None:
+def _write_weight(term: str) -> Callable[[Settings, Any], None]:
+    def write(s: Settings, value: Any) -> None:
         s.weights = replace(s.weights, **{term: float(value)})
 
     return write
 
 
-def _write_strength(s: StylizeSettings, value: Any) -> None:
+def _write_strength(s: Settings, value: Any) -> None:
     if not float(value) >= 0:
         raise ValueError(f"strength must be 0 or more, got {value}")
     s.strength = float(value)
 
 
-def _write_style_scale(s: StylizeSettings, value: Any) -> None:
+def _write_style_scale(s: Settings, value: Any) -> None:
     s.style_scale = check_style_scale(value)
 
 
-def _write_palette_match(s: StylizeSettings, value: Any) -> None:
+def _write_palette_match(s: Settings, value: Any) -> None:
     s.palette_match = check_palette_match(value)
 
 
-def _write_switch(name: str) -> Callable[[StylizeSettings, Any], None]:
+def _write_switch(name: str) -> Callable[[Settings, Any], None]:
     """The writer of an on/off setting (a checkbox: any true value is on)."""
-    def write(s: StylizeSettings, value: Any) -> None:
+    def write(s: Settings, value: Any) -> None:
         setattr(s, name, bool(value))
 
     return write
 
 
-def _write_split_rate(s: StylizeSettings, value: Any) -> None:
+def _write_split_rate(s: Settings, value: Any) -> None:
     s.split_rate = float(value)
 
 
-def _write_lr(s: StylizeSettings, value: Any) -> None:
+def _write_lr(s: Settings, value: Any) -> None:
     """The starting learning rate; the final one keeps its ratio to it."""
     ratio = s.lr_end / s.lr_start
     s.lr_start = float(value)
     s.lr_end = float(value) * ratio
 
 
-def _read_mix(s: StylizeSettings) -> float:
+def _read_mix(s: Settings) -> float:
     """The last painting's share of a mix (0 with one painting)."""
     return s.style_weights[-1] / sum(s.style_weights) if len(s.style_weights) > 1 else 0.0
 
 
-def _write_mix(s: StylizeSettings, value: Any) -> None:
+def _write_mix(s: Settings, value: Any) -> None:
     """The last painting takes ``value``, the others share the rest (the engine holds one weight per painting)."""
     if len(s.style_weights) > 1:
         s.style_weights = weights_with_mix(s.style_weights, float(value))
@@ -273,12 +274,12 @@ def panel_controls(widget: str) -> tuple[Control, ...]:
     return tuple(row for row in CONTROLS if row.widget == widget and not row.with_paintings)
 
 
-def read_controls(settings: StylizeSettings) -> dict[str, float]:
+def read_controls(settings: Settings) -> dict[str, float]:
     """Every control's value in ``settings`` (keep colours as 0/1; the mix: the last painting's share)."""
     return {row.name: float(row.read(settings)) for row in CONTROLS}
 
 
-def apply_controls(settings: StylizeSettings, values: Mapping[str, Any]) -> Effect:
+def apply_controls(settings: Settings, values: Mapping[str, Any]) -> Effect:
     """Set the controls in ``values`` (None: keep) on ``settings``, in place; returns what the engine must do now.
 
     Every value is checked before anything changes: an unknown name or a refused value raises ``ValueError`` and
