@@ -40,6 +40,7 @@ from app.open_files import load_scene_with_cameras  # noqa: E402
 from app.studio import StudioApp  # noqa: E402
 from app.window import open_window  # noqa: E402
 from app.worker import ThreadWorkerBridge, WorkerBridge  # noqa: E402
+from gstyle_core.machine import peak_rss_bytes  # noqa: E402
 
 SEGMENT_S = 3.0
 
@@ -156,7 +157,7 @@ def ui_session(args, config: dict) -> dict:
         if args.worker == "thread":
             ui_cores -= worker_cores  # the worker thread is part of the UI process
         stats = app.view.stats
-        memory = {"ui": peak_rss(), "worker": worker_peak_rss(app.bridge)}
+        memory = {"ui": peak_rss_bytes(), "worker": worker_peak_rss(app.bridge)}
         result = {"memory": memory, "parts": parts, "frames": frames, "steps_per_s": steps,
                   "steps": app.bridge.state.reports_received - start_steps,
                   "median_scale": float(np.median(scales)),
@@ -256,21 +257,10 @@ def print_slow_frames(parts: list[dict[str, float]], limit_ms: float = 50.0) -> 
     print(f"  {'rest (panel, input)':<22} {np.mean(rest) if rest else 0.0:8.1f}")
 
 
-def peak_rss(pid: int | str = "self") -> int:
-    """Peak resident memory (``VmHWM``, bytes) of a process (Linux /proc); 0 where it cannot be read."""
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 0
-
-
 def worker_peak_rss(bridge: WorkerBridge) -> int:
     """The worker process's peak resident memory; 0 for a worker thread (its memory is the UI process's)."""
     process = getattr(bridge, "_process", None)
-    return peak_rss(process.pid) if process is not None and process.pid else 0
+    return peak_rss_bytes(process.pid) if process is not None and process.pid else 0
 
 
 def summary(ms: list[float]) -> tuple[float, float, float]:

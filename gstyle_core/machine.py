@@ -95,3 +95,14 @@ def set_torch_threads(count: int) -> None:
 
 if __name__ == "__main__":
     print(cpu_description())
+
+
+def peak_rss_bytes(pid: int | str = "self") -> int:
+    """Peak resident memory (``VmHWM``, bytes) of a process, from Linux's /proc; 0 where it cannot be read."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0

@@ -22,17 +22,10 @@ from densify import densify  # noqa: E402
 
 from gstyle_core.assets import DEMO_SCENE  # noqa: E402
 from gstyle_core.io import load_scene, save_scene  # noqa: E402
+from gstyle_core.machine import peak_rss_bytes  # noqa: E402
 from gstyle_core.pipeline.build import BuildRequest, build_stylizer  # noqa: E402
 
 SHORT = {"epochs": 1.0, "refit_iterations": 4}
-
-
-def peak_rss() -> int:
-    """VmHWM of this process, bytes."""
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmHWM:"):
-            return int(line.split()[1]) * 1024
-    raise RuntimeError("no VmHWM in /proc/self/status")
 
 
 def main(n: int, width: int | None = None) -> dict:
@@ -47,7 +40,7 @@ def main(n: int, width: int | None = None) -> dict:
             engine.step()
             most = max(most, engine.gaussian_count)
         out = engine.stylized_scene()
-    return {"n": n, "peak": peak_rss(), "most": most, "out": out.count, "capacity": engine.decisions["capacity"]}
+    return {"n": n, "peak": peak_rss_bytes(), "most": most, "out": out.count, "capacity": engine.decisions["capacity"]}
 
 
 if __name__ == "__main__":

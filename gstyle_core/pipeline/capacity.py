@@ -8,7 +8,7 @@ The run can hold ``max_gaussians`` Gaussians (``--max-gaussians``, or derived fr
 * **More than fit**: the run holds the ``max_gaussians`` most visible Gaussians (opacity × area of their two
   largest axes, ``scene.importance_order``; the small faint ones are left out first) and stylizes them without
   splits; every other Gaussian keeps its geometry and takes the stylized colour of its nearest held Gaussian
-  (``neighbour_colours``, by centre). The result has every input Gaussian, never fewer.
+  (``with_neighbour_colours``, by centre). The result has every input Gaussian, never fewer.
 
 The decision is one line (``CapacityPlan.note``): the CLI prints it before the run starts, OUT.json keeps it under
 ``decisions.capacity``.
@@ -75,13 +75,17 @@ def nearest_rows(points: np.ndarray, queries: np.ndarray, workers: int = -1) -> 
 
     if len(points) == 0:
         raise ValueError("nearest_rows: no points to search")
-    tree = cKDTree(np.nan_to_num(np.asarray(points, np.float64), nan=0.0, posinf=0.0, neginf=0.0))
+    tree = cKDTree(_finite(points))
     rows = np.empty(len(queries), np.int64)
     for start in range(0, len(queries), NEIGHBOUR_CHUNK):
-        part = np.nan_to_num(np.asarray(queries[start:start + NEIGHBOUR_CHUNK], np.float64), nan=0.0, posinf=0.0,
-                             neginf=0.0)
+        part = _finite(queries[start:start + NEIGHBOUR_CHUNK])
         rows[start:start + len(part)] = tree.query(part, k=1, workers=workers)[1]
     return rows
+
+
+def _finite(points: np.ndarray) -> np.ndarray:
+    """``points`` as float64 with every non-finite coordinate at 0."""
+    return np.nan_to_num(np.asarray(points, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
 
 
 def with_neighbour_colours(stylized: GaussianScene, full_input: GaussianScene, plan: CapacityPlan,
@@ -102,21 +106,14 @@ def with_neighbour_colours(stylized: GaussianScene, full_input: GaussianScene, p
     if recolour.any() and len(sources):
         near = sources[nearest_rows(stylized.means[sources], others.means[recolour])]
         others.sh_dc[recolour] = stylized.sh_dc[near].astype(others.sh_dc.dtype)
-    bands = max(stylized.sh_rest.shape[1], others.sh_rest.shape[1])
-    others_rest = _bands(others.sh_rest, bands)
-    others_rest[recolour] = 0.0
+    degree = max(stylized.sh_degree, others.sh_degree)  # one SH layout for both parts
+    stylized, others = (p if p.sh_degree == degree else p.with_sh_degree(degree) for p in (stylized, others))
+    others.sh_rest[recolour] = 0.0
     return GaussianScene(
         means=np.concatenate([stylized.means, others.means]).astype(np.float32),
         log_scales=np.concatenate([stylized.log_scales, others.log_scales]).astype(np.float32),
         quats=np.concatenate([stylized.quats, others.quats]).astype(np.float32),
         opacity_logits=np.concatenate([stylized.opacity_logits, others.opacity_logits]).astype(np.float32),
         sh_dc=np.concatenate([stylized.sh_dc, others.sh_dc]).astype(np.float32),
-        sh_rest=np.concatenate([_bands(stylized.sh_rest, bands), others_rest]),
+        sh_rest=np.concatenate([stylized.sh_rest, others.sh_rest]),
     )
-
-
-def _bands(sh_rest: np.ndarray, bands: int) -> np.ndarray:
-    """``sh_rest`` zero-padded to ``bands`` coefficients."""
-    out = np.zeros((sh_rest.shape[0], bands, 3), np.float32)
-    out[:, :sh_rest.shape[1]] = sh_rest
-    return out
