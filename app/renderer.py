@@ -14,7 +14,7 @@ passes:
   geometry stage expands into each splat's quad (its 3-sigma box along its own axes, shrunk to where the fragment
   stage would discard alpha < 1/255 anyway); the vertex stage only fetches the colour. Instancing cost a fixed
   amount per instance on llvmpipe; what remains is fill (every splat covers at least ~18 pixels after the
-  0.3 px^2 dilation): ``bench/gl_frame_parts.py`` splits a moving frame's time into its parts. On a software GL
+  0.3 px^2 dilation): ``bench/studies/gl_frame_parts.py`` splits a moving frame's time into its parts. On a software GL
   the draw goes in calls of ``draw_chunk`` splats, each waiting for the one before it (llvmpipe's memory).
 
 The back-to-front order comes from a sorter thread (``app/depth_sort.py``: a counting sort of quantised depth keys

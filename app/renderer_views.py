@@ -1,4 +1,5 @@
-"""A scene drawn from given cameras by a renderer of its own (the layouts' tests and ``bench/viewer_layouts.py``)."""
+"""A scene drawn from given cameras by a renderer of its own (the layouts' tests and
+``bench/studies/viewer_layouts.py``)."""
 
 from __future__ import annotations
 

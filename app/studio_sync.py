@@ -87,7 +87,7 @@ class StudioSync:
         """Whether streamed geometry is shown now. A refit changes it every step (10 a second on the demo, each
         upload re-packing every Gaussian's textures and re-sorting them): while the engine steps it is shown at most
         every ``GEOMETRY_MIN_INTERVAL_S`` and so that uploads take at most ``GEOMETRY_DUTY`` of the UI's time
-        (docs/studio-performance.md); the first geometry, and any once the engine stops stepping, at once."""
+        (docs/notes/studio-performance.md); the first geometry, and any once the engine stops stepping, at once."""
         if self._geometry_version is None or not st.stepping:
             return True
         wait = max(GEOMETRY_MIN_INTERVAL_S, self._geometry_cost / GEOMETRY_DUTY)

@@ -1,10 +1,10 @@
 """Worker bridge, the UI's side: start the engine worker (``app/engine_host.py``) in a spawned process, command it
 and poll its messages through queues.
 
-Transport: pickled numpy through ``multiprocessing`` queues (measured by ``bench/bench_worker_transfer.py``:
-fast enough for colour updates of 100k+ Gaussians, see the report). A credit semaphore bounds the snapshots in
-flight (``SNAPSHOT_CREDITS``). The worker runs with one compute thread and a raised nice value, and ignores Ctrl+C:
-the studio asks it to save and stop (``quit``).
+Transport: pickled numpy through ``multiprocessing`` queues, fast enough for colour updates of 1.2 M Gaussians a
+step (``bench/studio_rate.py`` counts the snapshots arriving a second, ``bench/ui.py`` the frames beside them). A credit
+semaphore bounds the snapshots in flight (``SNAPSHOT_CREDITS``). The worker runs with one compute thread and a raised
+nice value, and ignores Ctrl+C: the studio asks it to save and stop (``quit``).
 """
 
 from __future__ import annotations

@@ -2,6 +2,7 @@
 against one ``gstyle batch`` with several jobs at once, in one run on this machine.
 
     python bench/batch_speedup.py [--jobs 4] [--threads 4] [--preset preview] [--device cpu] [--fern PATH]
+                                  [--scenes fountain,fern] [--paintings starry,wave,autumn]
 
 The six runs are what an artist types by hand: one ``python -m gstyle_core.cli stylize`` process per pair, each with
 torch's own threads (every core), the fern with its LLFF cameras. The batch runs the same jobs from the atlas's plan
@@ -80,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--device", default="cpu", help="both parts' --device")
     p.add_argument("--fern", default=None, help="a fitted fern (default: bench/tradeoff.py's)")
     p.add_argument("--paintings", default=",".join(tradeoff.ATLAS_PAINTINGS))
+    p.add_argument("--scenes", default="fountain,fern", help="comma-separated, of the atlas's scenes")
     p.add_argument("--work", default=str(ROOT / "out" / "batch_speedup"))
     args = p.parse_args(argv)
     from gstyle_core.machine import cpu_info
@@ -89,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     paintings = {n: tradeoff.PAINTINGS[n].resolve()  # checked before the fern, which may be fitted first
                  for n in tradeoff.selected(args.paintings, tradeoff.PAINTINGS, "painting")}
     scenes = {n: (s.resolve(), None if c is None else c.resolve())
-              for n, (s, c) in tradeoff.scene_paths(["fountain", "fern"], fern).items()}
+              for n, (s, c) in tradeoff.scene_paths(args.scenes.split(","), fern).items()}
     options = ["--preset", args.preset, "--device", args.device]
     work = Path(args.work)
     cpu = cpu_info()

@@ -11,6 +11,10 @@ they are. Per size, one after another in this one run, each in a fresh process:
 * the result written as ``.ply``, ``.spz`` and ``.compressed.ply`` and read back (``gstyle_core.io``), timed, with
   the count read back checked against the count written (``--no-export`` skips this).
 
+Before the first size, one tiny run (``GSTYLE_SMOKE=1`` on the bundled demo, untimed) pays what only a machine's
+first run pays: numba's compiled kernels written to their cache, VGG-16 converted into the cache folder, the
+precision timed for this CPU; without it the first size's time holds them (``--no-warmup``).
+
 Beside the per-size figures, the memory slope: (peak of a size - peak of the smallest) / (its Gaussians - the
 smallest's), the bytes an extra Gaussian costs once the fixed part (torch, the networks) is paid.
 
@@ -58,10 +62,11 @@ def parse_sizes(text: str) -> list[int]:
     return sizes
 
 
-def run_stylize(scene: Path, out: Path, args: argparse.Namespace) -> dict:
-    """``gstyle stylize`` in a fresh process: its OUT.json with the child's peak RSS and wall time added."""
-    command = [sys.executable, "-m", "gstyle_core.cli", "stylize", str(scene), "--preset", args.preset,
-               "--out", str(out), "--force"]
+def run_stylize(scene: Path | None, out: Path, args: argparse.Namespace, smoke: bool = False) -> dict:
+    """``gstyle stylize`` in a fresh process (``scene`` None: the bundled demo; ``smoke``: with ``GSTYLE_SMOKE=1``,
+    the tiniest run): its OUT.json with the child's peak RSS and wall time added."""
+    command = [sys.executable, "-m", "gstyle_core.cli", "stylize", *([str(scene)] if scene else []),
+               "--preset", args.preset, "--out", str(out), "--force"]
     if args.style:
         command += ["--style", str(args.style)]
     if args.threads:
@@ -69,13 +74,15 @@ def run_stylize(scene: Path, out: Path, args: argparse.Namespace) -> dict:
     log = out.with_suffix(".log")
     t0 = time.perf_counter()
     with open(log, "w") as fh:
-        child = subprocess.Popen(command, stdout=fh, stderr=subprocess.STDOUT, cwd=ROOT)
+        env = dict(os.environ, GSTYLE_SMOKE="1") if smoke else None
+        child = subprocess.Popen(command, stdout=fh, stderr=subprocess.STDOUT, cwd=ROOT, env=env)
         _, status, usage = os.wait4(child.pid, 0)
     wall = time.perf_counter() - t0
     code = os.waitstatus_to_exitcode(status)
     if code != 0:
         tail = log.read_text(errors="replace").replace("\r", "\n").splitlines()[-5:]
-        raise SystemExit(f"gstyle stylize on {scene.name} failed (exit {code}): " + " | ".join(tail))
+        name = scene.name if scene else "the demo"
+        raise SystemExit(f"gstyle stylize on {name} failed (exit {code}): " + " | ".join(tail))
     record = json.loads(out.with_suffix(".json").read_text())
     record["wall_seconds"] = wall
     record["peak_rss"] = usage.ru_maxrss * 1024  # kB on Linux
@@ -160,6 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--threads", type=int, default=0, help="torch threads of each run (default: torch's choice)")
     p.add_argument("--no-export", action="store_true", help="skip the export and reopen round trips")
     p.add_argument("--tmp", default=None, help="folder for the scenes and results (default: the system's)")
+    p.add_argument("--no-warmup", action="store_true", help="no untimed tiny run before the first size")
     args = p.parse_args(argv)
     if not args.source.exists():
         raise SystemExit(f"no capture at {args.source} (../shared/data absent? give --source)")
@@ -169,6 +177,9 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     with tempfile.TemporaryDirectory(dir=args.tmp) as tmp:
         folder = Path(tmp)
+        if not args.no_warmup:
+            warm = run_stylize(None, folder / "warmup.ply", args, smoke=True)
+            print(f"warm-up (untimed): {warm['wall_seconds']:.0f} s", flush=True)
         for n in args.sizes:
             scene_path = folder / f"capture_{n}.ply"
             save_scene(densify(source, n), scene_path)

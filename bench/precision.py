@@ -14,7 +14,8 @@
    seconds on a shared machine scatter by 2× (with two threads both figures suffer from a busy core).
 The table gives each precision's figures (medians over the rounds) and, against fp32 in the same run, the stylize
 phase's speed-up (wall and CPU seconds), the NNFM drop difference in points and the structure difference. The
-machine's load (``os.getloadavg``) is printed beside every run. Last line: ``RESULT`` with them per scene.
+machine's load (``os.getloadavg``) is printed beside every run. Last line: ``RESULT`` with them per scene (with
+``--floor-only``: the floors).
 """
 
 from __future__ import annotations
@@ -154,8 +155,11 @@ def main() -> None:
     if args.threads:
         set_torch_threads(args.threads)
     print(f"cpu: {cpu_description()}; torch {torch.__version__}, {torch.get_num_threads()} threads; {load()}")
-    print_floor(floor_ms(args.floor_repeats))
+    floor = floor_ms(args.floor_repeats)
+    print_floor(floor)
     if args.floor_only:
+        print("RESULT " + " ".join(f"floor_{part}_{p}_ms={floor[p][part]:.1f}"
+                                   for part in ("vgg", "search") for p in ("fp32", "bf16")))
         return
     out_dir = Path(args.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -28,7 +28,6 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-import torch
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -37,6 +36,7 @@ from gstyle_core.io import validate_and_repair  # noqa: E402
 from gstyle_core.machine import set_torch_threads  # noqa: E402
 from gstyle_core.pipeline.settings import resolve_settings  # noqa: E402
 from gstyle_core.pipeline.stylizer import Stylizer  # noqa: E402
+from tests.fakes import MeanColourPull  # noqa: E402
 from tests.fuzzcases import (  # noqa: E402
     CAMERA_FORMATS,
     IMAGE_FORMATS,
@@ -124,21 +124,6 @@ def fuzz(formats: list[str], cases: int, seed: int, workdir: Path) -> tuple[int,
     return total, failed
 
 
-class MeanColourObjective:
-    """Stand-in objective: pulls the render's mean colour to the style's (cheap, differentiable)."""
-
-    def __init__(self, style, settings):
-        self.target = torch.as_tensor(style.reshape(-1, 3).mean(0))
-        self.weights = settings.weights
-
-    def set_weights(self, weights):
-        self.weights = weights
-
-    def __call__(self, image, content, view):
-        loss = self.weights.nnfm * ((image.reshape(-1, 3).mean(0) - self.target) ** 2).sum()
-        return loss, {"nnfm": float(loss.detach())}
-
-
 def current_rss_mb() -> float:
     with open("/proc/self/statm") as fh:
         return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
@@ -157,7 +142,7 @@ def stylize_runs(runs: int, seed: int) -> int:
         start, steps, result = time.perf_counter(), 0, "ok"
         try:
             engine = Stylizer(blob_scene(200, seed=seed + run), ring_cameras(4), style, settings,
-                              objective_factory=MeanColourObjective)
+                              objective_factory=MeanColourPull)
             while not engine.done and steps < MAX_STEPS:
                 report = engine.step()
                 steps += 1

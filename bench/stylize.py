@@ -192,15 +192,17 @@ def network_sizes(engine) -> list[tuple[tuple[int, int], tuple[int, int]]]:
     return out
 
 
-def run_timed(engine, steps: int) -> tuple[dict[str, list[float]], list[float], PartTimer | None, list[int]]:
-    """Step the engine to ``steps`` timed stylize steps (after 5 untimed ones): the seconds of every step per phase,
-    of every stylize step with losses, the part timer of the timed steps and the views of each timed step."""
+def run_timed(engine, steps: int, warmup: int = 5) -> tuple[dict[str, list[float]], list[float], PartTimer | None,
+                                                             list[int]]:
+    """Step the engine to ``steps`` timed stylize steps (after ``warmup`` untimed ones): the seconds of every step per
+    phase, of every stylize step with losses (the untimed ones first), the part timer of the timed steps and the
+    views of each timed step."""
     phase_times: dict[str, list[float]] = {}
     stylize_times: list[float] = []
     timer: PartTimer | None = None
     step_views: list[int] = []
-    while not engine.done and len(stylize_times) < steps + 5:
-        timed = engine.phase == "stylize" and len(stylize_times) >= 5
+    while not engine.done and len(stylize_times) < steps + warmup:
+        timed = engine.phase == "stylize" and len(stylize_times) >= warmup
         if timed and timer is None:
             timer = instrument(engine)
         if timed and engine.stylize.step_index not in engine.split_steps:
@@ -237,6 +239,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_stylize_arguments(p)
     p.add_argument("--steps", type=int, default=60, help="stylization steps to time (after warm-up)")
+    p.add_argument("--warmup", type=int, default=5, help="stylization steps not timed first")
     p.add_argument("--whole-frames", action="store_true", help="VGG on whole frames (crop_to_scene = False)")
     p.add_argument("--levels", action="store_true",
                    help="go on into the finer levels (--refine-widths or the preset's) and time their steps too")
@@ -247,7 +250,7 @@ def main() -> None:
     request = build_request(args)
     request.overrides["crop_to_scene"] = not args.whole_frames
     engine, scene, _, cams, _ = build_stylizer(request)
-    phase_times, stylize_times, timer, step_views = run_timed(engine, args.steps)
+    phase_times, stylize_times, timer, step_views = run_timed(engine, args.steps, args.warmup)
     cam = engine.cameras[0]
     pairs = network_sizes(engine)
     sizes = [p[0] for p in pairs]
@@ -255,7 +258,7 @@ def main() -> None:
     floor = statistics.mean(floors[pair] for pair in pairs)
     full_floor = floor_time(engine.objective, cam.height, cam.width)
     at = {p: floor_time(networks_at(engine, p), cam.height, cam.width) for p in ("fp32", "bf16")}
-    timed_steps = stylize_times[5:]
+    timed_steps = stylize_times[args.warmup:]
     step = statistics.mean(timed_steps) if timed_steps else float("nan")
     views_per_step = engine.settings.views_per_step
     # the floor on the same pixels: each timed step's own views (their boxes), summed

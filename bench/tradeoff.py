@@ -30,7 +30,8 @@ group.
 
 Writes ``docs/atlas.csv`` (``--merge``: the rows of other points kept) and ``docs/atlas_DEVICE.png`` (NNFM drop
 at 256 px against time, the Pareto front per scene / painting among the points that keep the structure at 1024 px);
-``--replot`` redraws from the CSV, ``--table`` prints docs/tradeoffs.md's table. ``RESULT`` line last.
+``--replot`` redraws from the CSV, ``--table`` prints docs/notes/tradeoffs.md's table, ``--tiers-table`` writes the
+tiers' table of the README and docs/tiers.md. ``RESULT`` line last.
 """
 
 from __future__ import annotations
@@ -50,11 +51,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
+TIER_TABLE_PAGES = (ROOT / "README.md", ROOT / "docs" / "tiers.md")  # pages whose tiers' table the CSV generates
 
 import tradeoff_report as report  # noqa: E402
 
 from gstyle_core.errors import GStyleError  # noqa: E402
 from gstyle_core.outputs import BATCH_TABLE  # noqa: E402
+from gstyle_core.pipeline.build import SMOKE_DISPLAY_WIDTH, smoke_run  # noqa: E402
 
 SHARED = Path(os.environ.get("GSTYLE_SHARED_DATA", ROOT.parent / "shared" / "data"))  # a copy elsewhere: the env
 FERN_PHOTOS = SHARED / "scenes" / "llff_fern"  # photos + poses: the fern's cameras and ground truth
@@ -75,7 +78,8 @@ TIERS = ("preview", "balanced", "final")
 DEVICES = {"cpu-fp32": ["--device", "cpu", "--precision", "fp32"],
            "cpu-bf16": ["--device", "cpu", "--precision", "bf16"],
            "cuda": ["--device", "cuda", "--precision", "auto"]}
-DISPLAY_WIDTH = 1024  # the speckle and structure at a display's size, every tier
+# the speckle and structure at a display's size, every tier (a smoke run: at the engine's smoke width)
+DISPLAY_WIDTH = SMOKE_DISPLAY_WIDTH if smoke_run() else 1024
 KNOB_PAIR = ("fountain", "starry")
 KNOBS = [  # (label, tier, gstyle stylize options): the controls an artist moves, one at a time
     ("strength 0.5", "preview", ["--strength", "0.5"]), ("strength 2", "preview", ["--strength", "2"]),
@@ -339,7 +343,9 @@ def parse_args(argv: list[str] | None):
     p.add_argument("--out", default=str(ROOT / "docs" / "atlas.csv"), help="the atlas CSV (plots beside it)")
     p.add_argument("--merge", action="store_true", help="keep the CSV's rows of points this run does not measure")
     p.add_argument("--replot", action="store_true", help="the fronts and plots again from the CSV")
-    p.add_argument("--table", action="store_true", help="print the CSV as docs/tradeoffs.md's table")
+    p.add_argument("--table", action="store_true", help="print the CSV as docs/notes/tradeoffs.md's table")
+    p.add_argument("--tiers-table", action="store_true",
+                   help="write the tiers' table generated from the CSV into the README and docs/tiers.md")
     return p.parse_args(argv)
 
 
@@ -348,6 +354,12 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     if args.table:
         print("\n".join(report.markdown_table(report.read_rows(out))))
+        return 0
+    if args.tiers_table:
+        rows = report.read_rows(out)
+        for page in TIER_TABLE_PAGES:
+            page.write_text(report.with_tiers_table(page.read_text(encoding="utf-8"), rows), encoding="utf-8")
+            print(f"tiers' table written into {page.relative_to(ROOT)}")
         return 0
     if args.replot:
         rows = report.read_rows(out)

@@ -1,17 +1,12 @@
 """The atlas's CSV, Pareto fronts, plots and tables (``bench/tradeoff.py`` writes and reads them through this), and the
-README's figures marked as coming from it (``readme_figures``, checked by ``tests/test_bench_tradeoff.py``).
-
-A README figure is marked by an HTML comment right after it, which Markdown does not show:
-``30 s<!-- atlas preview cpu-fp32 fountain starry seconds -->``: the point's tier, device, scene, painting (``*``:
-any; the knob is "as shipped") and column, then optionally ``min`` or ``max`` over the rows it matches. A figure is
-written with the decimals the README gives it, an NNFM drop (``PERCENT``) as a percentage.
+tiers' table of the README and docs/tiers.md, generated from the CSV between ``TABLE_BEGIN`` and ``TABLE_END``
+(``tiers_table``; ``tests/test_bench_tradeoff.py`` keeps the pages equal to it).
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import re
 from pathlib import Path
 
 KEY = ("tier", "device", "scene", "painting", "knob")  # a point; rows of the same key replace each other (--merge)
@@ -25,7 +20,6 @@ INTEGERS = ("repeats", "gaussians", "working_width", "end_width")
 PERCENT = ("nnfm_drop", "nnfm_drop_end", "nnfm_drop_1024")  # README figures written as percentages
 MIN_STRUCTURE = 0.5  # edge correlation (at 1024 px) below which the scene is considered lost (issue #14's threshold)
 SHIPPED = "as shipped"
-MARK = re.compile(r"(\d+(?:\.\d+)?)\s*(?:%|s)?\s*<!-- atlas ([^>]*?) -->")
 
 
 def keeps_structure(point: dict) -> bool:
@@ -177,7 +171,7 @@ TABLE_HEAD = ("tier / knob", "device", "scene / painting", "s (min–max)", "dro
 
 
 def markdown_table(rows: list[dict]) -> list[str]:
-    """The table of docs/tradeoffs.md from the CSV's rows."""
+    """The table of docs/notes/tradeoffs.md from the CSV's rows."""
     def num(r: dict, key: str, fmt: str) -> str:
         return "—" if r.get(key) in (None, "") else format(float(r[key]), fmt)
 
@@ -200,25 +194,55 @@ def markdown_table(rows: list[dict]) -> list[str]:
             f"{'yes' if r.get('pareto') else ''} |")
     return lines
 
-
-def readme_figures(text: str) -> list[tuple[str, list[str]]]:
-    """The marked figures of a Markdown text: (the number as written, the marker's words)."""
-    return [(m.group(1), m.group(2).split()) for m in MARK.finditer(text)]
+TIERS = ("preview", "balanced", "final")
+TABLE_BEGIN, TABLE_END = "<!-- atlas-table begin -->", "<!-- atlas-table end -->"
 
 
-def atlas_figure(rows: list[dict], words: list[str], decimals: int) -> str:
-    """What the atlas's rows say for a marker's ``words`` (tier device scene painting column [min|max]), written as
-    the README writes it: ``decimals`` places, an NNFM drop in percent. A scene or painting is a name, names joined
-    by commas (``fountain,fern``) or ``*`` (any). Raises ValueError for a marker no row matches."""
-    if len(words) not in (5, 6) or len(words) == 6 and words[5] not in ("min", "max"):
-        raise ValueError(f"atlas marker {' '.join(words)!r}: want tier device scene painting column [min|max]")
-    pattern, column = words[:4], words[4]
-    matching = [r for r in rows if r.get("knob") == SHIPPED and column in r
-                and all(w == "*" or r[k] in w.split(",") for k, w in zip(KEY[:4], pattern, strict=True))]
-    if not matching:
-        raise ValueError(f"atlas marker {' '.join(words)!r}: no row of the atlas has it")
-    values = [float(r[column]) for r in matching]
-    if len(values) > 1 and len(words) == 5:
-        raise ValueError(f"atlas marker {' '.join(words)!r} matches {len(values)} rows: say min or max")
-    value = (min(values) if words[-1] == "min" else max(values)) if len(words) == 6 else values[0]
-    return f"{100 * value if column in PERCENT else value:.{decimals}f}"
+def _shipped(rows: list[dict], tier: str, device: str, scenes: set[str], paintings: set[str]) -> list[dict]:
+    return [r for r in rows if r.get("knob") == SHIPPED and r["tier"] == tier and r["device"] == device
+            and r["scene"] in scenes and r["painting"] in paintings]
+
+
+def tiers_table(rows: list[dict]) -> list[str]:
+    """The tiers' table of the README and docs/tiers.md: per tier the demo × The Starry Night in bf16 on the CPU (its
+    seconds and its figures at 1024 px), the range of seconds over the demo and the fern after three paintings on the
+    CPU, and the demo × The Great Wave on CUDA; a dash where the atlas has no row."""
+    def cell(points: list[dict], key: str, fmt: str) -> str:
+        if not points or points[0].get(key) in (None, ""):
+            return "–"
+        value = float(points[0][key])
+        return f"{100 * value:.1f} %" if key in PERCENT else format(value, fmt)
+
+    def span(points: list[dict]) -> str:
+        if not points:
+            return "–"
+        low, high = (f"{v:.0f}" for v in (min(float(p["seconds"]) for p in points),
+                                          max(float(p["seconds"]) for p in points)))
+        return f"{low} s" if low == high else f"{low}–{high} s"
+
+    lines = ["| tier | CPU: demo × Starry Night | NNFM drop at 1024 px | structure | speckle | CPU: 2 scenes × 3 "
+             "paintings | GPU: demo × Great Wave |", "|---|---|---|---|---|---|---|"]
+    for tier in TIERS:
+        demo = _shipped(rows, tier, "cpu-bf16", {"fountain"}, {"starry"})
+        spread = _shipped(rows, tier, "cpu-bf16", {"fountain", "fern"}, {"starry", "wave", "autumn"})
+        gpu = _shipped(rows, tier, "cuda", {"fountain"}, {"wave"})
+        lines.append(f"| `{tier}` | {span(demo)} | {cell(demo, 'nnfm_drop_1024', '')} | "
+                     f"{cell(demo, 'structure_1024', '.2f')} | {cell(demo, 'speckle_1024', '.2f')} | {span(spread)} | "
+                     f"{span(gpu)} |")
+    return lines
+
+
+def generated_block(text: str) -> list[str] | None:
+    """The lines between a page's atlas-table markers; None for a page without them."""
+    if TABLE_BEGIN not in text:
+        return None
+    return text.partition(TABLE_BEGIN)[2].partition(TABLE_END)[0].strip("\n").splitlines()
+
+
+def with_tiers_table(text: str, rows: list[dict]) -> str:
+    """``text`` with the block between its atlas-table markers replaced by ``tiers_table(rows)``."""
+    head, _, rest = text.partition(TABLE_BEGIN)
+    _, end, tail = rest.partition(TABLE_END)
+    if not end:
+        raise ValueError(f"a page has {TABLE_BEGIN} without {TABLE_END}")
+    return head + TABLE_BEGIN + "\n" + "\n".join(tiers_table(rows)) + "\n" + TABLE_END + tail

@@ -4,7 +4,7 @@
   been measured against the CPU here (no Mac), so ``auto`` does not pick it.
 - ``cuda`` / ``mps`` asked for where torch does not see one: a clear error, never a silent fall-back.
 
-What runs where (``docs/gpu.md``): on CUDA the rasterizer is gsplat's (``raster/gsplat_backend.py``) and the style
+What runs where (``docs/notes/gpu.md``): on CUDA the rasterizer is gsplat's (``raster/gsplat_backend.py``) and the style
 networks, their NNFM searches and the losses run on the GPU. On MPS the networks run on the GPU and the rasterizer
 stays the CPU's numba one (gsplat has no Metal backend). The scene's tensors, the optimisers' state and the
 bookkeeping stay on the CPU in every case; a step moves the colours (N × 3 floats) to the device and their

@@ -13,8 +13,9 @@ BENCH = Path(__file__).resolve().parents[1] / "bench"
 
 
 def load_bench(name: str):
-    """The bench script ``bench/NAME.py`` as a module of its own (``NAME_bench``), as its command line would run."""
-    spec = importlib.util.spec_from_file_location(f"{name}_bench", BENCH / f"{name}.py")
+    """The bench script ``bench/NAME.py`` (``NAME`` may be ``studies/...``) as a module of its own (``NAME_bench``
+    after the last slash), as its command line would run."""
+    spec = importlib.util.spec_from_file_location(f"{Path(name).name}_bench", BENCH / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # dataclasses and pickling look a class's module up by name
     spec.loader.exec_module(module)

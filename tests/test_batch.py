@@ -18,7 +18,7 @@ from synthetic import blob_scene
 
 from gstyle_core.cli import run
 from gstyle_core.io import save_scene
-from gstyle_core.pipeline import batch
+from gstyle_core.pipeline import batch, batch_jobs
 from gstyle_core.pipeline.batch_report import CELL_WIDTH, CSV_COLUMNS, FAILED_GREY, TEXT_HEIGHT
 from gstyle_core.pipeline.checkpoint import stylize_checkpoint_path
 
@@ -99,7 +99,7 @@ def test_every_scene_after_every_painting_then_a_rerun_skips_them_all(inputs, mo
 
 
 def test_a_failed_job_is_one_line_the_others_finish_and_a_rerun_does_the_rest(inputs, monkeypatch, capsys):
-    monkeypatch.setattr(batch, "WORKER", [sys.executable, str(Path(__file__).with_name("batch_worker.py"))])
+    monkeypatch.setattr(batch_jobs, "WORKER", [sys.executable, str(Path(__file__).with_name("batch_worker.py"))])
     blue = Path(inputs["paintings"][1])
     blue.write_bytes(b"not a painting")
     out = inputs["out"]

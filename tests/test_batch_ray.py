@@ -16,7 +16,7 @@ import pytest
 from test_batch import TAILS, batch_args, make_inputs, names, painting, rows_of
 
 from gstyle_core.cli import run
-from gstyle_core.pipeline import batch, batch_ray
+from gstyle_core.pipeline import batch_jobs, batch_ray
 
 ray = pytest.importorskip("ray", reason="the 'ray' extra is not installed (pip install -e '.[ray]')")
 WORKER_SCRIPT = str(Path(__file__).with_name("batch_worker.py"))
@@ -42,7 +42,7 @@ def inputs(tmp_path, monkeypatch) -> dict:
 @pytest.fixture
 def stand_in(monkeypatch):
     """The pool's and the Ray tasks' jobs run the stand-in engine."""
-    monkeypatch.setattr(batch, "WORKER", [sys.executable, WORKER_SCRIPT])
+    monkeypatch.setattr(batch_jobs, "WORKER", [sys.executable, WORKER_SCRIPT])
 
 
 def outputs_of(out: Path) -> dict[str, bytes]:
@@ -77,7 +77,7 @@ def test_a_batch_on_ray_writes_what_the_local_pool_writes(cluster, stand_in, inp
 
 def test_a_killed_batch_keeps_its_finished_jobs_and_a_lost_worker_runs_again(cluster, inputs, monkeypatch, capsys):
     out, marker = inputs["out"], inputs["out"].with_name("killed-once")
-    monkeypatch.setattr(batch, "WORKER", [sys.executable, WORKER_SCRIPT, "--kill-parent-once", str(marker)])
+    monkeypatch.setattr(batch_jobs, "WORKER", [sys.executable, WORKER_SCRIPT, "--kill-parent-once", str(marker)])
     write_back, written = batch_ray.write_back, []
 
     def ctrl_c_after_two(job, result):

@@ -1,5 +1,5 @@
-"""bench/display_table.py (issue #34's targets from OUT.json summaries) and bench/display_gallery.py (pictures at a
-display's size with full-size crops) on tiny inputs."""
+"""bench/studies/display_table.py (issue #34's targets from OUT.json summaries) and bench/pictures/display_gallery.py
+(pictures at a display's size with full-size crops) on tiny inputs."""
 
 import json
 import sys
@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench" / "studies"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench" / "pictures"))
 
 import display_gallery  # noqa: E402
 import display_table  # noqa: E402

@@ -1,5 +1,5 @@
-"""bench/display_phases.py's phase-by-phase probe on a tiny engine: its NNFM drop at the working width is the figure
-the run itself reports (``evaluate_run``), at every phase boundary, with 0 for the input."""
+"""bench/studies/display_phases.py's phase-by-phase probe on a tiny engine: its NNFM drop at the working width is the
+figure the run itself reports (``evaluate_run``), at every phase boundary, with 0 for the input."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from synthetic import blob_scene, ring_cameras
 from gstyle_core.pipeline.settings import resolve_settings
 from gstyle_core.pipeline.stylizer import Stylizer
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench" / "studies"))
 
 import display_phases  # noqa: E402
 

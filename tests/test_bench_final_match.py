@@ -1,5 +1,5 @@
-"""``bench/final_match_cost.py`` on tiny scenes (seconds): the figures without the final colour match and with it, all
-from the same colours, and the command line."""
+"""``bench/studies/final_match_cost.py`` on tiny scenes (seconds): the figures without the final colour match and with
+it, all from the same colours, and the command line."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from synthetic import blob_scene
 
 @pytest.fixture(scope="module")
 def cost():
-    return load_bench("final_match_cost")
+    return load_bench("studies/final_match_cost")
 
 
 @pytest.fixture

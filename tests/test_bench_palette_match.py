@@ -1,4 +1,5 @@
-"""``bench/palette_match.py`` on a tiny scene: one run, its pictures and figures at each palette-match strength."""
+"""``bench/studies/palette_match.py`` on a tiny scene: one run, its pictures and figures at each palette-match
+strength."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from PIL import Image
 
 
 def test_one_run_gives_a_picture_and_a_row_per_strength(vgg, no_clip_weights, monkeypatch, tmp_path, capsys):
-    bench = load_bench("palette_match")
+    bench = load_bench("studies/palette_match")
     style = (np.random.default_rng(1).uniform(size=(16, 16, 3)) * np.array([0.9, 0.3, 0.6])).astype(np.float32)
     scene, painting = tiny_bench_inputs(bench, vgg, style, tmp_path, monkeypatch)
     threads = torch.get_num_threads()

@@ -1,5 +1,5 @@
-"""``bench/scale_causes.py`` and ``bench/scale_step.py`` against the engine's public API, on tiny scenes (seconds):
-the optimiser patches, a whole run from the command line, and both dissection modes."""
+"""``bench/studies/scale_causes.py`` and ``bench/studies/scale_step.py`` against the engine's public API, on tiny scenes
+(seconds): the optimiser patches, a whole run from the command line, and both dissection modes."""
 
 from __future__ import annotations
 
@@ -16,12 +16,12 @@ from synthetic import blob_scene
 
 @pytest.fixture(scope="module")
 def causes():
-    return load_bench("scale_causes")
+    return load_bench("studies/scale_causes")
 
 
 @pytest.fixture(scope="module")
 def step_bench():
-    return load_bench("scale_step")
+    return load_bench("studies/scale_step")
 
 
 @pytest.fixture

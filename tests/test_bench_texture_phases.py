@@ -1,5 +1,5 @@
-"""``bench/texture_phases.py`` on tiny scenes (seconds): the renders at each phase boundary, the random colour changes
-and a whole run from the command line."""
+"""``bench/studies/texture_phases.py`` on tiny scenes (seconds): the renders at each phase boundary, the random colour
+changes and a whole run from the command line."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from synthetic import blob_scene, ring_cameras
 
 @pytest.fixture(scope="module")
 def phases():
-    return load_bench("texture_phases")
+    return load_bench("studies/texture_phases")
 
 
 @pytest.fixture

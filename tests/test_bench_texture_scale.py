@@ -1,4 +1,4 @@
-"""``bench/texture_scale.py`` on a synthetic stylize output: the table's figure, mask and recolour residual."""
+"""``bench/studies/texture_scale.py`` on a synthetic stylize output: the table's figure, mask and recolour residual."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from gstyle_core.style.texture_scale import band_shares
 
 @pytest.fixture(scope="module")
 def bench():
-    return load_bench("texture_scale")
+    return load_bench("studies/texture_scale")
 
 
 def _png(path: Path, image: np.ndarray) -> None:

@@ -1,6 +1,6 @@
 """The atlas (``bench/tradeoff.py``): end to end through ``gstyle batch`` on a tiny scene and painting (every column of
-its row filled), its fronts and merges (``bench/tradeoff_report.py``), and the README's figures against the atlas CSV
-the repository ships (``docs/atlas.csv``)."""
+its row filled), its fronts and merges (``bench/tradeoff_report.py``), and the tiers' tables of the README and the
+guide against the atlas CSV the repository ships (``docs/atlas.csv``)."""
 
 from __future__ import annotations
 
@@ -114,26 +114,28 @@ def test_merge_replaces_the_points_measured_again_and_keeps_the_others(report):
         ("balanced", "cpu-fp32", 90.0), ("preview", "cpu-fp32", 28.0), ("preview", "cpu-bf16", 22.0)]
 
 
-def test_a_readme_marker_reads_its_row_min_max_and_percent(report):
-    rows = [{"tier": "preview", "device": "cpu-fp32", "scene": s, "painting": "starry", "knob": "as shipped",
-             "seconds": t, "nnfm_drop": d} for s, t, d in (("a", 31.4, 0.3312), ("b", 44.6, 0.291), ("c", 60.2, 0.1))]
-    text = "takes 31 s<!-- atlas preview cpu-fp32 a starry seconds --> and 29.1<!-- atlas preview cpu-fp32 a,b * " \
-           "nnfm_drop min -->–33 %<!-- atlas preview cpu-fp32 a,b * nnfm_drop max --> up to 60 s<!-- atlas preview " \
-           "cpu-fp32 * starry seconds max -->"
-    found = report.readme_figures(text)
-    assert [n for n, _ in found] == ["31", "29.1", "33", "60"]
-    assert [report.atlas_figure(rows, words, len(n.partition(".")[2])) for n, words in found] == [
-        "31", "29.1", "33", "60"]  # "a,b": those scenes alone (c's drop, 10 %, is not the minimum); "*": every one
-    with pytest.raises(ValueError, match="say min or max"):
-        report.atlas_figure(rows, ["preview", "cpu-fp32", "*", "starry", "seconds"], 0)
-    with pytest.raises(ValueError, match="no row"):
-        report.atlas_figure(rows, ["final", "cpu-fp32", "a", "starry", "seconds"], 0)
+def test_the_tiers_table_reads_its_rows_ranges_and_dashes(report):
+    def row(tier, device, scene, painting, seconds, **figures):
+        return {"tier": tier, "device": device, "scene": scene, "painting": painting, "knob": "as shipped",
+                "seconds": seconds, **figures}
+
+    rows = [row("preview", "cpu-bf16", "fountain", "starry", 21.6, nnfm_drop_1024=0.0904, structure_1024=0.651,
+                speckle_1024=0.5249),
+            row("preview", "cpu-bf16", "fern", "wave", 30.4), row("preview", "cpu-bf16", "fern", "scream", 99.0),
+            row("preview", "cuda", "fountain", "wave", 8.7),
+            {**row("final", "cpu-bf16", "fountain", "starry", 70.0), "knob": "epochs 3"}]  # a knob: not shipped
+    lines = report.tiers_table(rows)
+    assert lines[2] == "| `preview` | 22 s | 9.0 % | 0.65 | 0.52 | 22–30 s | 9 s |"  # scream: not one of the three
+    assert lines[3] == lines[4].replace("`final`", "`balanced`") == "| `balanced` | – | – | – | – | – | – |"
+    page = f"intro\n{report.TABLE_BEGIN}\nold\n{report.TABLE_END}\noutro\n"
+    assert report.with_tiers_table(page, rows).splitlines() == ["intro", report.TABLE_BEGIN, *lines,
+                                                                 report.TABLE_END, "outro"]
+    assert report.generated_block(report.with_tiers_table(page, rows)) == lines
 
 
-def test_the_readmes_figures_are_the_atlas_csvs(report):
+@pytest.mark.parametrize("page", ["README.md", "docs/tiers.md"])
+def test_the_tiers_tables_are_the_atlas_csvs(report, page):
+    """The README's and the guide's tables are generated from the shipped CSV: rerun ``bench/tradeoff.py
+    --tiers-table`` after the atlas changes."""
     rows = report.read_rows(ROOT / "docs" / "atlas.csv")
-    found = report.readme_figures((ROOT / "README.md").read_text(encoding="utf-8"))
-    assert len(found) >= 4, "the README's times and figures are marked <!-- atlas ... -->"
-    wrong = [(number, " ".join(words), report.atlas_figure(rows, words, len(number.partition(".")[2])))
-             for number, words in found]
-    assert [w for w in wrong if w[0] != w[2]] == []
+    assert report.generated_block((ROOT / page).read_text(encoding="utf-8")) == report.tiers_table(rows)

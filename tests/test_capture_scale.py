@@ -1,7 +1,7 @@
 """Captures of artists' sizes, scaled down for CI (issue #58): memory per Gaussian within the model the run's cap is
 derived from, and the paths that refuse or reduce, each one line and never fewer Gaussians out than in.
 
-The full sizes (1.2 M and 6 M) and their times are ``bench/engine_scale.py``'s (docs/captures.md)."""
+The full sizes (1.2 M and 6 M) and their times are ``bench/engine_scale.py``'s (docs/notes/captures.md)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,8 @@
-"""Pre-processing refits of a run with finer levels hold the width the run ends at (docs/tradeoffs.md, "Where the
+"""Pre-processing refits of a run with finer levels hold the width the run ends at (docs/notes/tradeoffs.md, "Where the
 structure at 1024 px goes"): every other iteration fits a window of the ground truth at that width, as large as a
 working-width view, drawn from the seed and the iteration. What it does to the structure at a display's size is
-measured on real captures by ``bench/display_phases.py`` (on a small synthetic blob it helps or hurts by a few per
-cent with the blob's sizes, too little to test); a resumed refit draws the same windows
+measured on real captures by ``bench/studies/display_phases.py`` (on a small synthetic blob it helps or hurts by a few
+per cent with the blob's sizes, too little to test); a resumed refit draws the same windows
 (``test_resume_phases.py``)."""
 
 from __future__ import annotations

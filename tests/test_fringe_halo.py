@@ -52,14 +52,15 @@ def test_a_runs_display_figures_carry_the_fringe_halo():
 
 
 def test_the_bench_measures_results_and_crops_the_fringe(tmp_path, capsys):
-    """bench/fringe_halo.py: a result whose faint Gaussians turned white scores a halo; the picture is written."""
+    """bench/studies/fringe_halo.py: a result whose faint Gaussians turned white scores a halo; the picture is
+    written."""
     import sys
     from pathlib import Path
 
     from gstyle_core.io import save_scene
     from gstyle_core.scene import rgb_to_sh_dc
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench" / "studies"))
     import fringe_halo as bench
 
     scene = blob_scene(150, seed=2)

@@ -1,7 +1,7 @@
 """The 360° pre-processing split of every CPU tier (preview, balanced, final) keeps the scene's coverage (issue #50
 item 4, the fringe halo): children of a flat Gaussian that cover only a fifth of their parent's footprint left the
 soft fringe they made as specks, which a short refit could not close and stylization turned into a halo of bright
-strokes (docs/display-size.md, "The fringe halo"; docs/tradeoffs.md for balanced and final)."""
+strokes (docs/notes/display-size.md, "The fringe halo"; docs/notes/tradeoffs.md for balanced and final)."""
 
 from __future__ import annotations
 

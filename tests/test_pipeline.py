@@ -50,9 +50,10 @@ def test_settings_follow_the_paper_per_scene_kind():
     assert (ff.weights.nnfm, s360.weights.nnfm) == (100.0, 10.0)
     assert (ff.weights.clip, ff.weights.content, ff.weights.tv, ff.weights.multiscale) == (10.0, 0.05, 1e-4, 0.0)
     assert (ff.lr_start, ff.lr_end, s360.lr_start, s360.lr_end) == (1e-1, 1e-2, 1e-2, 5e-3)
-    # final's budgets are the CPU's (docs/tradeoffs-history.md: the paper's 5/10 rounds of max(5 n, 2000) iterations
-    # took 45 of its 68 minutes on the demo): the tiers share the preview's pre-processing and stylization and differ
-    # in their finer levels (balanced: 512 px on crops; final: 512 px on whole views, twice the steps, every camera)
+    # final's budgets are the CPU's (docs/notes/tradeoffs-history.md: the paper's 5/10 rounds of max(5 n, 2000)
+    # iterations took 45 of its 68 minutes on the demo): the tiers share the preview's pre-processing and stylization
+    # and differ in their finer levels (balanced: 512 px on crops; final: 512 px on whole views, twice the steps, every
+    # camera)
     preview, balanced = resolve_settings("preview", "forward", 20), resolve_settings("balanced", "forward", 20)
     for tier in (balanced, ff):
         budget = (tier.preprocess_rounds, tier.refit_iterations, tier.epochs, tier.working_width)
@@ -344,8 +345,9 @@ def test_raster_backend_setting_reaches_ground_truth_and_refits_with_the_same_re
 
 
 def test_forward_children_keep_the_parents_footprint():
-    """The CPU tiers' short refits cannot regrow children at the reference's 1/16 scale (docs/tradeoffs-history.md
-    and docs/tradeoffs.md: fern); forward-facing balanced stylizes on the preview's budget before its finer level."""
+    """The CPU tiers' short refits cannot regrow children at the reference's 1/16 scale
+    (docs/notes/tradeoffs-history.md and docs/notes/tradeoffs.md: fern); forward-facing balanced stylizes on the
+    preview's budget before its finer level."""
     assert resolve_settings("preview", "forward", 20).split_scale_divisor == 1.6
     assert resolve_settings("preview", "forward", 20, defaults="paper").split_scale_divisor == 1.6
     assert resolve_settings("balanced", "forward", 20).split_scale_divisor == 1.6  # 140 refit iterations

@@ -85,7 +85,8 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
         levels = " -> ".join(f"{w} px" for w in state.levels)  # the panel's font has Latin-1 glyphs only
         imgui.text_wrapped(f"Width: {state.width} px" + (f" (levels {levels})" if len(state.levels) > 1 else ""))
         tooltip("The width of what is on show: the engine's now, or a result's last level. Finer levels go on from "
-                "the colours at twice the pixels, so the strokes hold up at a display's size (docs/tradeoffs.md).")
+                "the colours at twice the pixels, so the strokes hold up at a display's size "
+                "(docs/notes/tradeoffs.md).")
     if state.next_width:
         refine_button(state, out)
     if state.refine_note:
@@ -97,7 +98,7 @@ def quality_section(state: PanelState, out: list[Command]) -> None:
         tooltip("How fine the colour detail the stylization added is, seen at a display's size: measured on three of "
                 "the scene's views rendered at a display's width, the share of the added colour finer than sigma 4 px "
                 "against the painting's own share at the size its strokes are matched (1: the painting's grain; well "
-                "above 1: single-splat confetti; the speckle ratio of docs/display-size.md). "
+                "above 1: single-splat confetti; the speckle ratio of docs/notes/display-size.md). "
                 + font_safe(f"The engine's line: {state.summary_line}"))  # sigma spelled out
     elif state.summary_line:  # no figure (its measurement failed): the engine's line as it is
         imgui.text_wrapped(font_safe(f"Result: {state.summary_line}"))

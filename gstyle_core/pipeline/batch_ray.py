@@ -6,8 +6,8 @@ on this machine or at ``RAY_ADDRESS``; ``local``: a new one here, stopped at the
 ``ray://HOST:PORT``: that cluster), or keeps the connection its process already has. Each task declares
 ``num_cpus`` = the job's threads and ``num_gpus`` = 1 when the job computes on a GPU. The scene and the painting go to
 the worker as bytes (each file put in Ray's object store once); the worker writes them into a temporary folder and
-runs the same ``gstyle stylize`` subprocess as the local pool (``batch.start``, the same argv with the temporary paths)
-and sends back OUT.ply, OUT.json, the before/after pictures and the log. The driver writes them into the batch's
+runs the same ``gstyle stylize`` subprocess as the local pool (``batch_jobs.start``, the same argv with the temporary
+paths) and sends back OUT.ply, OUT.json, the before/after pictures and the log. The driver writes them into the batch's
 folder as one group, the scene last (OUT.json's paths renamed to the driver's), as soon as each job ends: a
 killed batch or a lost worker loses no finished job, and a rerun skips them as the local pool does. A job that did
 not finish starts again on the rerun (its checkpoint stayed on the worker, in a temporary place).
@@ -26,7 +26,8 @@ from pathlib import Path
 from ..atomic import atomic_write_bytes
 from ..errors import GStyleError
 from ..outputs import STYLIZE_COMPANIONS, companions
-from .batch import DEFAULT_THREADS_PER_JOB, Job, check_counts, finish, job_argv, progress
+from . import batch_jobs
+from .batch_jobs import DEFAULT_THREADS_PER_JOB, Job, check_counts, finish, job_argv, progress
 
 TAILS = (*STYLIZE_COMPANIONS, ".ply")  # what a job sends back, the scene last, as ``gstyle stylize`` writes them
 WAIT_SECONDS = 1.0
@@ -86,12 +87,10 @@ def run_on_ray(jobs: list[Job], pending: list[Job], args: argparse.Namespace) ->
                 files[path] = ray.put(Path(path).read_bytes())
             return files[path]
 
-        from . import batch
-
         refs = {}
         for job in pending:
             refs[task.remote(job.options, Path(job.scene).name, shipped(job.scene), Path(job.painting).name,
-                             shipped(job.painting), job.out.name, threads, batch.WORKER[1:])] = job
+                             shipped(job.painting), job.out.name, threads, batch_jobs.WORKER[1:])] = job
         collect(ray, jobs, refs, slots)
     finally:
         if connected:
@@ -164,7 +163,6 @@ def run_job(options: list[str], scene_name: str, scene: bytes, painting_name: st
             threads: int, worker: list[str]) -> dict:
     """The Ray task: write the inputs into a temporary folder, run the job there as the local pool does (``worker``:
     the command after the Python executable) and return its exit status, seconds, output files and log."""
-    from . import batch
     from .checkpoint import stylize_checkpoint_path
     from .kept_runs import note_path, result_state_path
 
@@ -179,7 +177,7 @@ def run_job(options: list[str], scene_name: str, scene: bytes, painting_name: st
         job = Job(str(inputs[0]), str(inputs[1]), out, job_argv(str(inputs[0]), str(inputs[1]), options, out))
         job.argv += ["--threads", str(threads)]
         job.log.parent.mkdir(parents=True)
-        _job, proc, t0, log = batch.start(job, 0, 0, threads, [sys.executable, *worker])
+        _job, proc, t0, log = batch_jobs.start(job, 0, 0, threads, [sys.executable, *worker])
         try:
             code = proc.wait()
         except BaseException:  # cancelled: the job stops with it

@@ -4,6 +4,7 @@ tests all build their engines here."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +20,27 @@ from .controls import cli_control_names
 SETTING_OPTIONS = (*cli_control_names(), "working_width", "clip_weights", "vgg_weights", "max_gaussians",
                    "style_weights", "region", "precision", "refine_widths", "refine_mode", "match_detail_px",
                    "device", "region_feather")
+
+# ``GSTYLE_SMOKE=1``: every engine built here runs the tiniest run that still goes through every phase (one split
+# round, a few steps and refit iterations at 32 px, three views), and ``gstyle stylize`` measures its display figures
+# at 64 px. For the benches' smoke test (``tests/test_bench_smoke.py``), which drives each lasting bench
+# as a whole process; the run says so in ``decisions.smoke``. Never for results.
+SMOKE_ENV = "GSTYLE_SMOKE"
+SMOKE_SETTINGS = {"epochs": 1.0, "min_steps": 2, "max_views": 3, "refit_iterations": 2, "preprocess_rounds": 1,
+                  "split_at": (0.5,), "working_width": 32, "refine_epochs": 0.5}
+SMOKE_DISPLAY_WIDTH = 64
+
+
+def smoke_run() -> bool:
+    """Whether ``GSTYLE_SMOKE`` asks for the tiniest runs (the benches' smoke test)."""
+    return os.environ.get(SMOKE_ENV, "") not in ("", "0")
+
+
+def display_width_of(args: Any) -> int:
+    """The width ``gstyle stylize``'s display figures are measured at: ``--display-width`` (0: none), at most
+    ``SMOKE_DISPLAY_WIDTH`` in a smoke run."""
+    width = getattr(args, "display_width", 0)
+    return min(width, SMOKE_DISPLAY_WIDTH) if smoke_run() else width
 
 
 @dataclass
@@ -86,6 +108,8 @@ def build_stylizer(request: BuildRequest) -> BuiltEngine:
 
     paths = style_paths(request.style)
     overrides = dict(request.overrides)
+    if smoke_run():
+        overrides.update(SMOKE_SETTINGS)
     try:  # before anything loads: a wrong count of weights is the caller's mistake
         normalise_style_weights(overrides.get("style_weights"), len(paths))
     except ValueError as exc:
@@ -99,4 +123,6 @@ def build_stylizer(request: BuildRequest) -> BuiltEngine:
         photos = cams.load_images(max_width=max(settings.working_width * 2, 256))
     engine = Stylizer(scene, cams.cameras, styles[0] if len(styles) == 1 else styles, settings, photos=photos,
                       selection=request.selection)
+    if smoke_run():
+        engine.decisions["smoke"] = f"{SMOKE_ENV} set: the tiniest run through every phase, not a result"
     return BuiltEngine(engine, scene, report, cams, engine.style_input())

@@ -10,16 +10,24 @@ from pathlib import Path
 import numpy as np
 
 from ..assets import DEMO_SCENE
-from ..crash import RunCrashed, what_failed
 from ..device import DEVICES, DeviceFailure
-from ..errors import GStyleError, OutputWriteError, one_line_error
+from ..errors import GStyleError, OutputWriteError
 from ..outputs import STYLIZE_COMPANIONS, companions
 from ..style.fringe import fringe_halo_line
 from ..style.precision import PRECISIONS
 from ..style.speckle import DEFAULT_DISPLAY_WIDTH
 from .arg_types import display_width_arg, region_arg, style_weights_arg, widths_arg
-from .build import SETTING_OPTIONS, BuildRequest, BuiltEngine, build_stylizer, request_config, style_paths
+from .build import (
+    SETTING_OPTIONS,
+    BuildRequest,
+    BuiltEngine,
+    build_stylizer,
+    display_width_of,
+    request_config,
+    style_paths,
+)
 from .controls import add_control_arguments
+from .run_crash import crashed_run, kept_for_the_cpu, kept_run_error
 from .run_figures import display_speckle_line, evaluate_run, texture_scale_line
 
 
@@ -144,13 +152,13 @@ def _run_and_write(args: argparse.Namespace, out: Path, built: BuiltEngine, chec
             _run_with_progress(engine, checkpointer, stop)
         except DeviceFailure as exc:
             raise kept_for_the_cpu(exc, checkpointer, engine.settings.device) from exc
-    needed = ("region", "sh", "preprocess", "preprocess_unsplit", "culled", "loss_terms", "broad_strokes",
+    needed = ("smoke", "region", "sh", "preprocess", "preprocess_unsplit", "culled", "loss_terms", "broad_strokes",
               "colour_field", "levels", "levels_capped", "colour_match", "clip", "vgg", "precision", "device", "styles")
     for key in needed:  # what it needed (also in OUT.json)
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
-    quality = evaluate_run(engine, built.scene, built.style, display_width=getattr(args, "display_width", 0))
+    quality = evaluate_run(engine, built.scene, built.style, display_width=display_width_of(args))
     run = {"resumed": resumed, "checkpoints_written": checkpointer.saved}
     try:
         summary, written = _write_outputs(args, out, built, stylized, quality, t0, run)
@@ -248,76 +256,6 @@ def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, styl
         group.write(after_path, lambda tmp: save_png(tmp, after))
         group.write(out, lambda tmp: save_scene(stylized, tmp, fmt=format_of(out)))
     return summary, [group.targets[-1], *group.targets[:-1]]
-
-
-def kept_for_the_cpu(exc: DeviceFailure, checkpointer, device: str) -> DeviceFailure:
-    """The GPU failed in a run asked for on ``device``: the run as its last finished step left it is saved (a step
-    that failed keeps none of its work) and the error, one line, says how to go on from there on the CPU."""
-    if device == "cpu":
-        return exc
-    try:
-        path = checkpointer.save()
-    except Exception as error:  # noqa: BLE001 - a full disk, or a card that cannot give its tensors back: one line
-        return type(exc)(f"{exc}; the run could not be kept ({one_line_error(error)})")
-    return type(exc)(f"{exc}; the run so far is kept in {path}: the same command with --device cpu --resume goes "
-                     "on from there")
-
-
-def crashed_run(exc: Exception, engine, checkpointer, args: argparse.Namespace) -> RunCrashed:
-    """``exc`` (a bug, not a bad input) with where the run was (its phase and step, or past its last step), the
-    controls in force and, saved now, the run as its last finished step left it (a step that failed keeps none of
-    its work) with the command that goes on from there; without a save, its last checkpoint if one was written."""
-    from .run_crash import all_controls, controls_in_force, where_the_run_is
-
-    step = getattr(engine, "global_step", None)
-    try:
-        path = checkpointer.save()
-        kept = f"the run up to step {step} is kept: {resume_command(args)} goes on from there"
-    except Exception as error:  # noqa: BLE001 - a full cache, or state the error left unsaveable: say so
-        kept = f"the run could not be kept ({what_failed(error)})"
-        path = checkpointer.path if checkpointer.path.exists() else None
-        if path is not None:
-            kept += f"; its last checkpoint is kept: {resume_command(args)} goes on from there"
-    details = [all_controls(engine), f"checkpoint: {path or 'none'}"]
-    return RunCrashed(exc, where_the_run_is(engine), controls_in_force(engine), kept, details)
-
-
-def kept_run_error(exc: OutputWriteError, checkpointer, args: argparse.Namespace) -> OutputWriteError:
-    """``exc`` (the outputs of a finished run could not be written) with, on the same line, where the run is kept
-    and the exact command that writes them once the cause is fixed. The finished state is saved first, so that
-    command only writes; if even that fails, the last checkpoint of the run (if any) is what is kept."""
-    try:
-        checkpointer.save()
-        kept = f"the finished run is kept in {checkpointer.path}"
-    except OutputWriteError as ckpt_exc:
-        if not checkpointer.path.exists():
-            return OutputWriteError(exc.filename, f"{exc.cause}; the run could not be kept ({ckpt_exc})", exc.errno)
-        kept = f"the run is kept up to its last checkpoint, {checkpointer.path}"
-    return OutputWriteError(exc.filename, f"{exc.cause}; {kept}: {_remedy(exc.errno)}, then run "
-                                          f"{resume_command(args)}", exc.errno)
-
-
-def _remedy(code: int | None) -> str:
-    """What to do about a failed write, by its errno (the same --out is needed: the checkpoint is kept for it)."""
-    import errno
-
-    if code in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
-        return "free some space"
-    if code in (errno.EACCES, errno.EPERM, errno.EROFS):
-        return "make the output folder writable"
-    return "fix that"
-
-
-def resume_command(args: argparse.Namespace) -> str:
-    """The command that continues this run: the one given (``args.argv``, set by ``gstyle_core.cli.run``) with
-    ``--resume``, quoted for a POSIX shell."""
-    import shlex
-
-    argv = getattr(args, "argv", None)
-    if argv is None:
-        return "the same command with --resume"
-    argv = list(argv) + ([] if "--resume" in argv else ["--resume"])
-    return "gstyle " + shlex.join(argv)
 
 
 def _run_with_progress(engine, checkpointer, stop: dict) -> None:

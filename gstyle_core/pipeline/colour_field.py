@@ -2,8 +2,8 @@
 
 Each stylized colour takes its own Adam step, and Adam moves every colour by about the learning rate whatever its
 gradient, so the texture that accumulates sits at the scale of single Gaussians (about 1 px at the working width;
-docs/texture-scale.md). Beside the per-Gaussian colours this module keeps a **colour field**: values on a regular 3-D
-lattice, read at each optimised Gaussian's centre by trilinear interpolation and added to its colour. A lattice
+docs/notes/texture-scale.md). Beside the per-Gaussian colours this module keeps a **colour field**: values on a regular
+3-D lattice, read at each optimised Gaussian's centre by trilinear interpolation and added to its colour. A lattice
 point's gradient is the sum of the colour gradients of the Gaussians around it, so a field step is one coherent move
 of a whole neighbourhood; the colours keep their own steps for the fine marks.
 
@@ -12,7 +12,7 @@ of a whole neighbourhood; the colours keep their own steps for the fine marks.
 * **Sparse**: only the lattice points at the corners of a cell that holds a centre exist (at most 8 per Gaussian),
   so an unbounded capture's far background costs as little as its foreground and every cell keeps its size.
 * **Step**: the colours and the field each step at ``FIELD_STEP_SHARE`` (half) of the learning rate, so the step
-  budget of the run is split between the two scales rather than doubled (docs/texture-scale.md measures full and
+  budget of the run is split between the two scales rather than doubled (docs/notes/texture-scale.md measures full and
   half steps). The field uses the same optimiser kind as the colours (``VisibleAdam``: lattice points no view's
   Gaussian reaches keep their moments).
 * **Folding**: after every optimiser step the field's values are added into the colours and set back to zero, so
@@ -34,8 +34,8 @@ from ..raster.colour_cache import SparseProduct
 
 FIELD_CELL_PX = 8.0  # cell edge in working-width pixels at the scene's median distance (times the stroke size). A
 # cell's trilinear hat has σ = edge / √6 ≈ 3.3 px, at the lower edge of the texture-scale figure's coarse band (σ 4-10
-# px). Measured over nine captures × paintings (docs/texture-scale.md): against 4 px the coarse ratio and the structure
-# were higher on all nine; 16 px kept more structure still but cost up to 2.9 points of NNFM drop.
+# px). Measured over nine captures × paintings (docs/notes/texture-scale.md): against 4 px the coarse ratio and the
+# structure were higher on all nine; 16 px kept more structure still but cost up to 2.9 points of NNFM drop.
 FIELD_STEP_SHARE = 0.5  # the colours and the field each step at this share of the learning rate (read when a field
 # is built: benches may set it, and COLOUR_STEP_SHARE for the colours alone)
 COLOUR_STEP_SHARE: float | None = None  # None: FIELD_STEP_SHARE

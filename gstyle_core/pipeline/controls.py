@@ -189,11 +189,11 @@ CONTROLS: tuple[Control, ...] = (
             "Stroke size: how large the painting's brush strokes come out on the scene. 2: strokes and patterns "
             "twice as large, fewer of them across the view; 0.5: half as large, finer. It changes their size, not "
             "how strong the style is (that is style strength); the broad-strokes term carries the large ones "
-            "(docs/texture-scale.md). From the next step on (--style-scale; the painting is matched at this times "
-            "the working width).",
+            "(docs/notes/texture-scale.md). From the next step on (--style-scale; the painting is matched at this "
+            "times the working width).",
             Effect.STYLE_FEATURES, read=lambda s: s.style_scale, write=_write_style_scale,
             cli=CliOption("stroke size: the painting is matched at S × the working width (2: at twice that size, "
-                          "0.5: half; visible with the broad-strokes term, docs/texture-scale.md); default 1",
+                          "0.5: half; visible with the broad-strokes term, docs/notes/texture-scale.md); default 1",
                           type=style_scale_arg, metavar="S")),
     Control("palette_match", "palette match", 1.0, 0.0, 1.0, False,
             "Palette match: how far the finished colours move onto the painting's palette in the last colour match. "
@@ -220,7 +220,7 @@ CONTROLS: tuple[Control, ...] = (
             Effect.NEXT_STEP, read=lambda s: float(s.colour_field), write=_write_switch("colour_field"),
             widget="checkbox",
             cli=CliOption("coherent strokes: a coarse colour field steps beside each Gaussian's colour (1 on, 0 off; "
-                          "default on with the broad-strokes term, docs/texture-scale.md)", type=on_off_arg,
+                          "default on with the broad-strokes term, docs/notes/texture-scale.md)", type=on_off_arg,
                           metavar="0|1")),
     Control("split_rate", "split rate", 0.05, 1e-3, 0.5, True,
             "Fraction of Gaussians split where the style gradient is largest (finer detail, more Gaussians).",

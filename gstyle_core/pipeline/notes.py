@@ -76,7 +76,7 @@ def note_loss_terms(decisions: Decisions, s: StylizeSettings, objective: Any) ->
         decisions["broad_strokes"] = (
             f"lambda {s.weights.multiscale:g} (multiscale): NNFM on the render and the painting both shrunk "
             f"{factor_words(_broad_stroke_factors(objective))}, for the painting's larger strokes and shapes "
-            "(docs/texture-scale.md)"
+            "(docs/notes/texture-scale.md)"
             + ("; in CLIP's place: no CLIP weights" if clip_term_name(s.clip_weights) != "CLIP" else ""))
 
 

@@ -41,7 +41,7 @@ class StyleObjective:
     """
 
     luminance_networks = True  # keep colours: networks see luminance (False: colour, chroma restored only; the
-    # variant bench/keep_colours.py compares)
+    # variant bench/studies/keep_colours.py compares)
 
     def __init__(self, style: np.ndarray | Sequence[np.ndarray], settings: StylizeSettings, vgg=None,
                  width: int | None = None, terms: Sequence[str] | None = None) -> None:

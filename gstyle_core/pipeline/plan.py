@@ -5,7 +5,7 @@ rounds as the settings ask, since whether the sizes are even is known only when 
 prices them with this machine's seconds per step of each kind over the studio session (``MachineRates``, fed by the
 step reports: a median that settles); ``remaining_seconds`` prices a run's steps still to come. A kind not measured
 yet is priced from a measured one by the ratios in ``FALLBACK`` (measured on the demo, 2-core AMD EPYC,
-docs/tradeoffs-history.md), and a level's steps by its width. Torch-free: the studio prices the presets in its own
+docs/notes/tradeoffs-history.md), and a level's steps by its width. Torch-free: the studio prices the presets in its own
 process.
 """
 

@@ -7,13 +7,13 @@ Gaussians held, in fresh processes that stylize captures of 50k and 200k Gaussia
 orbit, 16 views; ground truth, a pre-processing split with its refit, one stylization epoch and a colour-gradient
 split with its refit; int32 colour caches): 1,350 bytes a Gaussian at 48 px working width, 1,159 at 256 px and
 1,738 at 512 px (Intel Xeon, 2 cores, 2026-12-01). ``bench/engine_scale.py`` measured 1,226 at 256 px for whole
-``preview`` runs from 150k to 1.2 M Gaussians held (docs/captures.md). The model ``BASE_BYTES + PER_WIDTH_SQUARED ·
-w²`` (1,500 + 0.004 · w²: 1,509 / 1,762 / 2,549 bytes at 48 / 256 / 512 px) lies above all of them; above 512 px it
+``preview`` runs from 150k to 1.2 M Gaussians held (docs/notes/captures.md). The model ``BASE_BYTES + PER_WIDTH_SQUARED
+· w²`` (1,500 + 0.004 · w²: 1,509 / 1,762 / 2,549 bytes at 48 / 256 / 512 px) lies above all of them; above 512 px it
 is an extrapolation. (The model before, 1,700 + 0.012 · w², came from int64 caches and the demo replicated in place.)
 
 On CUDA the card's memory bounds the count too: ``bench/bench_memory_per_gaussian.py --device cuda`` measured the peak
 of torch's reserved GPU memory growing by 825 bytes a Gaussian at 512 px (716 allocated; the demo ×1 and ×4, an
-NVIDIA H100: docs/gpu.md). Only that width was measured: other widths take the host model's shape scaled to it (an
+NVIDIA H100: docs/notes/gpu.md). Only that width was measured: other widths take the host model's shape scaled to it (an
 extrapolation). The cap is the lower of the host's and the card's.
 """
 

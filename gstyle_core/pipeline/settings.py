@@ -48,7 +48,7 @@ class StylizeSettings:
     style_scale: float = 1.0  # stroke size: the painting is matched at this × the working width (objective.py)
     nnfm_candidates: int = 16384  # the NNFM search looks among at most this many of a painting's feature vectors (a
     # random subset drawn from the seed; 0: all). A 1024-px level's painting has ~51,000, 16× a 256-px run's; at
-    # 256 and 512 px (≤ ~13,000) every vector is kept (docs/display-size.md)
+    # 256 and 512 px (≤ ~13,000) every vector is kept (docs/notes/display-size.md)
     colour_field: bool = False  # coherent strokes: a coarse colour field steps beside each Gaussian's colour
     # (pipeline/colour_field.py; on with the broad-strokes term)
     keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
@@ -134,29 +134,29 @@ KIND_DEFAULTS = {
 # CPU budgets. The tiers share the preview's pre-processing and stylization and differ in the finer levels they end
 # with (phases/refine.py): preview at the working width, balanced at 512 px on crops, final at 512 px on whole views
 # with twice the level's steps, every camera. Measured against the tiers that refitted longer (2-3 rounds of 140-300
-# iterations), ran 6 epochs a level and final's 1024-px level (docs/tradeoffs.md, "What each preset was picked
+# iterations), ran 6 epochs a level and final's 1024-px level (docs/notes/tradeoffs.md, "What each preset was picked
 # from"): those kept less structure at 1024 px and more speckle for 2.6-10x the time; a 1024-px level added 1-2
 # points of NNFM drop at 1024 px for 4x the level's time, less than whole views at 512 px gave.
 _SHARED = dict(working_width=256, epochs=4.0, min_steps=30, preprocess_rounds=1, refit_iterations=60, max_views=16)
 PRESETS = {
-    # preview = the "epochs 3" point of the old bench/tradeoff.py (docs/tradeoffs-history.md) at 256 px and 4 epochs:
-    # at 192 px and 3 epochs the fern after The Great Wave stopped at an NNFM drop of 24.9 %; at 256 px and 4 epochs
-    # the fern after three paintings reached 32.4-36.4 % and kept a structure at 1024 px of 0.55-0.57 instead of
-    # 0.47-0.49 (docs/tradeoffs.md, "What each preset was picked from").
+    # preview = the "epochs 3" point of the old bench/tradeoff.py (docs/notes/tradeoffs-history.md) at 256 px and 4
+    # epochs: at 192 px and 3 epochs the fern after The Great Wave stopped at an NNFM drop of 24.9 %; at 256 px and 4
+    # epochs the fern after three paintings reached 32.4-36.4 % and kept a structure at 1024 px of 0.55-0.57 instead of
+    # 0.47-0.49 (docs/notes/tradeoffs.md, "What each preset was picked from").
     # Splits happen at fractions of the stylization (split_at), so every preset performs them.
     "preview": dict(_SHARED),
     "balanced": dict(_SHARED, refine_widths=(512,), refine_epochs=2.0),
     "final": dict(_SHARED, max_views=10_000, refine_widths=(512,), refine_mode="whole", refine_epochs=4.0),
 }
-# Defaults for the display's size, every scene kind and both ``defaults`` (docs/tradeoffs-history.md, "At the display's
-# size"): the colour matches map the broad colours and keep each Gaussian's finer difference unscaled, and the
+# Defaults for the display's size, every scene kind and both ``defaults`` (docs/notes/tradeoffs-history.md, "At the
+# display's size"): the colour matches map the broad colours and keep each Gaussian's finer difference unscaled, and the
 # colour-smoothness term (λ per λ_NNFM) keeps single splats from taking hues of their own. ``match_detail_px=0`` and
 # ``lambda_chroma_tv=0`` give the paper's plain match and objective.
 DISPLAY = dict(match_detail_px=4.0, chroma_tv_per_nnfm=15.0)
 
 
 # 360° defaults calibrated on this machine's networks and budgets (README "360° scenes: what differs from the
-# paper"), measured with bench/strokes_sweep.py over 3 captures × 3 paintings. At the paper's 360° values the
+# paper"), measured with bench/studies/strokes_sweep.py over 3 captures × 3 paintings. At the paper's 360° values the
 # content term holds the colours at the colour match (NNFM drop 12-22 %): the paper's weights lean on CLIP, which
 # cannot run here, and on a GPU budget (15 epochs at 1024 px). Applied over the paper's 360° values and the preset.
 CALIBRATED_360 = dict(
@@ -168,24 +168,24 @@ CALIBRATED_360 = dict(
     # pre-processing children at 1/2.5 of their parent's scale (not the paper's 1/6.4) in every CPU tier: eight
     # children at 1/6.4 cover a fifth of their parent's footprint, and refits of 60-300 iterations (the tiers' 60 and
     # the longer ones they had before) do not regrow them, so the soft fringe large Gaussians made fell apart into
-    # specks that stylization turned into a halo of bright strokes (docs/display-size.md, "The fringe halo").
+    # specks that stylization turned into a halo of bright strokes (docs/notes/display-size.md, "The fringe halo").
     # Measured on the tiers as they were: balanced, the demo in bf16, structure at 1024 px 0.58 -> 0.69 / 0.60 ->
     # 0.67, speckle 0.59 -> 0.47 / 1.03 -> 0.80; final, the demo after The Starry Night, 0.41 -> 0.61, speckle 0.72 ->
-    # 0.49 (docs/tradeoffs-history.md).
+    # 0.49 (docs/notes/tradeoffs-history.md).
     preprocess_scale_divisor=2.5,
 )
-# Calibrated 360° defaults without CLIP weights (docs/texture-scale.md): the large scale comes from the broad-strokes
-# term (style/multiscale.py) at λ = λ_NNFM, and the coarse CLIP substitute is off (at λ_NNFM 100 and weight 100 it
-# cost 3 points of drop and 0.2 of structure; at λ_CLIP 10 no measurable style for ~10 % more time). Real CLIP weights
-# keep the paper's λ_CLIP and no broad-strokes term. Forward-facing scenes keep the paper's values with the
-# substitute: on the fern the term lowered the NNFM drop below 30 % (28.8 %, structure 0.53; docs/texture-scale.md).
-# With the term the coarse colour field (pipeline/colour_field.py) is on: over 9 captures × paintings it raised the
-# coarse ratio and the structure on all nine (docs/texture-scale.md).
+# Calibrated 360° defaults without CLIP weights (docs/notes/texture-scale.md): the large scale comes from the
+# broad-strokes term (style/multiscale.py) at λ = λ_NNFM, and the coarse CLIP substitute is off (at λ_NNFM 100 and
+# weight 100 it cost 3 points of drop and 0.2 of structure; at λ_CLIP 10 no measurable style for ~10 % more time). Real
+# CLIP weights keep the paper's λ_CLIP and no broad-strokes term. Forward-facing scenes keep the paper's values with the
+# substitute: on the fern the term lowered the NNFM drop below 30 % (28.8 %, structure 0.53;
+# docs/notes/texture-scale.md). With the term the coarse colour field (pipeline/colour_field.py) is on: over 9 captures
+# × paintings it raised the coarse ratio and the structure on all nine (docs/notes/texture-scale.md).
 BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0, colour_field=True)
 CALIBRATED_360_PRESETS = {tier: dict(epochs=8.0) for tier in PRESETS}  # 32 steps of 4 views at 16 views
 # Calibrated 360° runs with finer levels (balanced, final): the content term (VGG block 3) does not hold edges as fine
 # as a 512- or 1024-px pixel, so the edge-keeping term holds them there, with twice the style weight for the drop it
-# costs (docs/display-size.md, "Edges kept": balanced over 3 captures × 3 paintings, structure at 512 px 0.72-0.82
+# costs (docs/notes/display-size.md, "Edges kept": balanced over 3 captures × 3 paintings, structure at 512 px 0.72-0.82
 # against 0.46-0.67, drop at 512 px 0.2-3.3 points lower; final on biker.spz, structure at 1024 px 0.42 against
 # 0.21 at the same drop). At the working width the content term keeps the structure, so the preview keeps its weights.
 CALIBRATED_360_LEVELS = dict(nnfm=400.0, edges=4000.0)

@@ -57,7 +57,7 @@ class LevelsMixin:
             self.run_state.decisions["level_weights"] = (
                 "the first finer level takes the calibrated weights of runs with finer levels: "
                 + ", ".join(f"{k} {before[k]:g} -> {v:g}" for k, v in changes.items())
-                + " (the content term does not hold edges as fine as these pixels; docs/display-size.md)")
+                + " (the content term does not hold edges as fine as these pixels; docs/notes/display-size.md)")
         level = Refine(self.run_state, width, len(s.refine_widths) - 1)
         finish = [p for p in self.phases if isinstance(p, ColourMatch) and p.final]
         self.phases = [p for p in self.phases if p not in finish] + [level] + finish

@@ -28,6 +28,68 @@ from .pixel_kernels import (
 )
 
 
+@njit(cache=True, inline="always")
+def _blend_row_span(rec, j, py, col0, base, first, span_end, trans, acc, stop, done):  # pragma: no cover - numba
+    """Entry ``j`` blended into the pixels ``base + first .. base + span_end`` of a tile row, front to back (the
+    pixel state ``trans``, ``acc``, ``stop`` and ``done`` updated in place); returns how many pixels it stopped."""
+    stopped = 0
+    for lc in range(first, span_end):
+        p = base + lc
+        if done[p]:
+            continue
+        alpha, _, _, _ = pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
+        if alpha == 0.0:
+            continue
+        tr = trans[p]
+        next_trans = tr * (ONE32 - alpha)
+        if next_trans < TRANSMITTANCE_MIN:
+            done[p] = True
+            stopped += 1
+            continue
+        w = alpha * tr
+        acc[p, 0] += rec[j, 6] * w
+        acc[p, 1] += rec[j, 7] * w
+        acc[p, 2] += rec[j, 8] * w
+        acc[p, 3] += rec[j, 9] * w
+        trans[p] = next_trans
+        stop[p] = j + 1
+    return stopped
+
+
+@njit(cache=True)
+def _store_tile(feats, t_final, last, acc, trans, stop, row0, col0, rows, cols):  # pragma: no cover - numba
+    """A tile's pixel state written into the image-sized results."""
+    for lr in range(rows):
+        for lc in range(cols):
+            p = lr * cols + lc
+            row, col = row0 + lr, col0 + lc
+            for f in range(FEATURES):
+                feats[row, col, f] = acc[p, f]
+            t_final[row, col] = trans[p]
+            last[row, col] = stop[p]
+
+
+@njit(cache=True)
+def _load_tile(t_final, last, grad_feats, grad_t_final, row0, col0, rows, cols, start, trans, g, g_bg,
+               stop):  # pragma: no cover - numba
+    """A tile's backward state from the image-sized inputs (``trans``, ``g``, ``g_bg``, ``stop`` filled in place);
+    returns each row's last contributor + 1 and the tile's."""
+    row_stop = np.full(rows, start, np.int64)
+    tile_stop = start
+    for lr in range(rows):
+        for lc in range(cols):
+            p, row, col = lr * cols + lc, row0 + lr, col0 + lc
+            tf = t_final[row, col]
+            trans[p] = tf
+            for f in range(FEATURES):
+                g[p, f] = grad_feats[row, col, f]
+            g_bg[p] = grad_t_final[row, col] * tf
+            stop[p] = last[row, col]
+            row_stop[lr] = max(row_stop[lr], stop[p])
+        tile_stop = max(tile_stop, row_stop[lr])
+    return row_stop, tile_stop
+
+
 @njit(parallel=True, cache=True)
 def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x, spans):  # pragma: no cover
     """Front-to-back blending: features [H, W, 4] (no background), final transmittance, last entry + 1.
@@ -67,39 +129,56 @@ def blend_forward(offsets, rec, tile_order, width, height, tile_size, tiles_x, s
                 first, span_end = column_span(rec, j, coef, ci, py, col0, cols)
                 spans[j, lr, 0] = first
                 spans[j, lr, 1] = span_end
-                base = lr * cols
-                for lc in range(first, span_end):
-                    p = base + lc
-                    if done[p]:
-                        continue
-                    alpha, _, _, _ = pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
-                    if alpha == 0.0:
-                        continue
-                    tr = trans[p]
-                    next_trans = tr * (ONE32 - alpha)
-                    if next_trans < TRANSMITTANCE_MIN:
-                        done[p] = True
-                        row_active[lr] -= 1
-                        active -= 1
-                        continue
-                    w = alpha * tr
-                    acc[p, 0] += rec[j, 6] * w
-                    acc[p, 1] += rec[j, 7] * w
-                    acc[p, 2] += rec[j, 8] * w
-                    acc[p, 3] += rec[j, 9] * w
-                    trans[p] = next_trans
-                    stop[p] = j + 1
+                stopped = _blend_row_span(rec, j, py, col0, lr * cols, first, span_end, trans, acc, stop, done)
+                row_active[lr] -= stopped
+                active -= stopped
             if active == 0:
                 break
-        for lr in range(rows):
-            for lc in range(cols):
-                p = lr * cols + lc
-                row, col = row0 + lr, col0 + lc
-                for f in range(FEATURES):
-                    feats[row, col, f] = acc[p, f]
-                t_final[row, col] = trans[p]
-                last[row, col] = stop[p]
+        _store_tile(feats, t_final, last, acc, trans, stop, row0, col0, rows, cols)
     return feats, t_final, last
+
+
+@njit(cache=True, inline="always")
+def _unblend_row_span(rec, j, py, col0, base, first, span_end, stop, trans, g, g_bg, behind, d_c0, d_c1, d_c2, d_c3,
+                      d_op, d_mx, d_my, d_a, d_b, d_c):  # pragma: no cover - numba
+    """Entry ``j`` taken back out of the pixels ``base + first .. base + span_end`` of a tile row, back to front
+    (``trans`` and ``behind`` updated in place), its gradient sums carried on: returns them (colours, opacity, 2D
+    mean, conic) after these pixels, summed in the order the whole tile's loop sums them."""
+    c0, c1, c2, c3 = rec[j, 6], rec[j, 7], rec[j, 8], rec[j, 9]
+    a, b, c = rec[j, 2], rec[j, 3], rec[j, 4]
+    for lc in range(first, span_end):
+        p = base + lc
+        if j >= stop[p]:
+            continue
+        alpha, gval, dx, dy = pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
+        if alpha == 0.0:
+            continue
+        one_minus = 1.0 - alpha
+        inv_one_minus = ONE32 / one_minus
+        tr = trans[p] * inv_one_minus
+        trans[p] = tr
+        w = alpha * tr
+        g0, g1, g2, g3 = g[p, 0], g[p, 1], g[p, 2], g[p, 3]
+        d_c0 += g0 * w
+        d_c1 += g1 * w
+        d_c2 += g2 * w
+        d_c3 += g3 * w
+        s0, s1, s2, s3 = behind[p, 0], behind[p, 1], behind[p, 2], behind[p, 3]
+        d_alpha = tr * (g0 * (c0 - s0) + g1 * (c1 - s1) + g2 * (c2 - s2) + g3 * (c3 - s3))
+        d_alpha -= g_bg[p] * inv_one_minus
+        behind[p, 0] = alpha * c0 + one_minus * s0
+        behind[p, 1] = alpha * c1 + one_minus * s1
+        behind[p, 2] = alpha * c2 + one_minus * s2
+        behind[p, 3] = alpha * c3 + one_minus * s3
+        if rec[j, 5] * gval <= ALPHA_MAX:  # alpha not clamped: it depends on opacity and power
+            d_op += gval * d_alpha
+            d_power = alpha * d_alpha
+            d_mx += d_power * (a * dx + b * dy)
+            d_my += d_power * (b * dx + c * dy)
+            d_a += -0.5 * d_power * dx * dx
+            d_b += -d_power * dx * dy
+            d_c += -0.5 * d_power * dy * dy
+    return d_c0, d_c1, d_c2, d_c3, d_op, d_mx, d_my, d_a, d_b, d_c
 
 
 @njit(parallel=True, cache=True)
@@ -125,25 +204,12 @@ def blend_backward(
         g = np.empty((n_pix, FEATURES), np.float32)
         g_bg = np.empty(n_pix, np.float32)
         stop = np.empty(n_pix, np.int64)
-        row_stop = np.full(rows, start, np.int64)  # the last contributor + 1 over each row
-        tile_stop = start
-        for lr in range(rows):
-            for lc in range(cols):
-                p, row, col = lr * cols + lc, row0 + lr, col0 + lc
-                tf = t_final[row, col]
-                trans[p] = tf
-                for f in range(FEATURES):
-                    g[p, f] = grad_feats[row, col, f]
-                g_bg[p] = grad_t_final[row, col] * tf
-                stop[p] = last[row, col]
-                row_stop[lr] = max(row_stop[lr], stop[p])
-            tile_stop = max(tile_stop, row_stop[lr])
+        row_stop, tile_stop = _load_tile(t_final, last, grad_feats, grad_t_final, row0, col0, rows, cols, start,
+                                         trans, g, g_bg, stop)
         for ci in range(n_cand - 1, -1, -1):
             j = cand[ci]
             if j >= tile_stop:
                 continue
-            c0, c1, c2, c3 = rec[j, 6], rec[j, 7], rec[j, 8], rec[j, 9]
-            a, b, c = rec[j, 2], rec[j, 3], rec[j, 4]
             d_c0 = d_c1 = d_c2 = d_c3 = ZERO32
             d_op = d_mx = d_my = d_a = d_b = d_c = ZERO32
             r_first, r_end = row_range(rec, j, row0, rows)
@@ -151,50 +217,11 @@ def blend_backward(
                 if j >= row_stop[lr]:
                     continue
                 first, span_end = np.int64(spans[j, lr, 0]), np.int64(spans[j, lr, 1])
-                py = np.float32(row0 + lr + 0.5)
-                base = lr * cols
-                for lc in range(first, span_end):
-                    p = base + lc
-                    if j >= stop[p]:
-                        continue
-                    alpha, gval, dx, dy = pair_alpha(rec, j, np.float32(col0 + lc + 0.5), py)
-                    if alpha == 0.0:
-                        continue
-                    one_minus = 1.0 - alpha
-                    inv_one_minus = ONE32 / one_minus
-                    tr = trans[p] * inv_one_minus
-                    trans[p] = tr
-                    w = alpha * tr
-                    g0, g1, g2, g3 = g[p, 0], g[p, 1], g[p, 2], g[p, 3]
-                    d_c0 += g0 * w
-                    d_c1 += g1 * w
-                    d_c2 += g2 * w
-                    d_c3 += g3 * w
-                    s0, s1, s2, s3 = behind[p, 0], behind[p, 1], behind[p, 2], behind[p, 3]
-                    d_alpha = tr * (g0 * (c0 - s0) + g1 * (c1 - s1) + g2 * (c2 - s2) + g3 * (c3 - s3))
-                    d_alpha -= g_bg[p] * inv_one_minus
-                    behind[p, 0] = alpha * c0 + one_minus * s0
-                    behind[p, 1] = alpha * c1 + one_minus * s1
-                    behind[p, 2] = alpha * c2 + one_minus * s2
-                    behind[p, 3] = alpha * c3 + one_minus * s3
-                    if rec[j, 5] * gval <= ALPHA_MAX:  # alpha not clamped: it depends on opacity and power
-                        d_op += gval * d_alpha
-                        d_power = alpha * d_alpha
-                        d_mx += d_power * (a * dx + b * dy)
-                        d_my += d_power * (b * dx + c * dy)
-                        d_a += -0.5 * d_power * dx * dx
-                        d_b += -d_power * dx * dy
-                        d_c += -0.5 * d_power * dy * dy
-            grads[j, 0] = d_mx
-            grads[j, 1] = d_my
-            grads[j, 2] = d_a
-            grads[j, 3] = d_b
-            grads[j, 4] = d_c
-            grads[j, 5] = d_op
-            grads[j, 6] = d_c0
-            grads[j, 7] = d_c1
-            grads[j, 8] = d_c2
-            grads[j, 9] = d_c3
+                d_c0, d_c1, d_c2, d_c3, d_op, d_mx, d_my, d_a, d_b, d_c = _unblend_row_span(
+                    rec, j, np.float32(row0 + lr + 0.5), col0, lr * cols, first, span_end, stop, trans, g, g_bg,
+                    behind, d_c0, d_c1, d_c2, d_c3, d_op, d_mx, d_my, d_a, d_b, d_c)
+            grads[j, 0], grads[j, 1], grads[j, 2], grads[j, 3], grads[j, 4] = d_mx, d_my, d_a, d_b, d_c
+            grads[j, 5], grads[j, 6], grads[j, 7], grads[j, 8], grads[j, 9] = d_op, d_c0, d_c1, d_c2, d_c3
     return grads
 
 
@@ -203,7 +230,7 @@ def scatter_entry_grads(ids, entry_grads, n_gaussians):
     entries in list order, so the sums do not depend on the thread count). Each thread owns a contiguous block of
     Gaussians and writes whole rows of it: with millions of Gaussians the writes land in few cache lines (a pass
     per field over the whole output, as before, took 196 ms of a refit step at 1.37 M Gaussians, this 64 ms:
-    ``docs/captures.md``)."""
+    ``docs/notes/captures.md``)."""
     return _scatter_rows(ids, entry_grads, n_gaussians, max(1, min(get_num_threads(), n_gaussians)))
 
 

@@ -44,6 +44,54 @@ def _rotation(w, x, y, z):  # pragma: no cover - numba
     )
 
 
+@njit(cache=True, inline="always")
+def _camera_point(means, i, view):  # pragma: no cover - numba
+    """Gaussian i's centre in camera coordinates (float64)."""
+    mx, my, mz = np.float64(means[i, 0]), np.float64(means[i, 1]), np.float64(means[i, 2])
+    x = view[0, 0] * mx + view[0, 1] * my + view[0, 2] * mz + view[0, 3]
+    y = view[1, 0] * mx + view[1, 1] * my + view[1, 2] * mz + view[1, 3]
+    z = view[2, 0] * mx + view[2, 1] * my + view[2, 2] * mz + view[2, 3]
+    return x, y, z
+
+
+@njit(cache=True)
+def _jacobian_rows(view, x, y, z, fx, fy, lims):  # pragma: no cover - numba
+    """The EWA Jacobian at (x, y, z) with the field-of-view clamp, times the view's rotation: T's rows t_x, t_y, and
+    the clamped tx, ty they were taken at."""
+    inv_z = 1.0 / z
+    tx = z * min(max(x * inv_z, -lims[0]), lims[1])
+    ty = z * min(max(y * inv_z, -lims[2]), lims[3])
+    jx, jxz = fx * inv_z, -fx * tx * inv_z * inv_z
+    jy, jyz = fy * inv_z, -fy * ty * inv_z * inv_z
+    t_x = (jx * view[0, 0] + jxz * view[2, 0], jx * view[0, 1] + jxz * view[2, 1], jx * view[0, 2] + jxz * view[2, 2])
+    t_y = (jy * view[1, 0] + jyz * view[2, 0], jy * view[1, 1] + jyz * view[2, 1], jy * view[1, 2] + jyz * view[2, 2])
+    return t_x, t_y, tx, ty
+
+
+@njit(cache=True, inline="always")
+def _covariance_2d(gx0, gx1, gx2, gy0, gy1, gy2):  # pragma: no cover - numba
+    """Sigma_2D = G G^T + 0.3 I from G's rows: its entries a, b, c, the cross product k of the rows and its det."""
+    a = gx0 * gx0 + gx1 * gx1 + gx2 * gx2 + DIL
+    b = gx0 * gy0 + gx1 * gy1 + gx2 * gy2
+    c = gy0 * gy0 + gy1 * gy1 + gy2 * gy2 + DIL
+    k0, k1, k2 = gx1 * gy2 - gx2 * gy1, gx2 * gy0 - gx0 * gy2, gx0 * gy1 - gx1 * gy0
+    det = k0 * k0 + k1 * k1 + k2 * k2 + DIL * (a + c) - DIL * DIL
+    return a, b, c, k0, k1, k2, det
+
+
+@njit(cache=True, inline="always")
+def _tile_rect(u32, v32, radius, tile_size, tiles_x, tiles_y):  # pragma: no cover - numba
+    """The tiles a square of ``radius`` around (u, v) touches, clamped to the image: lo_x, lo_y, hi_x, hi_y
+    (clamped before floor/ceil: numba's give int64, which huge values overflow)."""
+    lo_x = math.floor(min(max((np.float64(u32) - radius) / tile_size, -1.0), tiles_x + 1.0))
+    lo_y = math.floor(min(max((np.float64(v32) - radius) / tile_size, -1.0), tiles_y + 1.0))
+    hi_x = math.ceil(min(max((np.float64(u32) + radius) / tile_size, -1.0), tiles_x + 1.0))
+    hi_y = math.ceil(min(max((np.float64(v32) + radius) / tile_size, -1.0), tiles_y + 1.0))
+    lo_x, lo_y = min(max(lo_x, 0), tiles_x), min(max(lo_y, 0), tiles_y)
+    hi_x, hi_y = min(max(hi_x, 0), tiles_x), min(max(hi_y, 0), tiles_y)
+    return lo_x, lo_y, hi_x, hi_y
+
+
 @njit(parallel=True, cache=True)
 def project_forward(means, quats, scales, view, intr, lims, width, height, near, far, tile_size, tiles_x,
                     tiles_y):  # pragma: no cover - numba
@@ -60,10 +108,7 @@ def project_forward(means, quats, scales, view, intr, lims, width, height, near,
     tile_max = np.zeros((n, 2), np.int64)
     fx, fy, cx, cy = intr[0], intr[1], intr[2], intr[3]
     for i in prange(n):
-        mx, my, mz = np.float64(means[i, 0]), np.float64(means[i, 1]), np.float64(means[i, 2])
-        x = view[0, 0] * mx + view[0, 1] * my + view[0, 2] * mz + view[0, 3]
-        y = view[1, 0] * mx + view[1, 1] * my + view[1, 2] * mz + view[1, 3]
-        z = view[2, 0] * mx + view[2, 1] * my + view[2, 2] * mz + view[2, 3]
+        x, y, z = _camera_point(means, i, view)
         depths[i] = np.float32(z)
         if not (z > near and z <= far and math.isfinite(x) and math.isfinite(y)):
             continue
@@ -72,14 +117,7 @@ def project_forward(means, quats, scales, view, intr, lims, width, height, near,
         v = fy * y * inv_z + cy
         if not (abs(u) <= FLOAT32_MAX and abs(v) <= FLOAT32_MAX):  # beyond float32: culled, as in torch
             continue
-        tx = z * min(max(x * inv_z, -lims[0]), lims[1])
-        ty = z * min(max(y * inv_z, -lims[2]), lims[3])
-        jx, jxz = fx * inv_z, -fx * tx * inv_z * inv_z
-        jy, jyz = fy * inv_z, -fy * ty * inv_z * inv_z
-        t_x0, t_x1, t_x2 = (jx * view[0, 0] + jxz * view[2, 0], jx * view[0, 1] + jxz * view[2, 1],
-                            jx * view[0, 2] + jxz * view[2, 2])
-        t_y0, t_y1, t_y2 = (jy * view[1, 0] + jyz * view[2, 0], jy * view[1, 1] + jyz * view[2, 1],
-                            jy * view[1, 2] + jyz * view[2, 2])
+        (t_x0, t_x1, t_x2), (t_y0, t_y1, t_y2), _, _ = _jacobian_rows(view, x, y, z, fx, fy, lims)
         qw, qx, qy, qz, _, _ = _unit_quat(quats, i)
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(qw, qx, qy, qz)
         s0 = min(np.float64(scales[i, 0]), MAX_SCALE)
@@ -91,11 +129,7 @@ def project_forward(means, quats, scales, view, intr, lims, width, height, near,
         gy0 = (t_y0 * r00 + t_y1 * r10 + t_y2 * r20) * s0
         gy1 = (t_y0 * r01 + t_y1 * r11 + t_y2 * r21) * s1
         gy2 = (t_y0 * r02 + t_y1 * r12 + t_y2 * r22) * s2
-        a = gx0 * gx0 + gx1 * gx1 + gx2 * gx2 + DIL
-        b = gx0 * gy0 + gx1 * gy1 + gx2 * gy2
-        c = gy0 * gy0 + gy1 * gy1 + gy2 * gy2 + DIL
-        k0, k1, k2 = gx1 * gy2 - gx2 * gy1, gx2 * gy0 - gx0 * gy2, gx0 * gy1 - gx1 * gy0
-        det = k0 * k0 + k1 * k1 + k2 * k2 + DIL * (a + c) - DIL * DIL
+        a, b, c, _, _, _, det = _covariance_2d(gx0, gx1, gx2, gy0, gy1, gy2)
         if not (det > 0 and math.isfinite(det) and math.isfinite(a + c)):
             continue
         inv_det = 1.0 / det
@@ -107,13 +141,7 @@ def project_forward(means, quats, scales, view, intr, lims, width, height, near,
             continue
         radius = np.float64(math.ceil(min(radius, MAX_RADIUS)))
         u32, v32 = np.float32(u), np.float32(v)
-        # tile rectangle, clamped before floor/ceil (numba's give int64, which huge values overflow)
-        lo_x = math.floor(min(max((np.float64(u32) - radius) / tile_size, -1.0), tiles_x + 1.0))
-        lo_y = math.floor(min(max((np.float64(v32) - radius) / tile_size, -1.0), tiles_y + 1.0))
-        hi_x = math.ceil(min(max((np.float64(u32) + radius) / tile_size, -1.0), tiles_x + 1.0))
-        hi_y = math.ceil(min(max((np.float64(v32) + radius) / tile_size, -1.0), tiles_y + 1.0))
-        lo_x, lo_y = min(max(lo_x, 0), tiles_x), min(max(lo_y, 0), tiles_y)
-        hi_x, hi_y = min(max(hi_x, 0), tiles_x), min(max(hi_y, 0), tiles_y)
+        lo_x, lo_y, hi_x, hi_y = _tile_rect(u32, v32, radius, tile_size, tiles_x, tiles_y)
         if not (hi_x > lo_x and hi_y > lo_y):
             continue
         visible[i] = True
@@ -123,6 +151,73 @@ def project_forward(means, quats, scales, view, intr, lims, width, height, near,
         tile_min[i, 0], tile_min[i, 1] = lo_x, lo_y
         tile_max[i, 0], tile_max[i, 1] = hi_x, hi_y
     return means2d, conics, depths, radii, visible, tile_min, tile_max
+
+
+@njit(cache=True)
+def _covariance_backward(gx0, gx1, gx2, gy0, gy1, gy2, d_conic0, d_conic1, d_conic2):  # pragma: no cover - numba
+    """The conic (c, -b, a) / det's gradient carried back to G's rows: dgx (3), dgy (3)."""
+    a, b, c, k0, k1, k2, det = _covariance_2d(gx0, gx1, gx2, gy0, gy1, gy2)
+    inv_det = 1.0 / det
+    ga, gb, gc = np.float64(d_conic0), np.float64(d_conic1), np.float64(d_conic2)
+    d_det = -(ga * c - gb * b + gc * a) * inv_det * inv_det
+    d_a = gc * inv_det + DIL * d_det
+    d_b = -gb * inv_det
+    d_c = ga * inv_det + DIL * d_det
+    dk0, dk1, dk2 = 2 * k0 * d_det, 2 * k1 * d_det, 2 * k2 * d_det  # d/d(g_x x g_y)
+    # (u x v).w: d/du = v x w, d/dv = w x u
+    dgx = (2 * gx0 * d_a + gy0 * d_b + (gy1 * dk2 - gy2 * dk1), 2 * gx1 * d_a + gy1 * d_b + (gy2 * dk0 - gy0 * dk2),
+           2 * gx2 * d_a + gy2 * d_b + (gy0 * dk1 - gy1 * dk0))
+    dgy = (2 * gy0 * d_c + gx0 * d_b + (dk1 * gx2 - dk2 * gx1), 2 * gy1 * d_c + gx1 * d_b + (dk2 * gx0 - dk0 * gx2),
+           2 * gy2 * d_c + gx2 * d_b + (dk0 * gx1 - dk1 * gx0))
+    return dgx, dgy
+
+
+@njit(cache=True, inline="always")
+def _camera_point_backward(view, x, y, z, tx, ty, dtx, dty, du, dv, d_depth, fx, fy, lims):  # pragma: no cover
+    """The gradients of T's rows (``dtx``, ``dty``), of the projected centre (``du``, ``dv``) and of the depth,
+    carried back through the clamped Jacobian and the projection to the camera point: d_x, d_y, d_z."""
+    w = view
+    inv_z = 1.0 / z
+    ux, uy = x * inv_z, y * inv_z
+    d_jx = dtx[0] * w[0, 0] + dtx[1] * w[0, 1] + dtx[2] * w[0, 2]
+    d_jxz = dtx[0] * w[2, 0] + dtx[1] * w[2, 1] + dtx[2] * w[2, 2]
+    d_jy = dty[0] * w[1, 0] + dty[1] * w[1, 1] + dty[2] * w[1, 2]
+    d_jyz = dty[0] * w[2, 0] + dty[1] * w[2, 1] + dty[2] * w[2, 2]
+    inv_z2 = inv_z * inv_z
+    d_z = -fx * inv_z2 * d_jx - fy * inv_z2 * d_jy
+    d_z += 2 * fx * tx * inv_z2 * inv_z * d_jxz + 2 * fy * ty * inv_z2 * inv_z * d_jyz
+    d_tx = -fx * inv_z2 * d_jxz
+    d_ty = -fy * inv_z2 * d_jyz
+    d_x = 0.0
+    d_y = 0.0
+    if ux < -lims[0] or ux > lims[1]:  # clamped: tx = z * limit
+        d_z += (tx * inv_z) * d_tx
+    else:  # tx = x
+        d_x += d_tx
+    if uy < -lims[2] or uy > lims[3]:
+        d_z += (ty * inv_z) * d_ty
+    else:
+        d_y += d_ty
+    # means2d = (fx x / z + cx, fy y / z + cy), depth = z
+    d_x += fx * inv_z * du
+    d_y += fy * inv_z * dv
+    d_z += -fx * x * inv_z2 * du - fy * y * inv_z2 * dv + d_depth
+    return d_x, d_y, d_z
+
+
+@njit(cache=True, inline="always")
+def _quat_backward(qw, qx, qy, qz, qnorm, dr):  # pragma: no cover - numba
+    """The rotation matrix's gradient ``dr`` (row-major) carried back through ``_rotation`` and the normalisation
+    q / |q| to the quaternion as given."""
+    d_w = 2 * (-qz * dr[1] + qy * dr[2] + qz * dr[3] - qx * dr[5] - qy * dr[6] + qx * dr[7])
+    d_qx = 2 * (qy * dr[1] + qz * dr[2] + qy * dr[3] - 2 * qx * dr[4] - qw * dr[5] + qz * dr[6]
+                + qw * dr[7] - 2 * qx * dr[8])
+    d_qy = 2 * (-2 * qy * dr[0] + qx * dr[1] + qw * dr[2] + qx * dr[3] + qz * dr[5] - qw * dr[6]
+                + qz * dr[7] - 2 * qy * dr[8])
+    d_qz = 2 * (-2 * qz * dr[0] - qw * dr[1] + qx * dr[2] + qw * dr[3] - 2 * qz * dr[4] + qy * dr[5]
+                + qx * dr[6] + qy * dr[7])
+    dot = qw * d_w + qx * d_qx + qy * d_qy + qz * d_qz  # through the normalisation q / |q|
+    return (d_w - qw * dot) / qnorm, (d_qx - qx * dot) / qnorm, (d_qy - qy * dot) / qnorm, (d_qz - qz * dot) / qnorm
 
 
 @njit(parallel=True, cache=True)
@@ -139,21 +234,8 @@ def project_backward(means, quats, scales, view, intr, lims, visible, d_means2d,
     for i in prange(n):
         if not visible[i]:
             continue
-        mx, my, mz = np.float64(means[i, 0]), np.float64(means[i, 1]), np.float64(means[i, 2])
-        x = view[0, 0] * mx + view[0, 1] * my + view[0, 2] * mz + view[0, 3]
-        y = view[1, 0] * mx + view[1, 1] * my + view[1, 2] * mz + view[1, 3]
-        z = view[2, 0] * mx + view[2, 1] * my + view[2, 2] * mz + view[2, 3]
-        inv_z = 1.0 / z
-        ux, uy = x * inv_z, y * inv_z
-        clamped_x = ux < -lims[0] or ux > lims[1]
-        clamped_y = uy < -lims[2] or uy > lims[3]
-        tx = z * min(max(ux, -lims[0]), lims[1])
-        ty = z * min(max(uy, -lims[2]), lims[3])
-        jx, jxz = fx * inv_z, -fx * tx * inv_z * inv_z
-        jy, jyz = fy * inv_z, -fy * ty * inv_z * inv_z
-        w = view
-        t_x = (jx * w[0, 0] + jxz * w[2, 0], jx * w[0, 1] + jxz * w[2, 1], jx * w[0, 2] + jxz * w[2, 2])
-        t_y = (jy * w[1, 0] + jyz * w[2, 0], jy * w[1, 1] + jyz * w[2, 1], jy * w[1, 2] + jyz * w[2, 2])
+        x, y, z = _camera_point(means, i, view)
+        t_x, t_y, tx, ty = _jacobian_rows(view, x, y, z, fx, fy, lims)
         qw, qx, qy, qz, qnorm, degenerate = _unit_quat(quats, i)
         r = _rotation(qw, qx, qy, qz)
         s_raw = (np.float64(scales[i, 0]), np.float64(scales[i, 1]), np.float64(scales[i, 2]))
@@ -162,32 +244,11 @@ def project_backward(means, quats, scales, view, intr, lims, visible, d_means2d,
         m0, m1, m2 = r[0] * s[0], r[1] * s[1], r[2] * s[2]
         m3, m4, m5 = r[3] * s[0], r[4] * s[1], r[5] * s[2]
         m6, m7, m8 = r[6] * s[0], r[7] * s[1], r[8] * s[2]
-        gx0 = t_x[0] * m0 + t_x[1] * m3 + t_x[2] * m6
-        gx1 = t_x[0] * m1 + t_x[1] * m4 + t_x[2] * m7
-        gx2 = t_x[0] * m2 + t_x[1] * m5 + t_x[2] * m8
-        gy0 = t_y[0] * m0 + t_y[1] * m3 + t_y[2] * m6
-        gy1 = t_y[0] * m1 + t_y[1] * m4 + t_y[2] * m7
-        gy2 = t_y[0] * m2 + t_y[1] * m5 + t_y[2] * m8
-        a = gx0 * gx0 + gx1 * gx1 + gx2 * gx2 + DIL
-        b = gx0 * gy0 + gx1 * gy1 + gx2 * gy2
-        c = gy0 * gy0 + gy1 * gy1 + gy2 * gy2 + DIL
-        k0, k1, k2 = gx1 * gy2 - gx2 * gy1, gx2 * gy0 - gx0 * gy2, gx0 * gy1 - gx1 * gy0
-        det = k0 * k0 + k1 * k1 + k2 * k2 + DIL * (a + c) - DIL * DIL
-        inv_det = 1.0 / det
-        # conic = (c, -b, a) / det
-        ga, gb, gc = np.float64(d_conics[i, 0]), np.float64(d_conics[i, 1]), np.float64(d_conics[i, 2])
-        d_det = -(ga * c - gb * b + gc * a) * inv_det * inv_det
-        d_a = gc * inv_det + DIL * d_det
-        d_b = -gb * inv_det
-        d_c = ga * inv_det + DIL * d_det
-        dk0, dk1, dk2 = 2 * k0 * d_det, 2 * k1 * d_det, 2 * k2 * d_det  # d/d(g_x x g_y)
-        # (u x v).w: d/du = v x w, d/dv = w x u
-        dgx0 = 2 * gx0 * d_a + gy0 * d_b + (gy1 * dk2 - gy2 * dk1)
-        dgx1 = 2 * gx1 * d_a + gy1 * d_b + (gy2 * dk0 - gy0 * dk2)
-        dgx2 = 2 * gx2 * d_a + gy2 * d_b + (gy0 * dk1 - gy1 * dk0)
-        dgy0 = 2 * gy0 * d_c + gx0 * d_b + (dk1 * gx2 - dk2 * gx1)
-        dgy1 = 2 * gy1 * d_c + gx1 * d_b + (dk2 * gx0 - dk0 * gx2)
-        dgy2 = 2 * gy2 * d_c + gx2 * d_b + (dk0 * gx1 - dk1 * gx0)
+        (dgx0, dgx1, dgx2), (dgy0, dgy1, dgy2) = _covariance_backward(
+            t_x[0] * m0 + t_x[1] * m3 + t_x[2] * m6, t_x[0] * m1 + t_x[1] * m4 + t_x[2] * m7,
+            t_x[0] * m2 + t_x[1] * m5 + t_x[2] * m8, t_y[0] * m0 + t_y[1] * m3 + t_y[2] * m6,
+            t_y[0] * m1 + t_y[1] * m4 + t_y[2] * m7, t_y[0] * m2 + t_y[1] * m5 + t_y[2] * m8,
+            d_conics[i, 0], d_conics[i, 1], d_conics[i, 2])
         # through G = T M
         dtx = (dgx0 * m0 + dgx1 * m1 + dgx2 * m2, dgx0 * m3 + dgx1 * m4 + dgx2 * m5, dgx0 * m6 + dgx1 * m7 + dgx2 * m8)
         dty = (dgy0 * m0 + dgy1 * m1 + dgy2 * m2, dgy0 * m3 + dgy1 * m4 + dgy2 * m5, dgy0 * m6 + dgy1 * m7 + dgy2 * m8)
@@ -201,49 +262,17 @@ def project_backward(means, quats, scales, view, intr, lims, visible, d_means2d,
             g_scales[i, 1] = np.float32(dm1 * r[1] + dm4 * r[4] + dm7 * r[7])
         if s_raw[2] <= MAX_SCALE:
             g_scales[i, 2] = np.float32(dm2 * r[2] + dm5 * r[5] + dm8 * r[8])
-        dr = (dm0 * s[0], dm1 * s[1], dm2 * s[2], dm3 * s[0], dm4 * s[1], dm5 * s[2], dm6 * s[0], dm7 * s[1],
-              dm8 * s[2])
-        # T from the Jacobian entries
-        d_jx = dtx[0] * w[0, 0] + dtx[1] * w[0, 1] + dtx[2] * w[0, 2]
-        d_jxz = dtx[0] * w[2, 0] + dtx[1] * w[2, 1] + dtx[2] * w[2, 2]
-        d_jy = dty[0] * w[1, 0] + dty[1] * w[1, 1] + dty[2] * w[1, 2]
-        d_jyz = dty[0] * w[2, 0] + dty[1] * w[2, 1] + dty[2] * w[2, 2]
-        inv_z2 = inv_z * inv_z
-        d_z = -fx * inv_z2 * d_jx - fy * inv_z2 * d_jy
-        d_z += 2 * fx * tx * inv_z2 * inv_z * d_jxz + 2 * fy * ty * inv_z2 * inv_z * d_jyz
-        d_tx = -fx * inv_z2 * d_jxz
-        d_ty = -fy * inv_z2 * d_jyz
-        d_x = 0.0
-        d_y = 0.0
-        if clamped_x:  # tx = z * limit
-            d_z += (tx * inv_z) * d_tx
-        else:  # tx = x
-            d_x += d_tx
-        if clamped_y:
-            d_z += (ty * inv_z) * d_ty
-        else:
-            d_y += d_ty
-        # means2d = (fx x / z + cx, fy y / z + cy), depth = z
-        du, dv = np.float64(d_means2d[i, 0]), np.float64(d_means2d[i, 1])
-        d_x += fx * inv_z * du
-        d_y += fy * inv_z * dv
-        d_z += -fx * x * inv_z2 * du - fy * y * inv_z2 * dv + np.float64(d_depths[i])
+        d_x, d_y, d_z = _camera_point_backward(view, x, y, z, tx, ty, dtx, dty, np.float64(d_means2d[i, 0]),
+                                               np.float64(d_means2d[i, 1]), np.float64(d_depths[i]), fx, fy, lims)
         for k in range(3):
-            g_means[i, k] = np.float32(w[0, k] * d_x + w[1, k] * d_y + w[2, k] * d_z)
+            g_means[i, k] = np.float32(view[0, k] * d_x + view[1, k] * d_y + view[2, k] * d_z)
         if degenerate:
             continue
-        d_w = 2 * (-qz * dr[1] + qy * dr[2] + qz * dr[3] - qx * dr[5] - qy * dr[6] + qx * dr[7])
-        d_qx = 2 * (qy * dr[1] + qz * dr[2] + qy * dr[3] - 2 * qx * dr[4] - qw * dr[5] + qz * dr[6]
-                    + qw * dr[7] - 2 * qx * dr[8])
-        d_qy = 2 * (-2 * qy * dr[0] + qx * dr[1] + qw * dr[2] + qx * dr[3] + qz * dr[5] - qw * dr[6]
-                    + qz * dr[7] - 2 * qy * dr[8])
-        d_qz = 2 * (-2 * qz * dr[0] - qw * dr[1] + qx * dr[2] + qw * dr[3] - 2 * qz * dr[4] + qy * dr[5]
-                    + qx * dr[6] + qy * dr[7])
-        dot = qw * d_w + qx * d_qx + qy * d_qy + qz * d_qz  # through the normalisation q / |q|
-        g_quats[i, 0] = np.float32((d_w - qw * dot) / qnorm)
-        g_quats[i, 1] = np.float32((d_qx - qx * dot) / qnorm)
-        g_quats[i, 2] = np.float32((d_qy - qy * dot) / qnorm)
-        g_quats[i, 3] = np.float32((d_qz - qz * dot) / qnorm)
+        dr = (dm0 * s[0], dm1 * s[1], dm2 * s[2], dm3 * s[0], dm4 * s[1], dm5 * s[2], dm6 * s[0], dm7 * s[1],
+              dm8 * s[2])
+        g_w, g_x, g_y, g_z = _quat_backward(qw, qx, qy, qz, qnorm, dr)
+        g_quats[i, 0], g_quats[i, 1] = np.float32(g_w), np.float32(g_x)
+        g_quats[i, 2], g_quats[i, 3] = np.float32(g_y), np.float32(g_z)
     return g_means, g_quats, g_scales
 
 

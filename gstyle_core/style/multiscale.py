@@ -9,8 +9,8 @@ at ×8 ~320 px (the whole painting at stroke size 1), so broad strokes and large
 comes back through the downsampling's adjoint (a smooth upsampling), i.e. as a coarse colour change. Both sides are
 resized by the same factor, so the stroke size (the painting's matched size) means the same at every level.
 
-Why ×8 as well (docs/texture-scale.md, 9 scene × painting pairs, preview): against ×2 and ×4 alone it kept more of the
-scene (structure higher on all nine, +0.00 to +0.07) with the coarse share as high or higher on seven, for ≤ 1.1
+Why ×8 as well (docs/notes/texture-scale.md, 9 scene × painting pairs, preview): against ×2 and ×4 alone it kept more of
+the scene (structure higher on all nine, +0.00 to +0.07) with the coarse share as high or higher on seven, for ≤ 1.1
 points of NNFM drop: each level weighs a third instead of a half, so the ×2 level pulls less on mid-size detail.
 
 Loss: the mean over levels of the NNFM distance (mean over the render's feature vectors of 1 − cos to the nearest

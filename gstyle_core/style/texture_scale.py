@@ -18,7 +18,7 @@ Definition (the one issue #23 measured with):
    measured unweighted over its whole area.
 3. Shares: ``E_k / (E_fine + E_middle + E_coarse)``; they sum to 1 (all 0 for an image without detail).
 
-Measured against the issue's numbers (see ``docs/texture-scale.md``): demo × The Starry Night's added texture
+Measured against the issue's numbers (see ``docs/notes/texture-scale.md``): demo × The Starry Night's added texture
 0.468 / 0.278 / 0.255 (issue: 0.46 / 0.28 / 0.26). The Starry Night at 256 px gives 0.346 / 0.262 / 0.392 with the
 engine's own resize (antialiased bicubic, what VGG sees); the issue's 0.38 / 0.25 / 0.37 is the same measure on a
 Lanczos resize (0.378 / 0.250 / 0.372).

@@ -42,8 +42,8 @@ def matched_colours(run, source: torch.Tensor, A: np.ndarray, b: np.ndarray) -> 
     colours are mapped (``detail_base``) and each Gaussian keeps its own difference from them at its own size:
     c' = A·base + b + (c − base). A plain match of a scene far less colourful than the painting multiplies the
     per-Gaussian colour differences of the fit (invisible in the scene) by the map's gain (4–17× measured on the
-    bundled captures), which shows as single-splat confetti at the display's size (docs/tradeoffs-history.md). With keep
-    colours the luminance map is applied to the whole colour, unclipped (c_gt's chroma is restored after)."""
+    bundled captures), which shows as single-splat confetti at the display's size (docs/notes/tradeoffs-history.md).
+    With keep colours the luminance map is applied to the whole colour, unclipped (c_gt's chroma is restored after)."""
     keep = run.settings.keep_colours
     if run.settings.match_detail_px > 0 and not keep:
         base = detail_base(run, source)

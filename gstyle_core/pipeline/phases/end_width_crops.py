@@ -1,12 +1,13 @@
 """Windows of the ground truth at the width a run ends at, for the pre-processing refits.
 
 A refit fits the geometry to the ground truth at the working width (256 px): what only a finer pixel shows is not
-held, and each pre-processing round and each longer refit took structure away at a display's size (docs/tradeoffs.md,
-"Where the structure at 1024 px goes"). A run with finer levels therefore gives every other refit iteration a window
-of one of its views at the width it ends at, as large as a working-width view, so an iteration costs what it cost
-before. A view's ground truth at that width (its photo resized, or a render of the input scene) is taken when a window
-of it is first drawn, at most one a step, and kept for the run's later refits (``MAX_LEVEL_VIEWS`` views at most, as
-a finer level keeps). Windows are drawn from the seed and the refit's iteration, so a resumed refit draws the same.
+held, and each pre-processing round and each longer refit took structure away at a display's size
+(docs/notes/tradeoffs.md, "Where the structure at 1024 px goes"). A run with finer levels therefore gives every other
+refit iteration a window of one of its views at the width it ends at, as large as a working-width view, so an iteration
+costs what it cost before. A view's ground truth at that width (its photo resized, or a render of the input scene) is
+taken when a window of it is first drawn, at most one a step, and kept for the run's later refits (``MAX_LEVEL_VIEWS``
+views at most, as a finer level keeps). Windows are drawn from the seed and the refit's iteration, so a resumed refit
+draws the same.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ At the working width only the blend of the Gaussians inside one working pixel is
 each Gaussian's own colour shows as a speck (``style/speckle.py`` measures it). A finer level continues the
 optimisation at ``width`` px (Gatys et al.'s coarse-to-fine: the large structure comes from the coarse level, the
 fine level adds what its pixels can show), with the painting matched at the stroke size × ``width`` so strokes keep
-their size in the scene. Two ways to reach the finer pixels (``settings.refine_mode``; docs/tradeoffs-history.md
+their size in the scene. Two ways to reach the finer pixels (``settings.refine_mode``; docs/notes/tradeoffs-history.md
 measures them):
 
 * ``crops``: every other optimiser step renders, for each of its views, a random window of the view at ``width`` px
@@ -16,7 +16,7 @@ measures them):
 In both, the steps between are whole views at the working width with every term: the broad strokes (and CLIP) keep
 their context, and the style the working width shows is held while the finer level adds its own (the NNFM drop at
 the working width; with every step at ``width`` it fell from 31.3 to 27.6 % on the fern after The Great Wave, while
-alternating kept 31.4 %, docs/tradeoffs.md).
+alternating kept 31.4 %, docs/notes/tradeoffs.md).
 
 The level first takes its targets, one view per step (the ground truth at ``width``: the scene's photos resized, or
 renders of the input scene with its SH; at most ``MAX_LEVEL_VIEWS`` views), then ``steps`` optimiser steps of c_s
