@@ -9,7 +9,7 @@ from gstyle_core.pipeline.build import SETTING_OPTIONS
 # What the studio's engine config may set besides scene/style/cameras/preset/scene_kind (None keeps the preset's
 # value): the 360° defaults, the settings ``gstyle stylize`` takes, and ``selection``, a bool mask over the scene's
 # Gaussians (the studio's rectangle; ``region`` is its box).
-ENGINE_OPTIONS = ("defaults", *SETTING_OPTIONS, "selection")
+ENGINE_OPTIONS = ("defaults", *SETTING_OPTIONS, "selection", "capacity")  # capacity: a resumed run's cap
 
 
 def make_stylizer(scene: str | None = None, style: str | list[str] | None = None, cameras: str | None = None,
@@ -23,5 +23,6 @@ def make_stylizer(scene: str | None = None, style: str | list[str] | None = None
         raise ValueError(f"unknown engine options: {', '.join(sorted(unknown))}")
     request = BuildRequest(scene=scene, style=style, cameras=cameras, preset=preset, scene_kind=scene_kind,
                            defaults=options.get("defaults"), selection=options.get("selection"),
+                           capacity=options.get("capacity"),
                            overrides={name: options.get(name) for name in SETTING_OPTIONS})
     return build_stylizer(request).engine

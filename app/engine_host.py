@@ -136,7 +136,10 @@ class EngineHost(EngineSaves):
         else:  # a run from its inputs has no finer levels yet: the weights a level set go back
             self.drop_level_weights()
         try:
-            self.engine = self.factory(**self.config)
+            from gstyle_core.pipeline.checkpoint import saved_capacity
+
+            kept = saved_capacity(saved[0]) if saved is not None else None  # the saved run's cap, not today's
+            self.engine = self.factory(**self.config, **({"capacity": kept} if kept else {}))
             single_compute_thread(self.in_thread)
             self.build_params = dict(self.params)
             if self.params:

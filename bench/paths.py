@@ -6,9 +6,9 @@ The paths are the live controls of ``gstyle_core/pipeline/controls.py``'s table 
 kind: a λ off and on, a checkbox off and on, a log slider at half, one and twice its default, a linear one at its
 ends and middle; ``control_values``) and the run options (``RUN_FACTORS``: tier and its level mode, scene kind,
 precision, one or two paintings, a region with a hard or a soft edge, an interruption in each phase and the resume
-after it, a refine or a continue of the finished run). ``covering_cases`` draws a covering array of strength 2 over
-them (allpairspy): every pair of values of two factors is in at least one case. A control added to the table joins
-the matrix by itself.
+after it, a refine or a continue of the finished run, the whole capture held or a cap below its count).
+``covering_cases`` draws a covering array of strength 2 over them (allpairspy): every pair of values of two factors is
+in at least one case. A control added to the table joins the matrix by itself.
 
 Each case builds its engine through ``pipeline/build.py`` (what ``gstyle stylize`` and the studio's worker build
 with) on a real capture: ``--scene 360`` a crop of 24,000 Gaussians of ``winter_fountain.cropped.splat`` with the
@@ -53,7 +53,9 @@ RUN_FACTORS: dict[str, tuple[Any, ...]] = {
     "scene": ("360", "forward"),
     "precision": ("fp32", "bf16"),
     "paintings": (1, 2),
+    "capacity": ("whole", "reduced"),  # reduced: a cap below the capture's count (the rest from neighbours)
 }
+REDUCED_SHARE = 0.6  # the cap of a "reduced" case: this share of the capture's Gaussians
 # A few steps of each phase: the tiers keep their phases and levels (their widths scaled to a 64-px working width)
 SHORT = dict(working_width=64, max_views=4, epochs=3.0, min_steps=0, refit_iterations=3, preprocess_rounds=1,
              force_preprocess=True, refine_epochs=1.0, nnfm_candidates=2048)
@@ -203,6 +205,8 @@ def case_request(case: dict[str, Any], folder: Path, whole: bool = False):
                                                 or math.sqrt(row.low * row.high))
         overrides[row.name] = value
     overrides.update(precision=case["precision"], refine_mode=case["level_mode"], device="cpu")
+    if case.get("capacity") == "reduced":
+        overrides["max_gaussians"] = int(REDUCED_SHARE * scene.count)
     if case["region"] != "none":
         overrides["region"], overrides["region_feather"] = scene_box(scene, case["region"] == "soft")
     styles = [str(p) for p in PAINTINGS[:case["paintings"]]]
@@ -321,8 +325,9 @@ def check_region(run: CaseRun) -> None:
     if run.case["region"] == "none":
         assert engine.selection is None
         return
-    out, kept = engine.stylized_scene(), ~engine.selection
-    rows = engine.origin[kept]
+    out, kept = engine.stylized_scene().subset(np.arange(engine.gaussian_count)), ~engine.selection
+    held = engine.capacity.held  # the input rows a reduced run held (None: all)
+    rows = engine.origin[kept] if held is None else held[engine.origin[kept]]
     assert kept.sum() > 100, "the box leaves too few Gaussians outside to check"
     for name in ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest"):
         got, want = getattr(out, name)[kept], getattr(run.scene, name)[rows]
@@ -360,9 +365,27 @@ def check_run(run: CaseRun) -> None:
     assert len(engine.levels) == run.levels + (run.case["then"] == "refine"), (engine.levels, run.levels)
 
 
+def check_capacity(run: CaseRun) -> None:
+    """A reduced run held the most visible part of the capture and its export is the whole capture: the held
+    Gaussians as the run left them, then every other input Gaussian with its own geometry."""
+    engine, n = run.engine, run.scene.count
+    if run.case.get("capacity") != "reduced":
+        assert not engine.capacity.reduced
+        return
+    plan = engine.capacity
+    assert plan.reduced and len(plan.held) == int(REDUCED_SHARE * n) and "all" in engine.decisions["capacity"]
+    out = engine.stylized_scene()
+    assert out.count == engine.gaussian_count + n - len(plan.held) >= n
+    rest = np.setdiff1d(np.arange(n), plan.held)
+    tail = out.subset(np.arange(engine.gaussian_count, out.count))
+    for name in ("means", "log_scales", "quats", "opacity_logits"):
+        assert np.array_equal(getattr(tail, name), getattr(run.scene, name)[rest]), f"{name} of the rest changed"
+
+
 def check_case(run: CaseRun) -> None:
     """Everything a case's controls must do (AssertionError saying which did not)."""
     check_run(run)
+    check_capacity(run)
     check_terms(run)
     check_painting(run)
     check_region(run)

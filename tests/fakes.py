@@ -344,10 +344,10 @@ class GatedSort:
         return sort_request(request, scratch)
 
 
-def short_pull_run(scene, cameras, channel: int, **overrides):
+def short_pull_run(scene, cameras, channel: int, capacity=None, **overrides):
     """A short forward-facing ``preview`` engine on ``scene`` whose objective pulls the colours toward a painting of
     one primary ``channel`` (``MeanColourPull``): four views, 40 px, a forced pre-processing round, one split;
-    ``overrides``: other settings."""
+    ``capacity``: a saved cap (``Stylizer``'s); ``overrides``: other settings."""
     from gstyle_core.pipeline.settings import resolve_settings
     from gstyle_core.pipeline.stylizer import Stylizer
 
@@ -357,4 +357,4 @@ def short_pull_run(scene, cameras, channel: int, **overrides):
                 preprocess_rounds=1, force_preprocess=True, cull_unseen=False, preprocess_min_child_px=0.0)
     opts.update(overrides)
     settings = resolve_settings("preview", "forward", 4, **opts)
-    return Stylizer(scene, cameras, style, settings, objective_factory=MeanColourPull)
+    return Stylizer(scene, cameras, style, settings, objective_factory=MeanColourPull, capacity=capacity)

@@ -56,6 +56,33 @@ def test_a_reduced_run_stylizes_what_it_holds_and_returns_every_gaussian():
     assert not np.any(tail.sh_rest)
 
 
+def test_a_resumed_run_holds_the_part_its_checkpoint_was_planned_with(monkeypatch):
+    """The cap derived from the free memory changes between a run and its resume: the resumed engine is planned with
+    the saved cap (``saved_capacity``), holds the same Gaussians, loads the state and ends as the run would have."""
+    from gstyle_core.pipeline import resources
+    from gstyle_core.pipeline.checkpoint import engine_fingerprint, saved_capacity
+
+    scene = blob_scene(200, seed=6)
+    monkeypatch.setattr(resources, "default_max_gaussians", lambda *a, **k: (120, "memory then"))
+    first = _engine(scene)
+    for _ in range(6):
+        first.step()
+    state = first.state_dict()
+    monkeypatch.setattr(resources, "default_max_gaussians", lambda *a, **k: (150, "memory now"))
+    afresh = _engine(scene)  # planned afresh: another part, whose fingerprint refuses the checkpoint
+    assert afresh.gaussian_count == 150 and engine_fingerprint(afresh) != engine_fingerprint(first)
+    kept = saved_capacity(state)
+    assert kept == (120, "memory then, kept from the run resumed") and saved_capacity({"phase": "stylize"}) is None
+    again = _engine(scene, capacity=kept)
+    again.load_state_dict(state)
+    assert engine_fingerprint(again) == engine_fingerprint(first)
+    assert again.global_step == first.global_step and np.array_equal(again.capacity.held, first.capacity.held)
+    assert again.decisions["capacity"].startswith("200 Gaussians are more than the 120")
+    first.run()
+    again.run()
+    assert np.allclose(again.stylized_scene().sh_dc, first.stylized_scene().sh_dc, atol=1e-6)
+
+
 def test_a_reduced_region_run_leaves_the_rest_outside_the_region_as_it_was():
     scene = blob_scene(200, seed=4, sh_degree=1)
     box = (-5.0, -5.0, -5.0, 0.0, 5.0, 5.0)  # x <= 0

@@ -57,6 +57,7 @@ class BuildRequest:
     defaults: str | None = None  # 360° scenes: "calibrated" (None) or "paper"
     overrides: dict[str, Any] = field(default_factory=dict)
     selection: np.ndarray | None = None
+    capacity: tuple[int, str] | None = None  # a resumed run's own cap on Gaussians (None: from the memory now)
 
 
 class BuiltEngine(NamedTuple):
@@ -122,7 +123,7 @@ def build_stylizer(request: BuildRequest) -> BuiltEngine:
     if cams.has_images:
         photos = cams.load_images(max_width=max(settings.working_width * 2, 256))
     engine = Stylizer(scene, cams.cameras, styles[0] if len(styles) == 1 else styles, settings, photos=photos,
-                      selection=request.selection)
+                      selection=request.selection, capacity=request.capacity)
     if smoke_run():
         engine.decisions["smoke"] = f"{SMOKE_ENV} set: the tiniest run through every phase, not a result"
     return BuiltEngine(engine, scene, report, cams, engine.style_input())

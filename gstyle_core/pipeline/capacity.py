@@ -56,13 +56,14 @@ def plan_capacity(scene: GaussianScene, max_gaussians: int, how: str) -> Capacit
     return CapacityPlan(held, cap, note, how)
 
 
-def held_part(scene: GaussianScene, selection: np.ndarray | None,
-              settings) -> tuple[CapacityPlan, GaussianScene, np.ndarray | None]:
-    """The plan of a run with ``settings`` on ``scene`` (its cap: ``resources.gaussian_cap``), the part of the scene
-    it holds and that part's rows of ``selection`` (a region's bool mask over the scene, or None)."""
+def held_part(scene: GaussianScene, selection: np.ndarray | None, settings,
+              cap: tuple[int, str] | None = None) -> tuple[CapacityPlan, GaussianScene, np.ndarray | None]:
+    """The plan of a run with ``settings`` on ``scene`` (its cap: ``cap``, a resumed run's own, else
+    ``resources.gaussian_cap``), the part of the scene it holds and that part's rows of ``selection`` (a region's
+    bool mask over the scene, or None)."""
     from .resources import gaussian_cap
 
-    plan = plan_capacity(scene, *gaussian_cap(settings))
+    plan = plan_capacity(scene, *(cap or gaussian_cap(settings)))
     if not plan.reduced:
         return plan, scene, selection
     return plan, scene.subset(plan.held), None if selection is None else selection[plan.held]

@@ -76,6 +76,17 @@ def _hash_arrays(arrays) -> str:
     return h.hexdigest()
 
 
+def saved_capacity(state: dict[str, Any]) -> tuple[int, str] | None:
+    """The cap on Gaussians a checkpointed engine state was planned with (``Stylizer.state_dict``'s "capacity"; None
+    for a state from before caps were kept, or a test double's): a resumed run holds the same part of a large capture
+    whatever memory is free now."""
+    cap = state.get("capacity") if isinstance(state, dict) else None
+    if not cap:
+        return None
+    how = str(cap[1]) if "kept from the run resumed" in str(cap[1]) else f"{cap[1]}, kept from the run resumed"
+    return int(cap[0]), how
+
+
 def engine_fingerprint(engine: Any) -> dict[str, str]:
     """Digests of what an engine was built from (scene, style, cameras, photos, settings but its device and palette
     match), for resume checks.

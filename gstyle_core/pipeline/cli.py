@@ -105,7 +105,7 @@ def region_summary(engine) -> dict | None:
 def stylize_command(args: argparse.Namespace) -> int:
     """Run ``gstyle stylize``."""
     from ..machine import set_torch_threads
-    from .checkpoint import RunCheckpointer, engine_fingerprint, stylize_checkpoint_path
+    from .checkpoint import RunCheckpointer, engine_fingerprint, saved_capacity, stylize_checkpoint_path
 
     out, every = _checked_output(args)
     ckpt_path = stylize_checkpoint_path(out)
@@ -114,6 +114,7 @@ def stylize_command(args: argparse.Namespace) -> int:
         set_torch_threads(args.threads)
     t0 = time.perf_counter()
     request = build_request(args)
+    request.capacity = saved_capacity(saved[0]) if saved else None
     built = build_stylizer(request)
     engine, s = built.engine, built.engine.settings
     print(f"stylize: {built.scene.count} Gaussians, {len(engine.cameras)} views ({built.cameras.source}), scene kind "

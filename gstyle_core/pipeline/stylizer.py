@@ -66,7 +66,9 @@ class Stylizer(LevelsMixin):
 
     def __init__(self, scene: GaussianScene, cameras: list[Camera], style: np.ndarray | Sequence[np.ndarray],
                  settings: StylizeSettings, *, objective_factory=None, photos: list[np.ndarray] | None = None,
-                 selection: np.ndarray | None = None) -> None:
+                 selection: np.ndarray | None = None, capacity: tuple[int, str] | None = None) -> None:
+        """``capacity``: the cap on Gaussians and where it came from, as a saved run had it (``state_dict``'s
+        "capacity"), so that a run resumed with other free memory holds the same part; None: worked out now."""
         if scene.count == 0:
             raise ValueError("the scene has no Gaussians")
         if not cameras:
@@ -83,7 +85,7 @@ class Stylizer(LevelsMixin):
         # a capture larger than the run can hold: its most visible part is stylized, the rest takes its colours
         # from neighbours when the result is made (capacity.py); decided before anything large is built
         self.full_input, self.full_selection = scene, mask
-        self.capacity, scene, mask = held_part(scene, mask, settings)
+        self.capacity, scene, mask = held_part(scene, mask, settings, capacity)
         self.input_selection = mask  # over the held input Gaussians (None: all); in the checkpoint fingerprint
         self.run_state = run = RunState(
             scene, [cameras[i] for i in view_ids], [photos[i] for i in view_ids] if photos is not None else None,
@@ -327,6 +329,7 @@ class Stylizer(LevelsMixin):
         """Everything needed to resume: the run state and each phase's state under its name (copies)."""
         return {"engine_state": ENGINE_STATE, "phase": self.phase, "global_step": self.global_step,
                 "phase_step": self.phase_step, "settings": self.settings.to_dict(),
+                "capacity": (self.capacity.max_gaussians, self.capacity.how),
                 "run": self.run_state.state_dict(), "phases": {p.name: p.state_dict() for p in self.phases}}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
