@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 from synthetic import blob_scene, ring_cameras
 
+from gstyle_core.pipeline.build import SMOKE_SETTINGS
+
 BENCH = Path(__file__).resolve().parents[1] / "bench"
 
 
@@ -22,8 +24,7 @@ def load_bench(name: str):
     return module
 
 
-TINY = {"epochs": 1.0, "min_steps": 2, "max_views": 3, "refit_iterations": 2, "preprocess_rounds": 1,
-        "split_at": (0.5,), "working_width": 32}
+TINY = SMOKE_SETTINGS  # the engine's own tiniest run through every phase (what GSTYLE_SMOKE=1 asks for)
 
 
 def tiny_bench_inputs(module, vgg, style: np.ndarray, tmp_path: Path, monkeypatch) -> tuple[Path, Path]:
