@@ -15,10 +15,15 @@ Before the first size, one tiny run (``GSTYLE_SMOKE=1`` on the bundled demo, unt
 first run pays: numba's compiled kernels written to their cache, VGG-16 converted into the cache folder, the
 precision timed for this CPU; without it the first size's time holds them (``--no-warmup``).
 
+``--lod auto on off`` runs each size with each level-of-detail setting (``auto``, the engine's default, cuts a capture
+denser than 4 Gaussians a pixel; ``--lod-pixels`` sets the cut's cell size), and a table compares the figures of
+each run on a cut with the same size's ``--lod off`` run; ``--shuffle`` writes each capture's rows in a random order.
+
 Beside the per-size figures, the memory slope: (peak of a size - peak of the smallest) / (its Gaussians - the
 smallest's), the bytes an extra Gaussian costs once the fixed part (torch, the networks) is paid.
 
     .venv/bin/python bench/engine_scale.py [--sizes 150000,1200000,6000000] [--preset preview] [--threads N]
+                                           [--lod auto|on|off ...] [--lod-pixels PX ...] [--shuffle]
 
 Last line: ``RESULT sizes=… seconds=… bytes_per_gaussian=… ratio_1.2M_to_150k=…`` (seconds and bytes per size in
 the order of ``--sizes``; the ratio is the 1.2 M run's seconds over the 150k run's, where both were asked for).
@@ -39,6 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 sys.path.insert(0, str(ROOT))
 
+import numpy as np  # noqa: E402
 from densify import densify  # noqa: E402
 
 from gstyle_core.io import load_scene, save_scene  # noqa: E402
@@ -62,11 +68,14 @@ def parse_sizes(text: str) -> list[int]:
     return sizes
 
 
-def run_stylize(scene: Path | None, out: Path, args: argparse.Namespace, smoke: bool = False) -> dict:
+def run_stylize(scene: Path | None, out: Path, args: argparse.Namespace, smoke: bool = False,
+                lod: str = "on", lod_pixels: float | None = None) -> dict:
     """``gstyle stylize`` in a fresh process (``scene`` None: the bundled demo; ``smoke``: with ``GSTYLE_SMOKE=1``,
-    the tiniest run): its OUT.json with the child's peak RSS and wall time added."""
+    the tiniest run; ``lod``: its ``--lod``): its OUT.json with the child's peak RSS and wall time added."""
     command = [sys.executable, "-m", "gstyle_core.cli", "stylize", *([str(scene)] if scene else []),
-               "--preset", args.preset, "--out", str(out), "--force"]
+               "--preset", args.preset, "--out", str(out), "--force", "--lod", lod]
+    if lod != "off" and lod_pixels:
+        command += ["--lod-pixels", str(lod_pixels)]
     if args.style:
         command += ["--style", str(args.style)]
     if args.threads:
@@ -116,26 +125,30 @@ def figures(record: dict) -> dict:
             "peak": record["peak_rss"], "bytes_per_gaussian": record["peak_rss"] / record["gaussians_before"],
             "drop": q["nnfm_drop"], "structure": q["structure"],
             "speckle": (q.get("display") or {}).get("speckle_ratio"),
-            "capacity": record["decisions"].get("capacity", "")}
+            "capacity": record["decisions"].get("capacity", ""), "lod": str(record["settings"].get("lod", "off")),
+            "lod_pixels": record["settings"].get("lod_pixels"), "cut": record["decisions"].get("lod", "")}
 
 
 def print_tables(rows: list[dict]) -> None:
     """Per size: time, phases, memory, figures; then the export round trips."""
     phases = sorted({p for r in rows for p in r["phases"]}, key=lambda p: [*rows[0]["phases"], p].index(p))
-    print("\n| Gaussians in | out | steps | seconds | " + " | ".join(phases)
+    print("\n| Gaussians in | lod | out | steps | seconds | " + " | ".join(phases)
           + " | peak RSS | bytes/Gaussian | slope | drop | structure | speckle |")
-    print("|" + "---|" * (10 + len(phases)))
-    base = rows[0]
+    print("|" + "---|" * (11 + len(phases)))
     for r in rows:
+        base = next(b for b in rows if _lod_label(b) == _lod_label(r))  # the smallest size with the same --lod
         slope = ((r["peak"] - base["peak"]) / (r["n"] - base["n"])) if r["n"] != base["n"] else float("nan")
         speckle = "-" if r["speckle"] is None else f"{r['speckle']:.2f}"
-        print(f"| {r['n']:,} | {r['out']:,} | {r['steps']} | {r['seconds']:.0f} | "
+        print(f"| {r['n']:,} | {_lod_label(r)} | {r['out']:,} | {r['steps']} | {r['seconds']:.0f} | "
               + " | ".join(f"{r['phases'].get(p, 0):.1f}" for p in phases)
               + f" | {r['peak'] / 2**30:.2f} GiB | {r['bytes_per_gaussian']:,.0f} | {slope:,.0f} | "
                 f"{100 * r['drop']:.1f} % | {r['structure']:.2f} | {speckle} |")
     for r in rows:
         if r["capacity"]:
             print(f"capacity at {r['n']:,}: {r['capacity']}")
+        if r["lod"] != "off":
+            print(f"level of detail at {r['n']:,} ({_lod_label(r)}): {r['cut']}")
+    print_lod_comparison(rows)
     if any(r.get("exports") for r in rows):
         print("\n| Gaussians | format | write s | read s | MB | read back |")
         print("|---|---|---|---|---|---|")
@@ -146,8 +159,27 @@ def print_tables(rows: list[dict]) -> None:
                       f"{ok} |")
 
 
+def print_lod_comparison(rows: list[dict]) -> None:
+    """Where a size ran with the level of detail on and off: the figures' differences and the time's ratio."""
+    pairs = [(a, b) for a in rows for b in rows if a["n"] == b["n"] and a["lod"] != "off" and b["lod"] == "off"]
+    if not pairs:
+        return
+    print("\n| Gaussians | lod | seconds on / off | drop on - off | structure on - off | speckle on / off |")
+    print("|---|---|---|---|---|---|")
+    for on, off in pairs:
+        speckle = ("-" if on["speckle"] is None or not off["speckle"] else f"{on['speckle'] / off['speckle']:.2f}")
+        print(f"| {on['n']:,} | {_lod_label(on)} | {on['seconds'] / off['seconds']:.2f} | "
+              f"{on['drop'] - off['drop']:+.3f} | {on['structure'] - off['structure']:+.3f} | {speckle} |")
+
+
+def _lod_label(row: dict) -> str:
+    """A run's level of detail in the tables: "off", or "on" and its cell size."""
+    return f"{row['lod']} {row['lod_pixels']:g} px" if row["lod"] != "off" else "off"
+
+
 def result_line(rows: list[dict]) -> str:
-    """The RESULT line (module docstring)."""
+    """The RESULT line (module docstring): of the runs with the first ``--lod`` (and ``--lod-pixels``) asked for."""
+    rows = [r for r in rows if _lod_label(r) == _lod_label(rows[0])]
     by_n = {r["n"]: r for r in rows}
     ratio = (f"{by_n[1_200_000]['seconds'] / by_n[150_000]['seconds']:.2f}"
              if 1_200_000 in by_n and 150_000 in by_n else "na")
@@ -168,6 +200,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-export", action="store_true", help="skip the export and reopen round trips")
     p.add_argument("--tmp", default=None, help="folder for the scenes and results (default: the system's)")
     p.add_argument("--no-warmup", action="store_true", help="no untimed tiny run before the first size")
+    p.add_argument("--lod", nargs="+", choices=("auto", "on", "off"), default=["auto"],
+                   help="each size with the level of detail auto (the engine's default), on and/or off (default "
+                        "auto; the RESULT line is of the first)")
+    p.add_argument("--lod-pixels", type=float, nargs="+", default=[None],
+                   help="the level of detail's cell sizes to run (default: the engine's); each with --lod on")
+    p.add_argument("--shuffle", action="store_true",
+                   help="each capture's rows written in a random order (a real file's order is not spatial)")
     args = p.parse_args(argv)
     if not args.source.exists():
         raise SystemExit(f"no capture at {args.source} (../shared/data absent? give --source)")
@@ -182,15 +221,22 @@ def main(argv: list[str] | None = None) -> int:
             print(f"warm-up (untimed): {warm['wall_seconds']:.0f} s", flush=True)
         for n in args.sizes:
             scene_path = folder / f"capture_{n}.ply"
-            save_scene(densify(source, n), scene_path)
-            record = run_stylize(scene_path, folder / f"out_{n}.ply", args)
-            row = figures(record)
+            scene = densify(source, n)
+            if args.shuffle:
+                scene = scene.subset(np.random.default_rng(n).permutation(scene.count))
+            save_scene(scene, scene_path)
+            del scene
+            runs = [(lod, px) for lod in args.lod for px in (args.lod_pixels if lod != "off" else [None])]
+            for lod, px in runs:
+                out = folder / f"out_{n}_{lod}_{px}.ply"
+                record = run_stylize(scene_path, out, args, lod=lod, lod_pixels=px)
+                row = figures(record)
+                if not args.no_export:
+                    row["exports"] = export_round_trips(out, folder)
+                rows.append(row)
+                print(f"{n:,} (lod {_lod_label(row)}): {row['seconds']:.0f} s, peak {row['peak'] / 2**30:.2f} GiB "
+                      f"({row['bytes_per_gaussian']:,.0f} bytes a Gaussian)", flush=True)
             scene_path.unlink()
-            if not args.no_export:
-                row["exports"] = export_round_trips(folder / f"out_{n}.ply", folder)
-            rows.append(row)
-            print(f"{n:,}: {row['seconds']:.0f} s, peak {row['peak'] / 2**30:.2f} GiB "
-                  f"({row['bytes_per_gaussian']:,.0f} bytes a Gaussian)", flush=True)
     print_tables(rows)
     print(result_line(rows))
     return 0

@@ -54,6 +54,7 @@ RUN_FACTORS: dict[str, tuple[Any, ...]] = {
     "precision": ("fp32", "bf16"),
     "paintings": (1, 2),
     "capacity": ("whole", "reduced"),  # reduced: a cap below the capture's count (the rest from neighbours)
+    "lod": ("off", "on"),  # the level of detail's cut (on: the run holds merged parents; a reduced cap is of those)
 }
 REDUCED_SHARE = 0.6  # the cap of a "reduced" case: this share of the capture's Gaussians
 # A few steps of each phase: the tiers keep their phases and levels (their widths scaled to a 64-px working width)
@@ -204,9 +205,8 @@ def case_request(case: dict[str, Any], folder: Path, whole: bool = False):
             value = 0.0 if value == "off" else (preset[row.name] or row.default
                                                 or math.sqrt(row.low * row.high))
         overrides[row.name] = value
-    overrides.update(precision=case["precision"], refine_mode=case["level_mode"], device="cpu")
-    if case.get("capacity") == "reduced":
-        overrides["max_gaussians"] = int(REDUCED_SHARE * scene.count)
+    overrides.update(precision=case["precision"], refine_mode=case["level_mode"], device="cpu",
+                     lod=case.get("lod", "off"))
     if case["region"] != "none":
         overrides["region"], overrides["region_feather"] = scene_box(scene, case["region"] == "soft")
     styles = [str(p) for p in PAINTINGS[:case["paintings"]]]
@@ -214,6 +214,10 @@ def case_request(case: dict[str, Any], folder: Path, whole: bool = False):
         overrides["style_weights"] = (0.6, 0.4)
     request = BuildRequest(scene=str(scene_path), style=styles, cameras=str(FERN) if forward else None,
                            preset=case["tier"], scene_kind=case["scene"], overrides=overrides)
+    if case.get("capacity") == "reduced":  # a cap below what the run would hold: the capture, or the cut's parents
+        from gstyle_core.pipeline.build import build_stylizer
+
+        overrides["max_gaussians"] = int(REDUCED_SHARE * build_stylizer(request).engine.cut_input.count)
     return request, scene
 
 
@@ -325,15 +329,26 @@ def check_region(run: CaseRun) -> None:
     if run.case["region"] == "none":
         assert engine.selection is None
         return
-    out, kept = engine.stylized_scene().subset(np.arange(engine.gaussian_count)), ~engine.selection
-    held = engine.capacity.held  # the input rows a reduced run held (None: all)
-    rows = engine.origin[kept] if held is None else held[engine.origin[kept]]
-    assert kept.sum() > 100, "the box leaves too few Gaussians outside to check"
-    for name in ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest"):
-        got, want = getattr(out, name)[kept], getattr(run.scene, name)[rows]
-        if name == "sh_rest" and want.shape[1] != got.shape[1]:
-            continue
-        assert np.array_equal(got, want), f"{name} changed outside the region"
+    out, outside = engine.stylized_scene(), np.flatnonzero(~engine.full_selection)
+    assert len(outside) > 100, "the box leaves too few Gaussians outside to check"
+    fields = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
+    missing = missing_rows(out, run.scene, outside, fields)  # wherever the export put them
+    assert not missing, f"{missing} Gaussians outside the region changed or are missing from the export"
+
+
+def missing_rows(out, scene, rows: np.ndarray, fields: tuple[str, ...]) -> int:
+    """How many of ``scene``'s ``rows`` have no row of ``out`` equal to them in every one of ``fields``, bit for bit
+    (as multisets: a capture may hold the same Gaussian twice; SH bands compared where both have the same layout)."""
+    from collections import Counter
+
+    def keys(s, index):
+        parts = [np.ascontiguousarray(getattr(s, f)[index], np.float32).reshape(len(index), -1) for f in fields
+                 if f != "sh_rest" or s.sh_rest.shape[1] == scene.sh_rest.shape[1] == out.sh_rest.shape[1]]
+        return Counter(row.tobytes() for row in np.concatenate(parts, axis=1))
+
+    centres = {m.tobytes() for m in np.ascontiguousarray(scene.means[rows], np.float32)}
+    near = [i for i, m in enumerate(np.ascontiguousarray(out.means, np.float32)) if m.tobytes() in centres]
+    return sum((keys(scene, rows) - keys(out, np.array(near, np.int64))).values())
 
 
 def check_colours(run: CaseRun) -> None:
@@ -342,11 +357,11 @@ def check_colours(run: CaseRun) -> None:
     from gstyle_core.style.keep_colours import chroma
 
     snap = run.engine.snapshot()
-    colours, gt = np.asarray(snap["colors"], np.float64), run.engine.gt_colours().numpy().astype(np.float64)
+    colours, gt = np.asarray(snap["colors"], np.float64), np.asarray(snap["colors_gt"], np.float64)
     assert np.isfinite(colours).all() and colours.min() >= 0 and colours.max() <= 1
     if not run.case["keep_colours"]:
         return
-    mask = np.ones(len(colours), bool) if run.engine.selection is None else run.engine.selection
+    mask = np.ones(len(colours), bool) if snap.get("selected") is None else np.asarray(snap["selected"], bool)
     a, b = chroma(colours[mask]), chroma(gt[mask])
     strong = (np.linalg.norm(a, axis=1) > 0.04) & (np.linalg.norm(b, axis=1) > 0.04) & (gt[mask] < 1).all(1) \
         & (gt[mask] > 0).all(1)
@@ -372,14 +387,22 @@ def check_capacity(run: CaseRun) -> None:
     if run.case.get("capacity") != "reduced":
         assert not engine.capacity.reduced
         return
-    plan = engine.capacity
-    assert plan.reduced and len(plan.held) == int(REDUCED_SHARE * n) and "all" in engine.decisions["capacity"]
+    plan, held_from = engine.capacity, engine.cut_input  # the capture, or the cut's parents of a run on a cut
+    assert plan.reduced and len(plan.held) == int(REDUCED_SHARE * held_from.count)
+    assert "all" in engine.decisions["capacity"]
     out = engine.stylized_scene()
-    assert out.count == engine.gaussian_count + n - len(plan.held) >= n
-    rest = np.setdiff1d(np.arange(n), plan.held)
-    tail = out.subset(np.arange(engine.gaussian_count, out.count))
-    for name in ("means", "log_scales", "quats", "opacity_logits"):
-        assert np.array_equal(getattr(tail, name), getattr(run.scene, name)[rest]), f"{name} of the rest changed"
+    assert out.count >= n
+    rest = np.setdiff1d(np.arange(held_from.count), plan.held)
+    if engine.lod is None:
+        assert out.count == engine.gaussian_count + n - len(plan.held)
+        tail = out.subset(np.arange(engine.gaussian_count, out.count))
+        for name in ("means", "log_scales", "quats", "opacity_logits"):
+            assert np.array_equal(getattr(tail, name), getattr(run.scene, name)[rest]), f"{name} of the rest changed"
+        return
+    # on a cut: every input Gaussian of a merged parent, held or not, is in the export with its own geometry
+    children = np.flatnonzero(engine.lod.merged[engine.lod.child_parent])
+    missing = missing_rows(out, run.scene, children, ("means", "log_scales", "quats", "opacity_logits"))
+    assert not missing, f"{missing} input Gaussians of merged parents changed shape or are missing from the export"
 
 
 def check_case(run: CaseRun) -> None:

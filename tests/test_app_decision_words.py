@@ -55,3 +55,11 @@ def test_a_run_capped_at_its_photos_width_says_where_it_ends():
                                            "ends at 504 px (a wider level would fit enlarged photos)"})
     assert lines == ["Paints at 256 px wide first, then sharpens at 504 px",
                      "Ends at the photos' width, 504 px: a wider level would only enlarge them"]
+
+
+def test_the_level_of_detail_says_what_the_cut_holds():
+    note = ("1,200,000 Gaussians as 140,211 parents at 256 px (1,105,000 merged into 45,211 in cells of 1 px; "
+            "every input Gaussian is written with its own geometry)")
+    assert artist_lines({"lod": note}) == [
+        "Paints 1,200,000 splats as 140,211 groups at 256 px; every splat is exported with its own shape"]
+    assert artist_lines({"lod": "off (--lod off): every Gaussian is stylized on its own"}) == []

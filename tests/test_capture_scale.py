@@ -69,7 +69,7 @@ def test_a_capture_over_the_cap_is_stylized_in_part_and_written_whole(tmp_path):
     n_in = load_scene(DEMO_SCENE)[0].count
     out = tmp_path / "out.ply"
     done = _gstyle("stylize", "--max-gaussians", str(n_in // 2), "--working-width", "64", "--display-width", "0",
-                   "--out", str(out))
+                   "--lod", "off", "--out", str(out))
     assert done.returncode == 0, done.stderr[-2000:]
     lines = done.stdout.replace("\r", "\n").splitlines()
     plan = next(i for i, line in enumerate(lines) if line.startswith("capacity: "))
@@ -79,3 +79,36 @@ def test_a_capture_over_the_cap_is_stylized_in_part_and_written_whole(tmp_path):
     assert record["decisions"]["capacity"] == lines[plan][len("capacity: "):]
     assert record["gaussians_after"] >= n_in == record["gaussians_before"]
     assert load_scene(out)[0].count == record["gaussians_after"]
+
+
+def test_a_200k_capture_on_the_level_of_detail_writes_every_gaussian_with_figures_in_bounds(tmp_path):
+    """200k Gaussians densified from the demo, stylized on a cut (``--lod on``): the cut is said before the first
+    step and kept in OUT.json, the run holds fewer Gaussians than came in, every input Gaussian is written, and the
+    figures say the painting arrived and the scene's structure stayed."""
+    import sys as _sys
+
+    _sys.path.insert(0, str(ROOT / "bench"))
+    from densify import densify
+
+    from gstyle_core.io import save_scene
+
+    demo, _ = load_scene(DEMO_SCENE)
+    scene = densify(demo, 200_000)
+    path = tmp_path / "capture.ply"
+    save_scene(scene.subset(np.random.default_rng(0).permutation(scene.count)), path)  # a file's order says nothing
+    out = tmp_path / "out.ply"
+    done = _gstyle("stylize", str(path), "--lod", "on", "--working-width", "128", "--display-width", "0",
+                   "--out", str(out))
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = done.stdout.replace("\r", "\n").splitlines()
+    said = next(i for i, line in enumerate(lines) if line.startswith("level of detail: "))
+    assert not any("step/s" in line or "s/step" in line for line in lines[:said])  # said before the run
+    record = json.loads(out.with_suffix(".json").read_text())
+    assert record["decisions"]["lod"] == lines[said][len("level of detail: "):]
+    parents = int(record["decisions"]["lod"].split(" parents")[0].split(" as ")[1].replace(",", ""))
+    assert parents < 200_000 // 2
+    assert record["gaussians_after"] >= 200_000 == record["gaussians_before"]
+    back, _ = load_scene(out)
+    assert back.count == record["gaussians_after"]
+    q = record["quality"]
+    assert 0.1 < q["nnfm_drop"] < 1 and 0.3 < q["structure"] <= 1, q

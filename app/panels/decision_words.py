@@ -72,6 +72,14 @@ def _large_shapes(decisions: dict[str, Any]) -> str:
     return ""
 
 
+def _lod(value: str) -> str:
+    match = re.match(r"([\d,]+) Gaussians as ([\d,]+) parents at (\d+) px", value)
+    if not match:
+        return ""
+    return (f"Paints {match.group(1)} splats as {match.group(2)} groups at {match.group(3)} px; "
+            "every splat is exported with its own shape")
+
+
 def _precision(value: str) -> str:
     kind = value.split(" ", 1)[0].rstrip(":")
     if kind not in ("bf16", "fp32"):
@@ -79,7 +87,8 @@ def _precision(value: str) -> str:
     return f"Networks in {kind}" + (" (faster on this machine, the same result)" if kind == "bf16" else "")
 
 
-WORDINGS = (("device", _device), ("levels", _levels), ("levels_capped", _levels_capped), ("style_scale", _strokes),
+WORDINGS = (("device", _device), ("lod", _lod), ("levels", _levels),
+            ("levels_capped", _levels_capped), ("style_scale", _strokes),
             ("colours", _colours), ("clip", None), ("preprocess", _preprocess), ("culled", _culled),
             ("precision", _precision))
 

@@ -95,7 +95,16 @@ def _on_off(text: str) -> bool:
     raise ValueError(f"expected 1 or 0 (on or off), got {text!r}")
 
 
+def _lod_pixels(text: str) -> float:
+    """``--lod-pixels``: the level of detail's cell size, a finite number of pixels from 0.25 to 64."""
+    value = float(text)
+    if not 0.25 <= value <= 64.0:  # NaN fails too
+        raise ValueError(f"must lie from 0.25 to 64 px, got {text}")
+    return value
+
+
 style_scale_arg = argument_type(_style_scale)
+lod_pixels_arg = argument_type(_lod_pixels)
 palette_match_arg = argument_type(check_palette_match)  # --palette-match: 0 to 1
 on_off_arg = argument_type(_on_off)
 style_weights_arg = argument_type(_style_weights)

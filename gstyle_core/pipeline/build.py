@@ -19,7 +19,7 @@ from .controls import cli_control_names
 # set those): the options of ``gstyle stylize`` and of the studio's engine config. None keeps the preset's value.
 SETTING_OPTIONS = (*cli_control_names(), "working_width", "clip_weights", "vgg_weights", "max_gaussians",
                    "style_weights", "region", "precision", "refine_widths", "refine_mode", "match_detail_px",
-                   "device", "region_feather")
+                   "device", "region_feather", "lod", "lod_pixels", "lod_merge_size")
 
 # ``GSTYLE_SMOKE=1``: every engine built here runs the tiniest run that still goes through every phase (one split
 # round, a few steps and refit iterations at 32 px, three views), and ``gstyle stylize`` measures its display figures

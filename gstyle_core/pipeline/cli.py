@@ -16,7 +16,7 @@ from ..outputs import STYLIZE_COMPANIONS, companions
 from ..style.fringe import fringe_halo_line
 from ..style.precision import PRECISIONS
 from ..style.speckle import DEFAULT_DISPLAY_WIDTH
-from .arg_types import display_width_arg, region_arg, style_weights_arg, widths_arg
+from .arg_types import display_width_arg, lod_pixels_arg, region_arg, style_weights_arg, widths_arg
 from .build import (
     SETTING_OPTIONS,
     BuildRequest,
@@ -79,6 +79,12 @@ def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-gaussians", type=int, default=None,
                    help="the most Gaussians the run holds (default: from the free memory): splits stop there; a "
                         "larger capture is stylized in part, the rest coloured from neighbours (docs/captures.md)")
+    p.add_argument("--lod", choices=["auto", "on", "off"], default=None,
+                   help="level of detail: Gaussians far below a pixel at the run's width are stylized as merged "
+                        "parents and written back each with its own geometry (docs/captures.md); auto (default): on "
+                        "for captures of more than 4 Gaussians a pixel; off: every Gaussian stylized on its own")
+    p.add_argument("--lod-pixels", type=lod_pixels_arg, default=None, metavar="PX",
+                   help="the level of detail's cell size in pixels at the run's finest width (default 1)")
     p.add_argument("--resume", action="store_true",
                    help="continue the interrupted run with the same inputs and --out from its checkpoint")
     p.add_argument("--checkpoint-every", type=float, default=120.0, metavar="SECONDS",
@@ -120,6 +126,7 @@ def stylize_command(args: argparse.Namespace) -> int:
     print(f"stylize: {built.scene.count} Gaussians, {len(engine.cameras)} views ({built.cameras.source}), scene kind "
           f"{s.scene_kind}, preset {s.preset} ({s.working_width} px wide)")
     print(f"CLIP term: {engine.clip_name} ({engine.decisions['clip']})\ncapacity: {engine.decisions.get('capacity')}")
+    print(f"level of detail: {engine.decisions.get('lod')}")
     fingerprint = engine_fingerprint(engine)
     resumed = _resume(engine, ckpt_path, saved, fingerprint) if saved else None
     if saved is None and ckpt_path.exists():

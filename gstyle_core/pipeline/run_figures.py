@@ -153,8 +153,8 @@ def run_display_speckle(engine, scene, after_scene, style, n_views: int, width: 
 def result_summary(engine, width: int = DEFAULT_DISPLAY_WIDTH) -> dict:
     """What a finished run's summary shows (the studio's): the speckle figure of the evaluation views at a display's
     ``width`` and the widths the run worked at."""
-    display = run_display_speckle(engine, engine.input_scene, engine.stylized_scene(), engine.style_input(), 3,
-                                  width).to_dict()
+    before = getattr(engine, "full_input", engine.input_scene)  # the whole capture, as the result is
+    display = run_display_speckle(engine, before, engine.stylized_scene(), engine.style_input(), 3, width).to_dict()
     return {"display": display, "levels": list(engine.levels), "line": display_speckle_line(display)}
 
 

@@ -46,6 +46,9 @@ class RunState:
         self.device_choice = resolve_device(settings.device)  # the style networks' device (device.py)
         self.raster_device = self.device_choice.raster_device
         self.input_scene = scene
+        self.truth_scene = scene  # what the ground truth renders: the whole capture where the run holds a cut of it
+        self.lineage: torch.Tensor | None = None  # a run on a level-of-detail cut: each row's parent (lod_run.py)
+        self.lod_merged: torch.Tensor | None = None  # ... and which of its parents merge several input Gaussians
         self.full_cameras = full_cameras
         self.photos = photos
         self.cameras = [c.resized_to_width(settings.working_width) for c in full_cameras]
@@ -90,6 +93,11 @@ class RunState:
     def geometry_key(self) -> tuple[int, int]:
         """(geometry version, Gaussian count): what the active set and colour caches are valid for."""
         return self.geometry_version, self.gaussian_count
+
+    def aggregate_rows(self) -> torch.Tensor | None:
+        """Bool over the rows: descendants of a level-of-detail parent that merges several input Gaussians (None:
+        no cut). The pre-processing does not split them: their input Gaussians are the finer detail."""
+        return None if self.lineage is None or self.lod_merged is None else self.lod_merged[self.lineage]
 
     def gt_rgb(self) -> torch.Tensor:
         """c_gt, the ground-truth diffuse colour of every Gaussian, as RGB [N, 3]."""
@@ -199,6 +207,8 @@ class RunState:
         parent's footprint (``ops.child_offset_limit``); past ``max_gaussians`` the lowest-``priority`` candidates are
         dropped. Returns how many were split."""
         extras = {"c_s": self.c_s, "grad_acc": self.grad_acc, **self.active.split_extras()}
+        if self.lineage is not None:
+            extras["lineage"] = self.lineage
         limit = max(0, self.max_gaussians - self.gaussian_count)
         n_sel = int(mask.sum())
         if n_sel * (children - 1) > limit:
@@ -214,6 +224,7 @@ class RunState:
         ops.split(self.params, {}, extras, mask, n_children=children, scale_divisor=divisor, generator=self.generator,
                   max_offset=ops.child_offset_limit(divisor))  # children inside their parent: the scene never grows
         self.c_s, self.grad_acc = extras["c_s"], extras["grad_acc"]
+        self.lineage = extras.get("lineage")
         self.active.take_split_extras(extras)
         return int(mask.sum())
 
@@ -250,11 +261,16 @@ class RunState:
                                                   for key, o in self.level_objectives.items()
                                                   if objective_generator(o) is not None}},
             "active": self.active.state_dict(),
+            "lineage": None if self.lineage is None else self.lineage.clone(),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore ``state_dict()``. Versions count on past the saved ones (viewers upload everything again)."""
         self.active.load_state_dict(state["active"])
+        if (state.get("lineage") is None) != (self.lineage is None):
+            raise ValueError("the checkpoint and this run differ in the level of detail (--lod on / off)")
+        if self.lineage is not None:
+            self.lineage = torch.as_tensor(state["lineage"]).to(torch.long).clone()
         self.params = torch.nn.ParameterDict({k: torch.nn.Parameter(v.clone()) for k, v in state["params"].items()})
         self.c_s = state["c_s"].clone()
         self.grad_acc = state["grad_acc"].clone()

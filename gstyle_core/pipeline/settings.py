@@ -80,6 +80,11 @@ class StylizeSettings:
     split_scale_divisor: float = 16.0
     grad_accumulate_from: float = 2.0 / 15.0  # fraction of the stylization from which ‖∂L/∂c_s‖ accumulates
     max_gaussians: int = 0  # cap on the count after splits; 0: from the free memory (pipeline/resources.py)
+    lod: str = "auto"  # level of detail (gstyle_core/lod): Gaussians far below a pixel at the run's finest width are
+    # merged into parents that the run stylizes, every input Gaussian written back with its parent's change; "auto":
+    # on for a capture denser than lod_run.AUTO_GAUSSIANS_PER_PIXEL at that width, "on", "off"
+    lod_pixels: float = 1.0  # the cut's cell edge in pixels at that width (docs/notes/captures.md, "Level of detail")
+    lod_merge_size: float = 4.0  # a Gaussian joins its cell when its 1σ diameter is at most this many cells
     max_views: int = 24  # at most this many training views (evenly chosen)
     precision: str = "auto"  # VGG-16 and the NNFM search: "fp32", "bf16" or "auto" (bf16 where this CPU runs it
     # faster: timed once, remembered per CPU; style/precision.py)
@@ -197,7 +202,7 @@ CALIBRATED_360_LEVELS = dict(nnfm=400.0, edges=4000.0)
 FORWARD_SPLIT = dict(split_scale_divisor=1.6)
 # The settings that take one of a few words, and the words.
 CHOICES = {"optimizer": ("adam", "visible_adam"), "view_order": ("orbit", "random"), "precision": PRECISIONS,
-           "refine_mode": ("crops", "whole"), "device": DEVICES}
+           "refine_mode": ("crops", "whole"), "device": DEVICES, "lod": ("auto", "on", "off")}
 
 
 def resolve_settings(preset: str = "preview", scene_kind: str = "forward", n_views: int = 1,

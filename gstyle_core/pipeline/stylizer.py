@@ -42,6 +42,7 @@ from .controls import Effect, apply_controls
 from .feather import feathered_colours, merge_unselected
 from .levels import capped_levels
 from .live_controls import LiveControls
+from .lod_run import LiveChildren, plan_cut, whole_capture
 from .notes import note_levels, note_loss_terms, note_planned_clip, note_style, sh_note
 from .phases import ColourMatch, GroundTruth, Phase, Preprocess, Refine, StepReport, Stylize
 from .plan import STYLIZED_PHASES
@@ -85,14 +86,29 @@ class Stylizer(LevelsMixin):
         # a capture larger than the run can hold: its most visible part is stylized, the rest takes its colours
         # from neighbours when the result is made (capacity.py); decided before anything large is built
         self.full_input, self.full_selection = scene, mask
+        # Gaussians far below a pixel at the run's width are held as merged parents (lod_run.py); every input
+        # Gaussian is written back from them when the result is made
+        self.lod, lod_note = plan_cut(scene, mask, [cameras[i] for i in view_ids], settings)
+        if self.lod is not None:
+            scene, mask = self.lod.parents, self.lod.parent_selection
+        self.cut_input, self.cut_selection = scene, mask
         self.capacity, scene, mask = held_part(scene, mask, settings, capacity)
         self.input_selection = mask  # over the held input Gaussians (None: all); in the checkpoint fingerprint
         self.run_state = run = RunState(
             scene, [cameras[i] for i in view_ids], [photos[i] for i in view_ids] if photos is not None else None,
             styles, settings, objective_factory=objective_factory, selection=mask)
+        run.decisions["lod"] = lod_note
+        self.live_children = None if self.lod is None else LiveChildren(self.lod, self.capacity, self.full_input,
+                                                                        self.full_selection)
+        if self.lod is not None:
+            run.lineage = torch.arange(scene.count)
+            held = self.capacity.held
+            run.lod_merged = torch.as_tensor(self.lod.merged if held is None else self.lod.merged[held])
+            if not self.capacity.reduced:  # the ground truth: what every Gaussian of the capture shows
+                run.truth_scene = self.full_input
         if mask is not None:
-            run.decisions["region"] = region_note(settings.region, int(mask.sum()), scene.count,
-                                                  settings.region_feather)
+            run.decisions["region"] = region_note(settings.region, int(self.full_selection.sum()),
+                                                  self.full_input.count, settings.region_feather)
         run.decisions["sh"] = sh_note(scene.sh_degree, photos is not None, run.gt_sh_degree, len(run.cameras))
         self.clip_name = clip_term_name(settings.clip_weights)  # "CLIP", or the coarse substitute's name
         note_planned_clip(run.decisions, settings)
@@ -301,6 +317,13 @@ class Stylizer(LevelsMixin):
         """Arrays a viewer needs (numpy copies): geometry, stylized and ground-truth colours, versions."""
         p, run = self.params, self.run_state
         colors = feathered_colours(run, run.c_s) if self.phase in STYLIZED_PHASES else run.gt_rgb()
+        if self.live_children is not None:  # a run on a cut: its kept rows and every child, as the result has them
+            arrays = {k: p[k].detach().numpy() for k in ("means", "log_scales", "quats", "opacity_logits")}
+            return {**self.live_children.snapshot(
+                run.geometry_key(), arrays, colors.detach().clamp(0, 1).numpy().astype(np.float64),
+                run.gt_rgb().detach().numpy().astype(np.float64), run.lineage.numpy(), self.selection,
+                bool(self.settings.keep_colours)),
+                "geometry_version": run.geometry_version, "colour_version": run.colour_version, "phase": self.phase}
         return {
             "means": p["means"].detach().numpy().copy(),
             "log_scales": p["log_scales"].detach().numpy().copy(),
@@ -321,8 +344,13 @@ class Stylizer(LevelsMixin):
         scene.sh_dc = rgb_to_sh_dc(feathered_colours(self.run_state, self.c_s.detach()).clamp(0, 1).numpy())
         scene = merge_unselected(scene, self.input_scene, self.run_state.active)
         selected = self.run_state.active.selected  # a capture larger than the run held: the rest joins it
-        return with_neighbour_colours(scene, self.full_input, self.capacity,
-                                      None if selected is None else selected.numpy(), self.full_selection)
+        whole = with_neighbour_colours(scene, self.cut_input, self.capacity,
+                                       None if selected is None else selected.numpy(), self.cut_selection)
+        if self.lod is None:
+            return whole
+        return whole_capture(whole, self.run_state.gt_rgb().numpy().astype(np.float64),
+                             self.run_state.lineage.numpy(), self.capacity, self.lod, self.full_input,
+                             self.full_selection, bool(self.settings.keep_colours))
 
     # ----------------------------------------------------------------- checkpoints
     def state_dict(self) -> dict[str, Any]:

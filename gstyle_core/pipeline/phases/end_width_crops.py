@@ -45,7 +45,7 @@ class EndWidthCrops:
         if k not in self.images:
             run = self.run
             if run.photos is None and self.store["input"] is None:  # the input scene with its SH, to render
-                self.store["input"] = params_from_scene(run.input_scene, requires_grad=False)
+                self.store["input"] = params_from_scene(run.truth_scene, requires_grad=False)
             self.images[k] = ground_truth_view(run, cam, self.views[k], self.store["input"])[0]
             if len(self.images) == len(self.views):
                 self.store["input"] = None

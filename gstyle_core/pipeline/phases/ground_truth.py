@@ -43,7 +43,7 @@ class GroundTruth(Phase):
         run = self.run
         i = len(run.gt_images)
         if run.photos is None and self._input_params is None:
-            self._input_params = params_from_scene(run.input_scene, requires_grad=False)
+            self._input_params = params_from_scene(run.truth_scene, requires_grad=False)
         gt, covered = ground_truth_view(run, run.cameras[i], i, self._input_params)
         run.gt_images.append(gt)
         run.coverage.append(covered)

@@ -85,6 +85,9 @@ class Preprocess(Phase):
         final_cams = [c.resized_to_width(end_width(s)) for c in run.cameras]
         mask = shown_split_mask(mask, projected_size_px(run.params["means"], log_scales, final_cams),
                                 s.preprocess_scale_divisor, s.preprocess_min_child_px)
+        aggregates = run.aggregate_rows()  # merged parents: their children are the finer detail, not samples
+        if aggregates is not None:
+            mask = mask & ~aggregates
         n = run.split(mask, s.preprocess_children, s.preprocess_scale_divisor,
                       priority=gaussian_areas(run.params["log_scales"]))
         self.too_small += flat - int(mask.sum())

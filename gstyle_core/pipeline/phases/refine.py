@@ -94,7 +94,7 @@ class Refine(Phase):
         if self._input_params is None and run.photos is None:
             from ...fit.model import params_from_scene
 
-            self._input_params = params_from_scene(run.input_scene, requires_grad=False)
+            self._input_params = params_from_scene(run.truth_scene, requires_grad=False)
         gt, alpha = ground_truth_view(run, self.cameras[i], self.views[i], self._input_params)
         self.gt.append(gt)
         self.alpha.append(alpha)

@@ -1,0 +1,123 @@
+"""A run on the level of detail's cut (``gstyle_core/lod``): decided before anything large is built, undone when the
+result is made.
+
+``plan_cut`` merges the Gaussians far below a pixel at the run's finest width (the working width, or the last of
+its finer levels) into parents; the run then holds the parents (and the capacity plan is made over them). The ground
+truth is still rendered from the whole capture, so pre-processing and refits fit the parents to what every Gaussian
+shows. ``whole_capture`` turns the run's result back into every input Gaussian: rows of parents that were input
+Gaussians as the run left them, the children of merged parents with their own geometry and their own colour plus
+their parent's change (``lod.carry``). The decision is one line (``LodCut.note``), printed before the run starts and
+kept in OUT.json under ``decisions.lod``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..cameras.camera import Camera
+from ..lod import LodCut, build_cut, expand_to_children
+from ..lod.carry import carried_colours, descendant_rows
+from ..scene import GaussianScene
+from .capacity import CapacityPlan
+
+# "auto" cuts captures denser than this at the run's width. Measured (docs/notes/captures.md, "Level of detail"): at
+# 3.4 Gaussians a pixel (biker's 150k at 256 px) a cut saved 7 % of the time and cost 3 points of the NNFM drop; at 27
+# (1.2 M) it took the run from 272 to 54 s.
+AUTO_GAUSSIANS_PER_PIXEL = 4.0
+
+
+def cut_width(settings) -> int:
+    """The width the cut is made for: the finest the run renders at (its working width or its last finer level)."""
+    return int(max([settings.working_width, *settings.refine_widths]))
+
+
+def gaussians_per_pixel(count: int, cameras: Sequence[Camera], width: int) -> float:
+    """Gaussians per pixel of a training view ``width`` px wide (the views' mean pixel count)."""
+    pixels = np.mean([c.resized_to_width(width).width * c.resized_to_width(width).height for c in cameras])
+    return count / max(float(pixels), 1.0)
+
+
+def plan_cut(scene: GaussianScene, selection: np.ndarray | None, cameras: Sequence[Camera],
+             settings) -> tuple[LodCut | None, str]:
+    """The cut a run with ``settings`` makes of ``scene`` for its training ``cameras`` (None: off, or nothing to
+    merge) and the decision in words."""
+    mode = {True: "on", False: "off"}.get(settings.lod, settings.lod)
+    if mode == "off":
+        return None, "off (--lod off): every Gaussian is stylized on its own"
+    density = gaussians_per_pixel(scene.count, cameras, cut_width(settings))
+    if mode == "auto" and density <= AUTO_GAUSSIANS_PER_PIXEL:
+        return None, (f"off (auto): {density:.1f} Gaussians a pixel at {cut_width(settings)} px, at most "
+                      f"{AUTO_GAUSSIANS_PER_PIXEL:g}: every Gaussian is stylized on its own")
+    cut = build_cut(scene, cameras, cut_width(settings), float(settings.lod_pixels), selection,
+                    float(settings.lod_merge_size))
+    if not cut.merged.any():
+        return None, (f"no Gaussian below {settings.lod_pixels:g} px at {cut.width} px: all {scene.count:,} held "
+                      "as they are")
+    return cut, cut.note
+
+
+def whole_capture(result: GaussianScene, run_base_rgb: np.ndarray, run_lineage: np.ndarray,
+                  capacity: CapacityPlan, cut: LodCut, full_input: GaussianScene,
+                  full_selection: np.ndarray | None, keep_colours: bool = False) -> GaussianScene:
+    """Every input Gaussian from a run on ``cut``. ``result``: the run's rows (its first ``run_rows``, their colour
+    before stylization ``run_base_rgb`` and parent among the held parents ``run_lineage``) followed by the parents
+    the capacity plan did not hold (``capacity.with_neighbour_colours``); each row's change is its colour now
+    minus its colour before."""
+    parents = cut.parents
+    if capacity.reduced:
+        rest = np.ones(parents.count, bool)
+        rest[capacity.held] = False
+        lineage = np.concatenate([capacity.held[run_lineage], np.flatnonzero(rest)])
+        base = np.concatenate([run_base_rgb, parents.rgb[rest]])
+    else:
+        lineage, base = np.asarray(run_lineage, np.int64), run_base_rgb
+    if len(lineage) != result.count:
+        raise ValueError(f"whole_capture: {result.count:,} rows but {len(lineage):,} parents for them")
+    deltas = result.rgb.astype(np.float64) - base
+    return expand_to_children(result, deltas, lineage, cut, full_input, full_selection, keep_colours)
+
+
+class LiveChildren:
+    """What a viewer is sent of a run on a cut: the rows of parents held as they were, then every child of a merged
+    parent (that the run holds) with its own geometry and its parent's change, as the result will have it. The
+    children and the rows that carry their change are worked out once a geometry version (``rows``)."""
+
+    def __init__(self, cut: LodCut, capacity: CapacityPlan, full_input: GaussianScene,
+                 full_selection: np.ndarray | None) -> None:
+        self.cut, self.full_input, self.full_selection = cut, full_input, full_selection
+        held = np.arange(cut.parent_count) if capacity.held is None else capacity.held
+        self.run_parent = np.full(cut.parent_count, -1, np.int64)  # each parent's row among the held parents
+        self.run_parent[held] = np.arange(len(held))
+        children = np.flatnonzero(cut.merged[cut.child_parent])
+        self.children = children[self.run_parent[cut.child_parent[children]] >= 0]
+        self._key: tuple | None = None
+        self._rows: tuple[np.ndarray, np.ndarray] | None = None
+
+    def rows(self, key: tuple, means: np.ndarray, lineage: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(bool over the run's rows: shown as they are; for each child the run row that carries its change)."""
+        if key != self._key or self._rows is None:
+            merged_held = self.cut.merged[self.run_parent >= 0]  # over the held parents, in their order
+            keep = ~merged_held[lineage]
+            parents = self.run_parent[self.cut.child_parent[self.children]]
+            source = descendant_rows(lineage, means, parents, self.full_input.means[self.children])
+            self._key, self._rows = key, (keep, source)
+        return self._rows
+
+    def snapshot(self, key: tuple, params: dict, colours: np.ndarray, gt: np.ndarray, lineage: np.ndarray,
+                 selected: np.ndarray | None, keep_colours: bool = False) -> dict:
+        """The viewer's arrays (``Stylizer.snapshot``'s geometry and colour fields) from the run's rows."""
+        keep, source = self.rows(key, params["means"], lineage)
+        kids = self.full_input
+        rgb = kids.rgb[self.children].astype(np.float64)
+        change = (colours - gt)[source]
+        if self.full_selection is not None:  # a region's outside keeps its colours
+            change[~np.asarray(self.full_selection, bool)[self.children]] = 0.0
+        out = {name: np.concatenate([params[name][keep], getattr(kids, name)[self.children]]).astype(np.float32)
+               for name in ("means", "log_scales", "quats", "opacity_logits")}
+        out["colors"] = np.concatenate([colours[keep], carried_colours(rgb, change, keep_colours)]).astype(np.float32)
+        out["colors_gt"] = np.concatenate([np.clip(gt[keep], 0, 1), np.clip(rgb, 0, 1)]).astype(np.float32)
+        out["selected"] = None if selected is None else np.concatenate(
+            [selected[keep], np.asarray(self.full_selection, bool)[self.children]])
+        return out
