@@ -42,14 +42,15 @@ def descendant_rows(lineage: np.ndarray, positions: np.ndarray, parents: np.ndar
 def carried_colours(own: np.ndarray, change: np.ndarray, keep_colours: bool = False) -> np.ndarray:
     """Children's colours: their own RGB plus their parent's change, in [0, 1]; with ``keep_colours`` each keeps its
     own hue and chroma (only the luminance changes, as the run's colours do: ``style.keep_colours``)."""
-    out = np.asarray(own, np.float64) + change
+    own = np.asarray(own)
+    out = own + change.astype(own.dtype, copy=False)
     if keep_colours:
         import torch
 
         from ..style.keep_colours import with_chroma_of
 
-        out = with_chroma_of(torch.from_numpy(out), torch.from_numpy(np.asarray(own, np.float64))).numpy()
-    return np.clip(out, 0.0, 1.0)
+        out = with_chroma_of(torch.from_numpy(out), torch.from_numpy(np.ascontiguousarray(own))).numpy()
+    return np.clip(out, 0.0, 1.0, out=out)
 
 
 def expand_to_children(rows: GaussianScene, deltas: np.ndarray, lineage: np.ndarray, cut: LodCut,
@@ -72,7 +73,7 @@ def expand_to_children(rows: GaussianScene, deltas: np.ndarray, lineage: np.ndar
     else:  # no descendant of a merged parent is left (cannot happen in a run): the children as they came in
         change = np.zeros((len(children), 3))
     recolour = np.ones(len(children), bool) if full_selection is None else np.asarray(full_selection, bool)[children]
-    rgb = carried_colours(kids.rgb, change, keep_colours)
+    rgb = carried_colours(kids.rgb.astype(np.float64), change, keep_colours)
     kids.sh_dc[recolour] = rgb_to_sh_dc(rgb[recolour]).astype(kids.sh_dc.dtype)
     degree = max(rows.sh_degree, kids.sh_degree)
     held, kids = (p if p.sh_degree == degree else p.with_sh_degree(degree) for p in (rows.subset(keep), kids))

@@ -22,9 +22,9 @@ from ..lod.carry import carried_colours, descendant_rows
 from ..scene import GaussianScene
 from .capacity import CapacityPlan
 
-# "auto" cuts captures denser than this at the run's width. Measured (docs/notes/captures.md, "Level of detail"): at
-# 3.4 Gaussians a pixel (biker's 150k at 256 px) a cut saved 7 % of the time and cost 3 points of the NNFM drop; at 27
-# (1.2 M) it took the run from 272 to 54 s.
+# "auto" cuts captures denser than this at the run's width. Measured (docs/notes/captures.md, "The level of detail"): at
+# 3.1 Gaussians a pixel (biker's first 150k at 256 px) a cut (of an earlier rule) saved 7 % of the time and cost 3
+# points of the NNFM drop; at 27 (1.2 M) it took the run from 237 to 58 s.
 AUTO_GAUSSIANS_PER_PIXEL = 4.0
 
 
@@ -82,7 +82,8 @@ def whole_capture(result: GaussianScene, run_base_rgb: np.ndarray, run_lineage: 
 class LiveChildren:
     """What a viewer is sent of a run on a cut: the rows of parents held as they were, then every child of a merged
     parent (that the run holds) with its own geometry and its parent's change, as the result will have it. The
-    children and the rows that carry their change are worked out once a geometry version (``rows``)."""
+    children, the rows that carry their change and the geometry are worked out once a geometry version
+    (``_layout``); a step's snapshot then costs the children's colours only."""
 
     def __init__(self, cut: LodCut, capacity: CapacityPlan, full_input: GaussianScene,
                  full_selection: np.ndarray | None) -> None:
@@ -93,31 +94,34 @@ class LiveChildren:
         children = np.flatnonzero(cut.merged[cut.child_parent])
         self.children = children[self.run_parent[cut.child_parent[children]] >= 0]
         self._key: tuple | None = None
-        self._rows: tuple[np.ndarray, np.ndarray] | None = None
+        self._layout_cache: tuple | None = None
 
-    def rows(self, key: tuple, means: np.ndarray, lineage: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(bool over the run's rows: shown as they are; for each child the run row that carries its change)."""
-        if key != self._key or self._rows is None:
+    def _layout(self, key: tuple, params: dict, gt: np.ndarray, lineage: np.ndarray,
+                selected: np.ndarray | None) -> dict:
+        """What changes only with the geometry, worked out once a geometry version: the rows shown as they are
+        (``keep``), each child's row that carries its change (``source``), the geometry, c_gt and the selection."""
+        if key != self._key or self._layout_cache is None:
             merged_held = self.cut.merged[self.run_parent >= 0]  # over the held parents, in their order
             keep = ~merged_held[lineage]
             parents = self.run_parent[self.cut.child_parent[self.children]]
-            source = descendant_rows(lineage, means, parents, self.full_input.means[self.children])
-            self._key, self._rows = key, (keep, source)
-        return self._rows
+            kids = self.full_input
+            source = descendant_rows(lineage, params["means"], parents, kids.means[self.children])
+            own = kids.rgb[self.children].astype(np.float32)
+            layout = {name: np.concatenate([params[name][keep], getattr(kids, name)[self.children]]).astype(np.float32)
+                      for name in ("means", "log_scales", "quats", "opacity_logits")}
+            layout["colors_gt"] = np.concatenate([np.clip(gt[keep], 0, 1), np.clip(own, 0, 1)]).astype(np.float32)
+            outside = None if self.full_selection is None else ~np.asarray(self.full_selection, bool)[self.children]
+            layout["selected"] = None if selected is None else np.concatenate([selected[keep], ~outside])
+            self._key, self._layout_cache = key, (keep, source, own, outside, layout)
+        return self._layout_cache
 
     def snapshot(self, key: tuple, params: dict, colours: np.ndarray, gt: np.ndarray, lineage: np.ndarray,
                  selected: np.ndarray | None, keep_colours: bool = False) -> dict:
-        """The viewer's arrays (``Stylizer.snapshot``'s geometry and colour fields) from the run's rows."""
-        keep, source = self.rows(key, params["means"], lineage)
-        kids = self.full_input
-        rgb = kids.rgb[self.children].astype(np.float64)
+        """The viewer's arrays (``Stylizer.snapshot``'s geometry and colour fields) from the run's rows; the
+        geometry and c_gt arrays are the same objects until the geometry changes (a viewer never writes to them)."""
+        keep, source, own, outside, layout = self._layout(key, params, gt, lineage, selected)
         change = (colours - gt)[source]
-        if self.full_selection is not None:  # a region's outside keeps its colours
-            change[~np.asarray(self.full_selection, bool)[self.children]] = 0.0
-        out = {name: np.concatenate([params[name][keep], getattr(kids, name)[self.children]]).astype(np.float32)
-               for name in ("means", "log_scales", "quats", "opacity_logits")}
-        out["colors"] = np.concatenate([colours[keep], carried_colours(rgb, change, keep_colours)]).astype(np.float32)
-        out["colors_gt"] = np.concatenate([np.clip(gt[keep], 0, 1), np.clip(rgb, 0, 1)]).astype(np.float32)
-        out["selected"] = None if selected is None else np.concatenate(
-            [selected[keep], np.asarray(self.full_selection, bool)[self.children]])
-        return out
+        if outside is not None:  # a region's outside keeps its colours
+            change[outside] = 0.0
+        colors = np.concatenate([colours[keep], carried_colours(own, change, keep_colours)], dtype=np.float32)
+        return {**layout, "colors": colors}

@@ -320,8 +320,8 @@ class Stylizer(LevelsMixin):
         if self.live_children is not None:  # a run on a cut: its kept rows and every child, as the result has them
             arrays = {k: p[k].detach().numpy() for k in ("means", "log_scales", "quats", "opacity_logits")}
             return {**self.live_children.snapshot(
-                run.geometry_key(), arrays, colors.detach().clamp(0, 1).numpy().astype(np.float64),
-                run.gt_rgb().detach().numpy().astype(np.float64), run.lineage.numpy(), self.selection,
+                run.geometry_key(), arrays, colors.detach().clamp(0, 1).numpy().astype(np.float32),
+                run.gt_rgb().detach().numpy().astype(np.float32), run.lineage.numpy(), self.selection,
                 bool(self.settings.keep_colours)),
                 "geometry_version": run.geometry_version, "colour_version": run.colour_version, "phase": self.phase}
         return {
