@@ -1,5 +1,5 @@
-"""The studio's exports: the stylized scene as .ply, .spz or .compressed.ply with a JSON summary beside it (written
-by the engine worker, which holds the engine)."""
+"""The studio's exports: the stylized scene as .ply, .spz, .compressed.ply or .sog (PlayCanvas SOG) with a JSON
+summary beside it (written by the engine worker, which holds the engine)."""
 
 from __future__ import annotations
 
@@ -9,13 +9,13 @@ from typing import Any
 
 from .snapshot import scene_from_snapshot
 
-EXPORT_SUFFIXES = {"ply": ".ply", "spz": ".spz", "compressed-ply": ".compressed.ply"}  # what the studio exports
+EXPORT_SUFFIXES = {"ply": ".ply", "spz": ".spz", "compressed-ply": ".compressed.ply", "sog": ".sog"}  # the exports
 EXPORT_FORMATS = tuple(EXPORT_SUFFIXES)  # (the web formats for web viewers)
 
 
 def export_engine(engine: Any, path: Path, last_report: dict[str, Any] | None, params: dict[str, float],
                   style: str | list[str] | None = None, source_scene: str | None = None) -> str:
-    """Save the stylized scene as .ply, .spz or .compressed.ply (``gstyle_core.io.save_scene``) and a JSON summary
+    """Save the stylized scene as .ply, .spz, .compressed.ply or .sog (``gstyle_core.io.save_scene``) and a JSON summary
     beside it (``summary_path``; ``style``: the engine's painting path(s), named there with their weights;
     ``source_scene``: the scene it was stylized from, so the result reopens with a way back to it). Both appear or
     neither (``OutputGroup``): a failed write (``OutputWriteError``, one line) leaves no take behind."""
@@ -53,7 +53,7 @@ def _export_format(path: Path) -> str:
 
     fmt = format_of(path)
     if fmt not in EXPORT_FORMATS:
-        raise GStyleError(f"export path must end in .ply, .spz or .compressed.ply, got {path.name}")
+        raise GStyleError(f"export path must end in .ply, .spz, .compressed.ply or .sog, got {path.name}")
     return fmt
 
 
@@ -70,8 +70,8 @@ def _write_export(path: Path, fmt: str, scene: Any, summary: dict[str, Any]) -> 
 
 
 def summary_path(export: str | Path) -> Path:
-    """The JSON summary written beside an export: ``name.json`` for ``name.ply``, ``.spz`` or ``.compressed.ply``
-    (``gstyle_core.outputs.companion``: never cut at an inner dot)."""
+    """The JSON summary written beside an export: ``name.json`` for ``name.ply``, ``.spz``, ``.compressed.ply`` or
+    ``.sog`` (``gstyle_core.outputs.companion``: never cut at an inner dot)."""
     from gstyle_core.outputs import SUMMARY, companion
 
     return companion(export, SUMMARY)

@@ -38,7 +38,8 @@ def parse_size(text: str) -> tuple[int, int]:
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
     p = argparse.ArgumentParser(prog="gstyle-studio", description="Live G-Style stylization viewer.")
-    p.add_argument("scene", nargs="?", default=None, help="scene .ply/.splat/.spz (default: the bundled demo)")
+    p.add_argument("scene", nargs="?", default=None,
+                   help="scene .ply/.splat/.spz/.sog or a SOG folder (default: the bundled demo)")
     p.add_argument("--style", action="append", default=None, metavar="IMAGE",
                    help="style image (default: the bundled painting); twice: a second painting mixed in")
     p.add_argument("--style-mix", type=float, default=None, metavar="M",

@@ -19,6 +19,7 @@ from gstyle_core.cameras.camera import Camera
 from gstyle_core.errors import GStyleError
 from gstyle_core.images import IMAGE_SUFFIXES
 from gstyle_core.io import SCENE_SUFFIXES
+from gstyle_core.io.sog_files import is_sog_folder
 from gstyle_core.outputs import BATCH_TABLE
 from gstyle_core.scene import GaussianScene
 
@@ -77,6 +78,11 @@ class LoadedScene:
     frame_box: tuple[Any, Any] | None = None  # a result's: its input's box, recorded in its OUT.json
 
 
+def is_scene(path: str | os.PathLike) -> bool:
+    """Whether ``path`` names a scene the studio opens: a scene file's name (``SCENE_SUFFIXES``) or a SOG folder."""
+    return has_suffix(Path(path).name, SCENE_SUFFIXES) or is_sog_folder(path)
+
+
 def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) -> LoadedScene:
     """Load a scene file (default: the bundled demo) and its cameras (given, else generated)."""
     from gstyle_core.assets import DEMO_SCENE
@@ -108,7 +114,8 @@ class OpenFiles:
                 self.panel.status += f" ({len(paths) - 1} more dropped file(s) ignored)"
 
     def open_path(self, path: str, style_slot: int = 0, record: bool = True) -> bool:
-        """Open a dropped or chosen file: a scene (.ply/.compressed.ply/.splat/.spz), a style image (``style_slot``
+        """Open a dropped or chosen file: a scene (.ply/.compressed.ply/.splat/.spz/.sog, a SOG folder or its
+        meta.json), a style image (``style_slot``
         1: as the second painting of a mix; ``record``: the choice is an undo step), or a ``gstyle batch`` folder or
         its batch.csv (its jobs as takes). True when it opened; the status line (and the terminal) says what
         happened either way."""
@@ -122,7 +129,7 @@ class OpenFiles:
         painting_before = self.painting_state() if record and has_suffix(name, IMAGE_SUFFIXES) else None
         last_step = self.history.last()
         try:
-            if has_suffix(name, SCENE_SUFFIXES) and style_slot == 0:
+            if is_scene(path) and style_slot == 0:
                 self.set_scene(load_scene_with_cameras(path, None))
                 self._say(f"opened {name} ({self.panel.gaussians:,} Gaussians)")
             elif has_suffix(name, IMAGE_SUFFIXES):
@@ -135,7 +142,7 @@ class OpenFiles:
             self._say(f"could not open {name}: {exc}")
             return False
         self._remember_folder(Path(path).parent)
-        if self.result is not None and style_slot == 0 and has_suffix(name, SCENE_SUFFIXES):
+        if self.result is not None and style_slot == 0 and is_scene(path):
             self.stop_engine()  # a result is shown as it is; Stylize again / Restart from the original start one
             self.show_result_painting()
             self._say(f"{self.result.line}; nothing started")

@@ -227,8 +227,8 @@ class StudioCommands:
         return path
 
     def export(self, path: str | Path | None = None, fmt: str = "ply") -> None:
-        """Export the stylized scene (``fmt`` "ply", "spz" or "compressed-ply", + .json) through the worker; with no
-        engine running, the result on show (reopened or brought back by undo) is saved as it is."""
+        """Export the stylized scene (``fmt`` "ply", "spz", "compressed-ply" or "sog", + .json) through the worker; with
+        no engine running, the result on show (reopened or brought back by undo) is saved as it is."""
         shown_result = self.result is not None and self.loaded is not None
         if (self.bridge is None or not self.bridge.alive) and not shown_result:
             self.panel.status = "export: no engine is running and no result is shown"

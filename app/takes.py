@@ -1,6 +1,6 @@
 """Takes: the studio's last few exports, kept as named snapshots to switch between and compare with the current run.
 
-A take is an exported file (.ply, .spz or .compressed.ply) with a name the artist can change. The shelf keeps the
+A take is an exported file (.ply, .spz, .compressed.ply or .sog) with a name the artist can change. The shelf keeps the
 newest ``limit`` of them and remembers them in ``takes.json`` in the output folder, so a studio opened again on the
 same folder finds them (entries whose file is gone are dropped). Forgetting a take never deletes its file. No GL
 here: the studio loads a take's scene (``load``) into a renderer of its own.

@@ -240,7 +240,8 @@ class WorkerBridge:
         self._send("refine")
 
     def export(self, path: str | os.PathLike) -> None:
-        """Ask the worker to save the stylized scene (.ply, .spz or .compressed.ply; + .json summary) at ``path``."""
+        """Ask the worker to save the stylized scene (.ply, .spz, .compressed.ply or .sog; + .json summary) at
+        ``path``."""
         self._send("export", str(path))
 
     def _send(self, command: str, arg: Any = None) -> None:

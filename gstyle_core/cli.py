@@ -71,19 +71,33 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     return batch_command(args)
 
 
+def installed_version() -> str:
+    """The installed distribution's version (``gstyle-studio`` in its metadata), or "unknown" when it is not
+    installed (run from a bare checkout)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("gstyle-studio")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``gstyle``."""
     p = argparse.ArgumentParser(prog="gstyle", description="G-Style Studio command line tools.")
+    p.add_argument("--version", action="version", version=f"%(prog)s {installed_version()}")
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("info", help="count, SH degree, bounding box and validation report of a scene")
     s.add_argument("scene")
     s.set_defaults(func=_cmd_info)
 
-    s = sub.add_parser("convert", help="convert between .ply / .splat / .spz / compressed .ply (writes all four; "
-                                       "name.compressed.ply is PlayCanvas's compressed PLY)")
-    s.add_argument("input")
-    s.add_argument("output", help="output file: .ply, .splat, .spz (Niantic, v3) or .compressed.ply (PlayCanvas)")
+    s = sub.add_parser("convert", help="convert between .ply / .splat / .spz / compressed .ply / SOG (writes all of "
+                                       "them; name.compressed.ply is PlayCanvas's compressed PLY, name.sog or "
+                                       "DIR/meta.json PlayCanvas SOG)")
+    s.add_argument("input", help="scene file, or a SOG folder")
+    s.add_argument("output", help="output file: .ply, .splat, .spz (Niantic, v3), .compressed.ply (PlayCanvas), .sog "
+                                  "(PlayCanvas SOG v2) or DIR/meta.json (SOG with its images in DIR)")
     s.add_argument("--sh0", action="store_true", help="drop view-dependent SH (keep the diffuse colour)")
     s.add_argument("--force", action="store_true", help="overwrite an existing output")
     s.set_defaults(func=_cmd_convert)

@@ -157,7 +157,7 @@ def test_a_native_dialog_is_used_where_there_is_one_and_its_answer_opened(window
     driver = studio_driver(window, monkeypatch, studio)
     driver.click("Open scene...")
     assert studio.panel.browser is None and len(native) == 1
-    scenes = "*.ply *.compressed.ply *.splat *.spz *batch.csv"  # a batch's table opens its jobs as takes
+    scenes = "*.ply *.compressed.ply *.splat *.spz *.sog *meta.json *batch.csv"  # a batch's table: its jobs as takes
     assert native[0].args == ("Open scene", f"{files}/", ["Gaussian scenes", scenes])
     assert "zenity file dialog" in studio.panel.status and "zenity" in studio.panel.dialog_note
     native[0].answer = [str(files / "sub" / "scene.splat")]

@@ -44,6 +44,18 @@ def test_dropped_scene_and_style_are_opened(studio, tmp_path):
     assert studio.stylized.count == 120
 
 
+def test_sog_bundles_folders_and_their_meta_json_open(studio, tmp_path):
+    save_scene(blob_scene(130, seed=3, sh_degree=1), tmp_path / "scene.sog")
+    save_scene(blob_scene(140, seed=4), tmp_path / "web" / "meta.json")
+    for path, count in ((tmp_path / "scene.sog", 130), (tmp_path / "web", 140), (tmp_path / "web" / "meta.json", 140)):
+        studio.on_drop([str(path)])
+        assert studio.stylized.count == count and f"opened {path.name}" in studio.panel.status
+    (tmp_path / "web" / "quats.webp").unlink()
+    studio.open_path(str(tmp_path / "web"))
+    assert studio.stylized.count == 140 and studio.panel.status.startswith("could not open web: ")
+    assert "quats (quats.webp) is missing" in studio.panel.status and "\n" not in studio.panel.status
+
+
 def test_unknown_or_broken_files_leave_the_studio_as_it_was(studio, tmp_path):
     (tmp_path / "notes.txt").write_text("hello")
     studio.on_drop([str(tmp_path / "notes.txt")])

@@ -105,7 +105,8 @@ def test_turntable_of_the_stylized_scene_and_web_exports(window, monkeypatch, tm
         scene = app.current_scene()
         assert np.allclose(scene.rgb, snap["colors"], atol=1e-6) and np.allclose(scene.means, snap["means"])
         driver = studio_driver(window, monkeypatch, app)
-        for label, fmt in (("Export .spz", "spz-v3"), ("Export .compressed.ply", "ply-playcanvas-compressed")):
+        for label, fmt in (("Export .spz", "spz-v3"), ("Export .compressed.ply", "ply-playcanvas-compressed"),
+                           ("Export .sog", "sog-v2 (bundle)")):
             driver.frame()  # shows the last export's status line, which is then cleared: the panel keeps its first
             app.panel.status = ""  # height, and a long status line would push these buttons below its bottom
             commands = driver.click(label)

@@ -210,7 +210,8 @@ def test_export_writes_the_web_formats(bridge_factory, tmp_path):
     b = bridge_factory(n=300)
     assert b.wait_until(lambda s: s.snapshots_received >= 2, 60), b.state.error
     for name, fmt, summary in (("out.spz", "spz-v3", "out.json"),
-                               ("web.compressed.ply", "ply-playcanvas-compressed", "web.json")):
+                               ("web.compressed.ply", "ply-playcanvas-compressed", "web.json"),
+                               ("site.sog", "sog-v2 (bundle)", "site.json")):
         b.export(tmp_path / name)
         assert b.wait_until(lambda s, name=name: any(e.endswith(name) for e in s.exported), 20), b.state.error
         scene, report = load_scene(tmp_path / name)

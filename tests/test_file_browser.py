@@ -44,7 +44,7 @@ def test_listing_shows_folders_then_accepted_files_sorted_without_hidden_ones(tr
     browser.show_hidden = True
     browser.refresh()
     assert Entry(".git", True) in browser.entries() and Entry(".hidden.ply", False) in browser.entries()
-    assert browser.filter_label() == "*.ply *.compressed.ply *.splat *.spz"
+    assert browser.filter_label() == "*.ply *.compressed.ply *.splat *.spz *.sog *meta.json"
 
 
 def test_up_enter_go_and_typed_paths(tree):

@@ -10,6 +10,7 @@ under ``MEMORY_LIMIT`` (tracemalloc peak). Example counts come from the hypothes
 from __future__ import annotations
 
 import gzip
+import io
 import os
 import random
 import re
@@ -45,6 +46,7 @@ from tests.fuzzcases import (
     write_valid_cameras,
 )
 from tests.fuzzcases.cameras import npy_bytes, npy_with_shape
+from tests.fuzzcases.sog import write_sog_folder_case
 
 FUZZ = settings.get_profile(os.environ.get("GSTYLE_FUZZ_PROFILE", "ci"))
 LYING_LIMIT = 8 << 20  # a lying header must fail before allocating what it claims
@@ -109,6 +111,16 @@ def test_scene_readers_survive_mutations(workdir, fmt, data):
         path.unlink()
 
 
+@FUZZ
+@given(data=st.data())
+def test_sog_folder_survives_meta_json_mutations(workdir, data):
+    folder = Path(tempfile.mkdtemp(dir=workdir))
+    try:
+        run_bounded(check_scene_file, write_sog_folder_case(HypothesisDraw(data), folder))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 @pytest.mark.parametrize("fmt", CAMERA_FORMATS)
 @FUZZ
 @given(data=st.data())
@@ -157,6 +169,25 @@ def _compressed_claiming(vertices: int) -> bytes:
     return re.sub(rb"element chunk \d+", b"element chunk %d" % -(-vertices // 256), data)
 
 
+def _sog_claiming(count: int | None = None, member_size: int | None = None) -> bytes:
+    """A valid small .sog whose meta.json claims ``count`` Gaussians, or whose last ZIP member claims to unpack to
+    ``member_size`` bytes (central directory only: what a reader sees first)."""
+    sample = valid_scene_file("sog-bundle", RandomDraw(random.Random(3)))
+    with zipfile.ZipFile(io.BytesIO(sample.payload)) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    if count is not None:
+        members["meta.json"] = re.sub(rb'"count":\d+', b'"count":%d' % count, members["meta.json"])
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for name, data in members.items():
+            archive.writestr(name, data)
+    data = bytearray(buffer.getvalue())
+    if member_size is not None:
+        at = data.rfind(b"PK\x01\x02")
+        data[at + 24 : at + 28] = struct.pack("<I", member_size)
+    return bytes(data)
+
+
 LYING_SCENES = {
     "ply-10^12-vertices": _ply_claiming(10**12),
     "ply-10^7-vertices": _ply_claiming(10**7),
@@ -166,6 +197,9 @@ LYING_SCENES = {
     "spz-10^7-points": _spz_claiming(10**7),
     "spz-2^32-1-points": _spz_claiming(2**32 - 1),
     "spz-v4-2^63-byte-stream": _spz_v4_claiming(2**63),
+    "sog-2^40-gaussians": _sog_claiming(count=2**40),
+    "sog-10^7-gaussians": _sog_claiming(count=10**7),
+    "sog-member-of-4-GiB": _sog_claiming(member_size=2**32 - 1),
 }
 
 
@@ -238,6 +272,8 @@ CLI_CASES = {
     "corrupt.spz": _spz_claiming(5)[:12] + b"\xff" * 40,
     "empty.ply": b"",
     "random.bin": random.Random(1).randbytes(500),
+    "corrupt.sog": b"PK\x03\x04" + random.Random(2).randbytes(300),
+    "meta.json": b'{"version": 2, "count": 5}',
 }
 
 

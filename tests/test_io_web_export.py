@@ -4,8 +4,6 @@ formats' quantisation steps, SH bands only when used, the CLI, and (when install
 from __future__ import annotations
 
 import gzip
-import os
-import shutil
 import struct
 import subprocess
 
@@ -19,6 +17,7 @@ from gstyle_core.io.ply_compressed import CHUNK
 from gstyle_core.io.ply_compressed_write import morton_order
 from gstyle_core.io.spz_write import encode_spz, fractional_bits
 from gstyle_core.scene import GaussianScene, sigmoid, used_sh_degree
+from tests.splat_transform_cli import SKIP_REASON, splat_transform
 
 SPZ_SMALL_STEP = np.sqrt(0.5) / 511  # v3: one step of the three smaller quaternion components
 CPLY_ROT_STEP = np.sqrt(2.0) / 1023  # compressed PLY: one step of the three smaller components
@@ -203,18 +202,10 @@ def test_convert_rejects_unknown_extension(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------------------- PlayCanvas splat-transform
-def _splat_transform() -> list[str] | None:
-    """The splat-transform CLI: ``$GSTYLE_SPLAT_TRANSFORM`` or ``splat-transform`` on PATH (``npm install -g
-    @playcanvas/splat-transform``); no network probe, so the test is instant where it is absent."""
-    exe = os.environ.get("GSTYLE_SPLAT_TRANSFORM") or shutil.which("splat-transform")
-    return [exe] if exe and shutil.which("node") else None
-
-
 def test_splat_transform_reads_our_files(tmp_path):
-    tool = _splat_transform()
+    tool = splat_transform()
     if tool is None:
-        pytest.skip("PlayCanvas splat-transform is not installed (needs node and `npm install -g "
-                    "@playcanvas/splat-transform`, or $GSTYLE_SPLAT_TRANSFORM); our readers cover the round trip")
+        pytest.skip(f"{SKIP_REASON}; our readers cover the round trip")
     scene = random_scene(n=600, degree=1)
     for name in ("s.spz", "s.compressed.ply"):
         save_scene(scene, tmp_path / name)

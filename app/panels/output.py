@@ -9,21 +9,25 @@ from .widgets import button, button_row, thumbnail, tooltip
 
 
 def output_section(state: PanelState, out: list[Command]) -> None:
-    """Export buttons (.ply, .spz, .compressed.ply), screenshots (window, scene view) and the turntable video row."""
+    """Export buttons (.ply, .spz, .compressed.ply, .sog), screenshots (window, scene view) and the turntable video
+    row."""
     imgui.separator()
     imgui.text_wrapped(f"Saves into: {state.save_folder}")
     tooltip("Where Ctrl+S and the export buttons write: the folder saved to last (Save As), else beside the scene "
             "you opened, else the output folder.")
     button_row(out, ("Save As... (Ctrl+Shift+S)", "Save the stylized scene under a name and folder you choose (.ply, "
-                                                  ".spz or .compressed.ply, with a .json summary); Ctrl+S writes "
-                                                  "there from then on.", Command("save_as")))
+                                                  ".spz, .compressed.ply or .sog, with a .json summary); Ctrl+S "
+                                                  "writes there from then on.", Command("save_as")))
     button_row(out, ("Export .ply (Ctrl+S)", "Save the stylized scene as .ply with a .json summary in the folder "
                                              "shown above.", Command("export")),
                ("Export .spz", "Save the stylized scene for web viewers as Niantic .spz (about 10x smaller than .ply) "
                                "with a .json summary in the folder shown above.", Command("export", {"format": "spz"})))
     button_row(out, ("Export .compressed.ply", "Save the stylized scene for web viewers as PlayCanvas / SuperSplat "
                                                "compressed PLY with a .json summary in the folder shown above.",
-                     Command("export", {"format": "compressed-ply"})))
+                     Command("export", {"format": "compressed-ply"})),
+               ("Export .sog", "Save the stylized scene as PlayCanvas SOG (one .sog file of lossless WebP images, "
+                               "what SuperSplat publishes; about 15x smaller than .ply) with a .json summary in the "
+                               "folder shown above.", Command("export", {"format": "sog"})))
     button_row(out, ("Screenshot (F12)", "Save the whole window (panel and overlays included) as PNG in the output "
                                          "folder.", Command("screenshot", {"scene_only": False})),
                ("Scene only (Shift+F12)", "Save the scene view alone (its size, no panel or overlays) as PNG in the "

@@ -23,8 +23,8 @@ def files_section(state: PanelState, out: list[Command]) -> None:
     imgui.text_wrapped(f"Scene: {state.scene_path or '(none)'}")
     if state.result_line:
         result_block(state, out)
-    if button("Open scene...", "Open a Gaussian scene (.ply, .compressed.ply, .splat, .spz); dropping a file on the "
-                               "window works too."):
+    if button("Open scene...", "Open a Gaussian scene (.ply, .compressed.ply, .splat, .spz, .sog or a SOG folder's "
+                               "meta.json); dropping a file (or a SOG folder) on the window works too."):
         out.append(Command("open_scene"))
     imgui.same_line()
     if button("Open style...", "Open a style image (the painting); dropping it on the window works too."):

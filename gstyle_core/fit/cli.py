@@ -37,8 +37,8 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
                    help="where renders and the loss run: auto (default: CUDA when torch sees an NVIDIA GPU, with "
                         "gsplat's rasterizer, else the CPU), cpu or cuda (mps: the CPU, gsplat has no Metal backend)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", required=True, help="output .ply (or .splat, .spz, .compressed.ply); OUT.json beside it "
-                                                "holds the PSNRs, timings and views")
+    p.add_argument("--out", required=True, help="output .ply (or .splat, .spz, .compressed.ply, .sog); OUT.json "
+                                                "beside it holds the PSNRs, timings and views")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
 
 
@@ -50,8 +50,8 @@ def fit_command(args: argparse.Namespace) -> int:
     from ..outputs import SUMMARY, check_writable, companion, refuse_overwrites
     from .model import params_from_scene, scene_from_params
 
-    if format_of(args.out) is None:  # found now, not after the training
-        raise GStyleError(f"--out must end in .ply, .compressed.ply, .splat or .spz, got {args.out}")
+    if format_of(args.out) in (None, "sog-folder"):  # found now, not after the training
+        raise GStyleError(f"--out must end in .ply, .compressed.ply, .splat, .spz or .sog, got {args.out}")
     out_files = [Path(args.out), companion(args.out, SUMMARY)]
     refuse_overwrites(out_files, args.force)
     for path in out_files:

@@ -1,4 +1,5 @@
-"""Scene readers and writers: 3DGS .ply, PlayCanvas compressed .ply, .splat and .spz in; .ply and .splat out.
+"""Scene readers and writers: 3DGS .ply, PlayCanvas compressed .ply, .splat, .spz and PlayCanvas SOG (a .sog bundle
+or a folder with meta.json), in and out.
 
 ``load_scene(path) -> (GaussianScene, LoadReport)`` detects the format from the bytes;
 ``save_scene(scene, path, fmt=None, keep_sh=True)`` writes atomically; ``validate_and_repair`` documents and

@@ -1,4 +1,4 @@
-"""``load_scene``: detect the format from the file's content, decode it, validate and report."""
+"""``load_scene``: detect the format from the file's content (or a SOG folder), decode it, validate and report."""
 
 from __future__ import annotations
 
@@ -13,13 +13,16 @@ from .ply_3dgs import read_3dgs_ply
 from .ply_compressed import is_compressed_ply, read_compressed_ply
 from .ply_header import is_ply, parse_header
 from .report import LoadReport
+from .sog import read_sog
+from .sog_files import META_NAME, ZIP_MAGIC, BundleFiles, FolderFiles, is_sog_folder
 from .source import GZIP_MAGIC, ZSTD_MAGIC, read_scene_bytes
 from .splat import looks_like_splat, read_splat
 from .spz import is_spz, read_spz
 from .validate import validate_and_repair
 
 # The file names these readers are made for (the format itself is told from the content): what file dialogs offer.
-SCENE_SUFFIXES = (".ply", ".compressed.ply", ".splat", ".spz")
+# A SOG folder opens by its meta.json (or the folder itself: ``load_scene``).
+SCENE_SUFFIXES = (".ply", ".compressed.ply", ".splat", ".spz", ".sog", META_NAME)
 
 
 def _decode(data: bytes, path: Path) -> tuple[GaussianScene, int, str, list[str], list[str]]:
@@ -35,23 +38,36 @@ def _decode(data: bytes, path: Path) -> tuple[GaussianScene, int, str, list[str]
     if data[:4] == b"NGSP" or (data[:2] == GZIP_MAGIC and is_spz(data)):
         scene, count, warnings, fmt = read_spz(data, name)
         return scene, count, fmt, [], warnings
+    splat_name, head = path.suffix.lower() == ".splat", data[:256].lstrip()  # .splat is raw floats: any bytes
+    if data[:4] == ZIP_MAGIC and not splat_name:
+        scene, count, warnings, fmt = read_sog(BundleFiles(data, name))
+        return scene, count, fmt, [], warnings
+    json_object = head[:1] == b"{" and head[1:].lstrip()[:1] in (b'"', b"}")
+    if path.suffix.lower() == ".json" or (json_object and not splat_name):
+        # a SOG meta.json (by its name, or text that opens a JSON object); its images lie beside it
+        scene, count, warnings, fmt = read_sog(FolderFiles(path.parent, name))
+        return scene, count, fmt, [], warnings
     if data[:4] == ZSTD_MAGIC:
         raise SceneFormatError(f"{name}: zstd-compressed data that is not an SPZ v4 file")
-    if path.suffix.lower() == ".splat" or looks_like_splat(data):
+    if splat_name or looks_like_splat(data):
         scene, count, repairs, warnings = read_splat(data, name)
-        if path.suffix.lower() != ".splat":
+        if not splat_name:
             warnings.append("recognised as .splat from its content")
         return scene, count, "splat", repairs, warnings
-    raise SceneFormatError(f"{name}: unknown scene format (expected 3DGS/compressed .ply, .splat or .spz)")
+    raise SceneFormatError(f"{name}: unknown scene format (expected 3DGS/compressed .ply, .splat, .spz, .sog or "
+                           "a SOG meta.json)")
 
 
 def load_scene(path: str | os.PathLike) -> tuple[GaussianScene, LoadReport]:
-    """Load a Gaussian scene from .ply (3DGS or PlayCanvas compressed), .splat or .spz, detected by content.
+    """Load a Gaussian scene from .ply (3DGS or PlayCanvas compressed), .splat, .spz or SOG (a .sog bundle, a
+    meta.json, or a folder holding one), detected by content.
 
     Every loader's output goes through ``validate_and_repair``; the report lists what was changed.
     Malformed files raise ``SceneFormatError`` with a one-line reason.
     """
     p = Path(path)
+    if is_sog_folder(p):
+        p = p / META_NAME
     data = read_scene_bytes(p)
     try:
         with np.errstate(all="ignore"):  # overflow to inf, NaN from garbage: validate_and_repair handles them

@@ -22,6 +22,7 @@ from ..errors import SceneFormatError
 from ..scene import SH_C0, GaussianScene
 from .ply_3dgs import REST_COUNT_TO_DEGREE
 from .ply_header import PlyHeader, read_elements
+from .quantize import from_smallest_three
 
 CHUNK = 256
 CHUNK_BASE = [
@@ -100,15 +101,7 @@ def _decode_rotation(packed: np.ndarray) -> np.ndarray:
     """2-bit largest index + three 10-bit components -> (w, x, y, z)."""
     norm = np.float32(np.sqrt(2.0))
     small = np.stack([(_unorm(packed, s, 10) - 0.5) * norm for s in (20, 10, 0)], axis=1)
-    largest = np.sqrt(np.maximum(0.0, 1.0 - np.square(small).sum(axis=1)))
-    index = (packed >> np.uint32(30)).astype(np.int64)
-    quats = np.empty((len(packed), 4), np.float32)
-    others = np.array([[j for j in range(4) if j != i] for i in range(4)])  # slots of a, b, c
-    rows = np.arange(len(packed))
-    quats[rows, index] = largest
-    for j in range(3):
-        quats[rows, others[index, j]] = small[:, j]
-    return quats
+    return from_smallest_three((packed >> np.uint32(30)).astype(np.int64), small).astype(np.float32)
 
 
 def read_compressed_ply(data: bytes, header: PlyHeader, name: str) -> tuple[GaussianScene, int, list[str]]:

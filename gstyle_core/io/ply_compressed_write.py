@@ -17,7 +17,7 @@ import numpy as np
 
 from ..scene import SH_C0, GaussianScene, sigmoid, used_sh_degree
 from .ply_compressed import CHUNK, CHUNK_BASE, CHUNK_COLOUR, PACKED
-from .quantize import to_uint, unit_quats
+from .quantize import smallest_three, to_uint
 
 SCALE_LIMIT = 20.0
 MIN_RANGE = 1e-5  # a chunk range below this stores every value at the chunk minimum
@@ -64,14 +64,10 @@ def _pack(fields: np.ndarray, bits: tuple[int, ...]) -> np.ndarray:
 
 
 def _pack_rotations(quats: np.ndarray) -> np.ndarray:
-    q = unit_quats(quats)
-    largest = np.argmax(np.abs(q), axis=1)
-    rows = np.arange(len(q))
-    q = np.where(q[rows, largest][:, None] < 0, -q, q)
-    others = np.array([[j for j in range(4) if j != i] for i in range(4)])[largest]
+    largest, small = smallest_three(quats)
     packed = largest.astype(np.uint32)
     for slot in range(3):
-        value = q[rows, others[:, slot]] * (np.sqrt(2.0) * 0.5) + 0.5
+        value = small[:, slot] * (np.sqrt(2.0) * 0.5) + 0.5
         packed = (packed << np.uint32(10)) | to_uint(value * 1023.0, 1023)
     return packed
 

@@ -3,7 +3,8 @@
 Valid files come from our writers (3DGS PLY, .splat) or small encoders here (the PLY encodings we only
 read, PlayCanvas compressed PLY, SPZ v1-v4); the mutations are byte-level (see ``draw``) or structural:
 lying element/point counts, wrong property types, dropped or repeated header lines, another format line,
-NaN/inf floats, lying SPZ header fields and v4 stream tables.
+NaN/inf floats, lying SPZ header fields and v4 stream tables, and for SOG bundles (``tests/fuzzcases/sog.py``)
+lying meta.json fields and damaged, missing, lossy or mis-sized images inside an intact ZIP.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from gstyle_core.io.splat import encode_splat
 from gstyle_core.io.validate import LOG_SCALE_MAX, LOG_SCALE_MIN, OPACITY_LOGIT_LIMIT
 from gstyle_core.scene import GaussianScene
 from tests.fuzzcases.common import HUGE_COUNTS, NASTY_FLOATS, Draw, FuzzFailure, draw_bytes, mutate_bytes, rejected
+from tests.fuzzcases.sog import SOG_MUTATIONS, valid_sog
 from tests.synthetic import blob_scene
 
 SCENE_FORMATS = [
@@ -39,6 +41,7 @@ SCENE_FORMATS = [
     "spz-v3-gzip",
     "spz-v3-raw",
     "spz-v4-zstd",
+    "sog-bundle",
 ]
 PLY_TYPE_WORDS = ["char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8", "float64",
                   "list uchar int", "list uchar float", "quad", ""]
@@ -53,7 +56,7 @@ END_HEADER = b"end_header\n"
 class Sample:
     """A valid file before packing: ``payload`` is mutated structurally, then ``pack`` makes the file."""
 
-    kind: str  # "ply", "ply-ascii", "splat", "spz-legacy", "spz-v4"
+    kind: str  # "ply", "ply-ascii", "splat", "spz-legacy", "spz-v4", "sog"
     payload: bytes
     suffix: str
     pack: Callable[[bytes], bytes] = field(default=lambda b: b)
@@ -163,6 +166,9 @@ def valid_scene_file(fmt: str, draw: Draw) -> Sample:
         return _compressed_ply(draw)
     if fmt == "splat":
         return _splat(draw)
+    if fmt == "sog-bundle":
+        payload, count = valid_sog(draw)
+        return Sample("sog", payload, ".sog", count=count)
     version, container = int(fmt[5]), fmt.rsplit("-", 1)[1]
     return _spz(draw, version, container)
 
@@ -277,6 +283,7 @@ STRUCTURAL = {
     "splat": [_nonfinite],
     "spz-legacy": [_spz_field],
     "spz-v4": [_spz_field],
+    "sog": SOG_MUTATIONS,
 }
 
 
