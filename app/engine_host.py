@@ -35,7 +35,7 @@ from gstyle_core.pipeline.run_crash import all_controls, controls_in_force, wher
 from .child_process import lower_priority, single_compute_thread, worker_nice
 from .engine_saves import EngineSaves
 from .export import export_engine
-from .snapshot import FOLLOW_GEOMETRY
+from .snapshot import GeometrySends
 
 IDLE_POLL_SECONDS = 0.05
 SUMMARY_DELAY_SECONDS = 0.5  # a finished run whose colours a control changed is measured again once they rest this long
@@ -66,7 +66,7 @@ class EngineHost(EngineSaves):
         self.paused = False
         self.done = False
         self.failed = False
-        self.sent_geometry_version: Any = object()
+        self.geometry_sends = GeometrySends()
         self.snapshot_pending = False
         self.last_report: dict[str, Any] | None = None
         self.params: dict[str, float] = {}
@@ -127,7 +127,7 @@ class EngineHost(EngineSaves):
             for key in PAINTING_PARAMS:  # a new config's paintings come with their own mix (its style_weights)
                 self.params.pop(key, None)
         self.engine, self.done, self.failed, self.summary_due = None, False, False, None
-        self.sent_geometry_version = object()
+        self.geometry_sends = GeometrySends()
         self.sent_decisions = None
         self.sent_setup_note = ""
         saved = self.read_saved(resume_from) if resume_from else None
@@ -273,11 +273,11 @@ class EngineHost(EngineSaves):
                 self.credits.release()
             self.fail(exc, "snapshot")
             return
-        if snap.get("geometry_version") == self.sent_geometry_version:
-            for key in FOLLOW_GEOMETRY:
-                snap.pop(key, None)
-        else:
-            self.sent_geometry_version = snap.get("geometry_version")
+        snap = self.geometry_sends.shape(snap, force or self.done or self.paused)
+        if snap is None:  # colours of a count whose geometry is held back: they go with it
+            if credit:
+                self.credits.release()
+            return
         self.snapshot_pending = False
         self.send("snapshot", (credit, snap))
 
