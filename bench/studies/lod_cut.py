@@ -19,19 +19,15 @@ for path in (ROOT, ROOT / "bench"):
     if str(path) not in sys.path:
         sys.path.insert(0, str(path))
 
+import torch  # noqa: E402
 from densify import densify  # noqa: E402
 
+from gstyle_core.fit.ssim import psnr  # noqa: E402
 from gstyle_core.lod import build_cut  # noqa: E402
 from gstyle_core.pipeline.view_choice import choose_views  # noqa: E402
 from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image  # noqa: E402
 
 DEFAULT_SOURCE = ROOT.parent / "shared" / "data" / "scenes" / "playcanvas" / "biker.spz"
-
-
-def psnr(a: np.ndarray, b: np.ndarray) -> float:
-    """PSNR in dB of two images in [0, 1]."""
-    mse = float(np.mean((np.clip(a, 0, 1) - np.clip(b, 0, 1)) ** 2))
-    return float("inf") if mse == 0 else 10.0 * np.log10(1.0 / mse)
 
 
 def measure(scene, cameras, width: int, target_px: float, views: int, size_factor: float = 1.0) -> dict:
@@ -43,8 +39,8 @@ def measure(scene, cameras, width: int, target_px: float, views: int, size_facto
     scores = []
     for i in picks:
         cam = cameras[i].resized_to_width(width)
-        scores.append(psnr(render_scene_image(scene, cam, sh_degree=0), render_scene_image(cut.parents, cam,
-                                                                                            sh_degree=0)))
+        whole, parents = (torch.from_numpy(render_scene_image(s, cam, sh_degree=0)) for s in (scene, cut.parents))
+        scores.append(psnr(whole, parents))
     return {"parents": cut.parent_count, "merged": int(cut.merged.sum()), "seconds": seconds,
             "psnr": float(np.mean(scores)), "psnr_min": float(np.min(scores))}
 

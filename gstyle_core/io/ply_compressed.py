@@ -22,7 +22,7 @@ from ..errors import SceneFormatError
 from ..scene import SH_C0, GaussianScene
 from .ply_3dgs import REST_COUNT_TO_DEGREE
 from .ply_header import PlyHeader, read_elements
-from .quantize import from_smallest_three
+from .quantize import from_smallest_three, opacity_logits_of
 
 CHUNK = 256
 CHUNK_BASE = [
@@ -131,9 +131,7 @@ def read_compressed_ply(data: bytes, header: PlyHeader, name: str) -> tuple[Gaus
     if has_colour:
         c = per_vertex(CHUNK_COLOUR)
         rgb = _lerp(c[:, 0:3], c[:, 3:6], rgb)
-    alpha = rgba[:, 3].astype(np.float64)
-    with np.errstate(divide="ignore"):
-        opacity = np.where(alpha <= 0, -40.0, np.where(alpha >= 1, 40.0, -np.log(1.0 / alpha - 1.0)))
+    opacity = opacity_logits_of(rgba[:, 3])
     sh_rest = np.zeros((n, 0, 3), np.float32)
     if n_rest:
         sh = tables["sh"]

@@ -41,3 +41,14 @@ def from_smallest_three(largest: np.ndarray, small: np.ndarray) -> np.ndarray:
 def to_uint(values: np.ndarray, top: int) -> np.ndarray:
     """Round to the nearest integer and clamp to [0, top] (uint32)."""
     return np.clip(np.rint(np.nan_to_num(values, nan=0.0)), 0, top).astype(np.uint32)
+
+
+OPACITY_LIMIT = 40.0  # the logit an alpha of exactly 0 or 1 decodes to (its sign)
+
+
+def opacity_logits_of(alpha: np.ndarray) -> np.ndarray:
+    """Opacity logits of alphas in [0, 1] (float64): logit(a), with a = 0 -> -40 and a = 1 -> +40 (the compressed PLY
+    and SOG readers' convention)."""
+    a = np.asarray(alpha, np.float64)
+    with np.errstate(divide="ignore"):
+        return np.where(a <= 0, -OPACITY_LIMIT, np.where(a >= 1, OPACITY_LIMIT, -np.log(1.0 / a - 1.0)))

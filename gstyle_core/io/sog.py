@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import SceneFormatError
 from ..scene import GaussianScene
 from .lossless_image import decode_rgba
-from .quantize import from_smallest_three
+from .quantize import from_smallest_three, opacity_logits_of
 from .sog_files import SogFiles
 
 MAX_POINTS = 100_000_000
@@ -45,7 +45,6 @@ BOMB_SLACK = 1 << 22
 MAX_PALETTE = 1 << 16
 SH_COEFFS = {1: 3, 2: 8, 3: 15}
 V1_BANDS = {192: 1, 512: 2, 960: 3}
-OPACITY_LIMIT = 40.0
 
 
 class _Meta:
@@ -154,12 +153,6 @@ def _lookup(codebook: np.ndarray, index: np.ndarray, label: str, what: str) -> n
     return codebook.astype(np.float32)[index]
 
 
-def _opacity_logits(alpha: np.ndarray) -> np.ndarray:
-    a = alpha.astype(np.float64) / 255.0
-    with np.errstate(divide="ignore"):
-        return np.where(a <= 0, -OPACITY_LIMIT, np.where(a >= 1, OPACITY_LIMIT, np.log(a / (1.0 - a))))
-
-
 def _palette_bytes(labels: np.ndarray, centroids: np.ndarray, entries: int, coeffs: int,
                    warnings: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """The palette bytes of each Gaussian's label, uint8 [count, coeffs, 3] (R, G, B of coefficient j), and which
@@ -213,7 +206,7 @@ def _decode_v2(meta: _Meta, files: SogFiles, warnings: list[str]) -> tuple[Gauss
     sh0 = images.rgba(meta.files("sh0.files", 1)[0], "sh0")
     sh_dc = _lookup(meta.numbers("sh0.codebook", most=256), sh0[:, :3], files.label, "sh0")
     rest = _sh_rest_v2(meta, files, images, warnings)
-    return _scene(means, log_scales, quats, _opacity_logits(sh0[:, 3]), sh_dc, rest), count
+    return _scene(means, log_scales, quats, opacity_logits_of(sh0[:, 3] / 255.0), sh_dc, rest), count
 
 
 def _decode_v1(meta: _Meta, files: SogFiles, warnings: list[str]) -> tuple[GaussianScene, int]:

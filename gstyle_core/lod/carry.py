@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..neighbours import nearest_rows
 from ..scene import GaussianScene, rgb_to_sh_dc
 from .cut import LodCut
 
@@ -22,8 +23,6 @@ def descendant_rows(lineage: np.ndarray, positions: np.ndarray, parents: np.ndar
     """For children of the parents ``parents`` (at ``child_positions``) the row that carries their parent's change:
     the parent's only descendant (``lineage``: each row's parent), or, where a parent was split into several, the
     nearest by centre among the descendants of split parents."""
-    from ..pipeline.capacity import nearest_rows
-
     n_parents = int(max(lineage.max(initial=-1), parents.max(initial=-1))) + 1
     count = np.bincount(lineage, minlength=n_parents)
     first = np.full(n_parents, -1, np.int64)

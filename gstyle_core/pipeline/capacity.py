@@ -20,9 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..neighbours import nearest_rows
 from ..scene import GaussianScene, importance_order
-
-NEIGHBOUR_CHUNK = 1 << 20  # queries of the nearest-neighbour search at a time (bounded memory)
 
 
 @dataclass(frozen=True)
@@ -67,26 +66,6 @@ def held_part(scene: GaussianScene, selection: np.ndarray | None, settings,
     if not plan.reduced:
         return plan, scene, selection
     return plan, scene.subset(plan.held), None if selection is None else selection[plan.held]
-
-
-def nearest_rows(points: np.ndarray, queries: np.ndarray, workers: int = -1) -> np.ndarray:
-    """For each of ``queries`` [Q, 3] the row of the nearest of ``points`` [P, 3] (Euclidean; non-finite
-    coordinates count as the origin), int64 [Q]."""
-    from scipy.spatial import cKDTree
-
-    if len(points) == 0:
-        raise ValueError("nearest_rows: no points to search")
-    tree = cKDTree(_finite(points))
-    rows = np.empty(len(queries), np.int64)
-    for start in range(0, len(queries), NEIGHBOUR_CHUNK):
-        part = _finite(queries[start:start + NEIGHBOUR_CHUNK])
-        rows[start:start + len(part)] = tree.query(part, k=1, workers=workers)[1]
-    return rows
-
-
-def _finite(points: np.ndarray) -> np.ndarray:
-    """``points`` as float64 with every non-finite coordinate at 0."""
-    return np.nan_to_num(np.asarray(points, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
 
 
 def with_neighbour_colours(stylized: GaussianScene, full_input: GaussianScene, plan: CapacityPlan,

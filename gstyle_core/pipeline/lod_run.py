@@ -35,7 +35,7 @@ def cut_width(settings) -> int:
 
 def gaussians_per_pixel(count: int, cameras: Sequence[Camera], width: int) -> float:
     """Gaussians per pixel of a training view ``width`` px wide (the views' mean pixel count)."""
-    pixels = np.mean([c.resized_to_width(width).width * c.resized_to_width(width).height for c in cameras])
+    pixels = np.mean([c.width * c.height for c in (cam.resized_to_width(width) for cam in cameras)])
     return count / max(float(pixels), 1.0)
 
 
@@ -43,15 +43,14 @@ def plan_cut(scene: GaussianScene, selection: np.ndarray | None, cameras: Sequen
              settings) -> tuple[LodCut | None, str]:
     """The cut a run with ``settings`` makes of ``scene`` for its training ``cameras`` (None: off, or nothing to
     merge) and the decision in words."""
-    mode = {True: "on", False: "off"}.get(settings.lod, settings.lod)
-    if mode == "off":
+    if settings.lod == "off":
         return None, "off (--lod off): every Gaussian is stylized on its own"
-    density = gaussians_per_pixel(scene.count, cameras, cut_width(settings))
-    if mode == "auto" and density <= AUTO_GAUSSIANS_PER_PIXEL:
-        return None, (f"off (auto): {density:.1f} Gaussians a pixel at {cut_width(settings)} px, at most "
+    width = cut_width(settings)
+    density = gaussians_per_pixel(scene.count, cameras, width)
+    if settings.lod == "auto" and density <= AUTO_GAUSSIANS_PER_PIXEL:
+        return None, (f"off (auto): {density:.1f} Gaussians a pixel at {width} px, at most "
                       f"{AUTO_GAUSSIANS_PER_PIXEL:g}: every Gaussian is stylized on its own")
-    cut = build_cut(scene, cameras, cut_width(settings), float(settings.lod_pixels), selection,
-                    float(settings.lod_merge_size))
+    cut = build_cut(scene, cameras, width, float(settings.lod_pixels), selection, float(settings.lod_merge_size))
     if not cut.merged.any():
         return None, (f"no Gaussian below {settings.lod_pixels:g} px at {cut.width} px: all {scene.count:,} held "
                       "as they are")
@@ -61,8 +60,8 @@ def plan_cut(scene: GaussianScene, selection: np.ndarray | None, cameras: Sequen
 def whole_capture(result: GaussianScene, run_base_rgb: np.ndarray, run_lineage: np.ndarray,
                   capacity: CapacityPlan, cut: LodCut, full_input: GaussianScene,
                   full_selection: np.ndarray | None, keep_colours: bool = False) -> GaussianScene:
-    """Every input Gaussian from a run on ``cut``. ``result``: the run's rows (its first ``run_rows``, their colour
-    before stylization ``run_base_rgb`` and parent among the held parents ``run_lineage``) followed by the parents
+    """Every input Gaussian from a run on ``cut``. ``result``: the run's rows (their colour before stylization
+    ``run_base_rgb`` and parent among the held parents ``run_lineage``) followed by the parents
     the capacity plan did not hold (``capacity.with_neighbour_colours``); each row's change is its colour now
     minus its colour before."""
     parents = cut.parents
