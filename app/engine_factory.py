@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from gstyle_core.pipeline.build import SETTING_OPTIONS
+from gstyle_core.engine.build import SETTING_OPTIONS
 
 # What the studio's engine config may set besides scene/style/cameras/preset/scene_kind (None keeps the preset's
 # value): the 360° defaults, the settings ``gstyle stylize`` takes, and ``selection``, a bool mask over the scene's
@@ -14,9 +14,9 @@ ENGINE_OPTIONS = ("defaults", *SETTING_OPTIONS, "selection", "capacity")  # capa
 
 def make_stylizer(scene: str | None = None, style: str | list[str] | None = None, cameras: str | None = None,
                   preset: str = "preview", scene_kind: str = "auto", **options: Any):
-    """``gstyle_core.pipeline.Stylizer`` for a scene/style/cameras, as ``gstyle stylize`` builds it (``style``: one
+    """``gstyle_core.engine.Stylizer`` for a scene/style/cameras, as ``gstyle stylize`` builds it (``style``: one
     image path, or a list of paintings to mix with ``style_weights``)."""
-    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
+    from gstyle_core.engine.build import BuildRequest, build_stylizer
 
     unknown = set(options) - set(ENGINE_OPTIONS)
     if unknown:

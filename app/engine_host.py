@@ -1,7 +1,7 @@
 """The engine worker's side: a spawned process (or, in thread mode, a thread of the UI process) that owns the
 engine, executes the UI's commands and sends reports and snapshots back (``app/worker.py`` is the UI's side).
 
-The engine protocol (``gstyle_core.pipeline.Stylizer`` implements it): ``engine = factory(**config)`` built in the
+The engine protocol (``gstyle_core.engine.Stylizer`` implements it): ``engine = factory(**config)`` built in the
 worker, ``engine.step()`` -> report (.phase .step .total_steps .losses .seconds .gaussians .colours_changed
 .geometry_changed .done), ``engine.set_params(**kw)``, ``engine.snapshot()`` -> dict of numpy arrays,
 ``engine.state_dict()`` / ``load_state_dict``.
@@ -28,9 +28,9 @@ from typing import Any
 from gstyle_core.assets import DEMO_SCENE
 from gstyle_core.crash import log_crash, what_failed
 from gstyle_core.device import available_devices, is_device_failure
+from gstyle_core.engine.controls import painting_controls
+from gstyle_core.engine.run_crash import all_controls, controls_in_force, where_the_run_is
 from gstyle_core.errors import GStyleError, one_line_error
-from gstyle_core.pipeline.controls import painting_controls
-from gstyle_core.pipeline.run_crash import all_controls, controls_in_force, where_the_run_is
 
 from .child_process import lower_priority, single_compute_thread, worker_nice
 from .engine_saves import EngineSaves
@@ -136,7 +136,7 @@ class EngineHost(EngineSaves):
         else:  # a run from its inputs has no finer levels yet: the weights a level set go back
             self.drop_level_weights()
         try:
-            from gstyle_core.pipeline.checkpoint import saved_capacity
+            from gstyle_core.engine.checkpoint import saved_capacity
 
             kept = saved_capacity(saved[0]) if saved is not None else None  # the saved run's cap, not today's
             self.engine = self.factory(**self.config, **({"capacity": kept} if kept else {}))
@@ -147,7 +147,7 @@ class EngineHost(EngineSaves):
             current = getattr(self.engine, "current_params", None)
             if current is not None:  # the resolved settings (e.g. λ_NNFM 10 for a 360° scene) reach the sliders
                 self.params.update(current())
-            from gstyle_core.pipeline.checkpoint import engine_fingerprint
+            from gstyle_core.engine.checkpoint import engine_fingerprint
 
             self.fingerprint = engine_fingerprint(self.engine)
         except Exception as exc:  # noqa: BLE001 - any engine error is reported, never fatal
@@ -206,12 +206,12 @@ class EngineHost(EngineSaves):
             self.send("error", f"estimating the presets: {one_line_error(exc)}")
 
     def send_summary(self) -> None:
-        """The finished run's summary (``gstyle_core.pipeline.run_figures.result_summary``: its speckle at a display's
+        """The finished run's summary (``gstyle_core.engine.run_figures.result_summary``: its speckle at a display's
         size), for engines that have one."""
         if not hasattr(self.engine, "input_scene"):
             return
         try:
-            from gstyle_core.pipeline.run_figures import result_summary
+            from gstyle_core.engine.run_figures import result_summary
 
             self.send("summary", result_summary(self.engine))
         except Exception as exc:  # noqa: BLE001

@@ -29,17 +29,17 @@ class EngineSaves:
     def save_state(self, path: str) -> None:
         """Write the engine's state with ``saved_meta`` as a studio checkpoint at ``path`` (raises what the save
         raised)."""
-        from gstyle_core.pipeline.checkpoint import save_checkpoint
+        from gstyle_core.engine.checkpoint import save_checkpoint
 
         save_checkpoint(path, self.engine.state_dict(), {"kind": "studio", **self.saved_meta()})
 
     def keep_run(self, written: str) -> None:
-        """Keep the engine's state with the result just written (``gstyle_core/pipeline/kept_runs.py``), so that the
+        """Keep the engine's state with the result just written (``gstyle_core/engine/kept_runs.py``), so that the
         result can be continued when it is reopened; a failure only says so (the result itself was written)."""
         if not hasattr(self.engine, "state_dict") or not hasattr(self.engine, "input_scene"):
             return
         try:
-            from gstyle_core.pipeline.kept_runs import save_result_state
+            from gstyle_core.engine.kept_runs import save_result_state
 
             save_result_state(written, self.engine.state_dict(), self.saved_meta())
         except Exception as exc:  # noqa: BLE001
@@ -59,7 +59,7 @@ class EngineSaves:
     def read_saved(self, path: str) -> tuple[dict[str, Any], dict[str, Any]] | None:
         """The checkpoint at ``path`` (state, meta), or None after saying in one line why it cannot be read."""
         try:
-            from gstyle_core.pipeline.checkpoint import read_checkpoint
+            from gstyle_core.engine.checkpoint import read_checkpoint
 
             return read_checkpoint(path)
         except Exception as exc:  # noqa: BLE001
@@ -82,7 +82,7 @@ class EngineSaves:
         """Continue from ``saved`` (``read_saved(path)``) when it was made for the same inputs; otherwise say why in
         one line and go on with the fresh engine."""
         try:
-            from gstyle_core.pipeline.checkpoint import check_fingerprint
+            from gstyle_core.engine.checkpoint import check_fingerprint
 
             state, meta = saved
             check_fingerprint(path, meta, self.fingerprint)

@@ -11,9 +11,9 @@ def stylize_without_display(args: argparse.Namespace, width: int = 640) -> tuple
     """Run ``gstyle stylize`` on the studio's scene and style into ``args.output_dir`` and write
     ``<stem>_before_after.png``: two evaluation views, input above stylized, ``width`` px each. Returns the
     stylized scene's path and the picture's."""
+    from gstyle_core.cli.stylize import add_stylize_arguments, stylize_command
     from gstyle_core.io import load_scene
-    from gstyle_core.pipeline.cli import add_stylize_arguments, stylize_command
-    from gstyle_core.render_cli import before_after_picture, load_scene_and_cameras, save_png
+    from gstyle_core.scene_images import before_after_picture, load_scene_and_cameras, save_png
 
     out_dir = Path(args.output_dir or "out")
     stem = Path(args.scene).stem if args.scene else "demo"

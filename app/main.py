@@ -12,8 +12,8 @@ import time
 from pathlib import Path
 
 from gstyle_core.device import DEVICES
+from gstyle_core.engine.arg_types import region_arg
 from gstyle_core.errors import GStyleError
-from gstyle_core.pipeline.arg_types import region_arg
 from gstyle_core.style.precision import PRECISIONS
 
 from .window_size import DEFAULT_SIZE
@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
 def run(args: argparse.Namespace) -> int:
     """Open the window (or, without a display, stylize headless first) and run the frame loop. Ctrl+C in the terminal
     (or SIGTERM) ends the loop as the window's close button does; a second one interrupts at once."""
-    from gstyle_core.pipeline.checkpoint import deferred_interrupts
+    from gstyle_core.engine.checkpoint import deferred_interrupts
 
     from .window import DisplayUnavailableError, open_window
 

@@ -87,7 +87,7 @@ def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) ->
     """Load a scene file (default: the bundled demo) and its cameras (given, else generated)."""
     from gstyle_core.assets import DEMO_SCENE
     from gstyle_core.cameras.recorded import record_box
-    from gstyle_core.render_cli import load_scene_and_cameras
+    from gstyle_core.scene_images import load_scene_and_cameras
 
     path = Path(scene_path) if scene_path else DEMO_SCENE
     if not path.exists():

@@ -55,7 +55,7 @@ class RegionTool:
     def set_region_box(self, box) -> None:
         """Select the Gaussians centred in ``box`` (turns the tool on; the rectangle's selection is dropped; an undo
         step, one for a whole drag)."""
-        from gstyle_core.pipeline.region import check_region
+        from gstyle_core.engine.region import check_region
 
         before = self.region_state()
         self.region_box = check_region(box)
@@ -91,7 +91,7 @@ class RegionTool:
         """Select the Gaussians whose centres project into the screen rectangle (x0, y0, x1, y1 in framebuffer
         pixels, y down) of the current view of ``width`` x ``height``; returns how many. ``before``: the selection
         as the drag found it (the undo step goes back there)."""
-        from gstyle_core.pipeline.region import rect_mask
+        from gstyle_core.engine.region import rect_mask
 
         if self.loaded is None:
             return 0
@@ -113,7 +113,7 @@ class RegionTool:
             return None
         if self.region_rect_mask is not None:
             return self.region_rect_mask
-        from gstyle_core.pipeline.region import box_mask
+        from gstyle_core.engine.region import box_mask
 
         if self.region_box is None:
             self.region_box = self.scene_box()

@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from gstyle_core.pipeline.kept_runs import find_result_state
-from gstyle_core.pipeline.settings import StylizeSettings, refined_level_weights, ui_params
+from gstyle_core.engine.kept_runs import find_result_state
+from gstyle_core.engine.settings import StylizeSettings, refined_level_weights, ui_params
 
 from .export import summary_path
 from .takes import widths_text
@@ -28,7 +28,7 @@ class ResultInfo:
     line: str = ""
     preset: str = ""
     styles: list[Path] = field(default_factory=list)  # its paintings whose files are found
-    state: Path | None = None  # the run kept with it (``pipeline/kept_runs.py``) while the file is still as written
+    state: Path | None = None  # the run kept with it (``engine/kept_runs.py``) while the file is still as written
     state_config: dict[str, Any] = field(default_factory=dict)  # the engine config that run was built from
     levels: list[int] = field(default_factory=list)  # its widths, coarse to fine (the last: the result's width)
     level_weights: dict[str, tuple[float, float]] = field(default_factory=dict)  # controls a Refine's level set:

@@ -11,8 +11,8 @@ import shutil
 import time
 from pathlib import Path
 
-from gstyle_core.pipeline.kept_runs import history_root
-from gstyle_core.pipeline.plan import STYLIZED_PHASES
+from gstyle_core.engine.kept_runs import history_root
+from gstyle_core.engine.plan import STYLIZED_PHASES
 
 from .edit_history import ChoiceEdit, Edit, ParamEdit, RegionEdit, ResultEdit
 from .export import summary_path

@@ -18,8 +18,8 @@ import numpy as np
 
 from gstyle_core.atomic import atomic_write_bytes
 from gstyle_core.cameras.camera import Camera
-from gstyle_core.pipeline.controls import cli_control_names
-from gstyle_core.pipeline.plan import MachineRates
+from gstyle_core.engine.controls import cli_control_names
+from gstyle_core.engine.plan import MachineRates
 from gstyle_core.style.clip import clip_term_name
 
 from .camera_control import CameraControl
@@ -169,7 +169,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
         restores, and (``with_overrides``: with the engine config's values) the sliders before the worker reports
         its engine's."""
         from gstyle_core.cameras import classify_scene_kind
-        from gstyle_core.pipeline.settings import resolve_settings, ui_params
+        from gstyle_core.engine.settings import resolve_settings, ui_params
 
         kind = self.engine_config.get("scene_kind", "auto")
         if kind == "auto":
@@ -186,7 +186,7 @@ class StudioApp(RegionTool, TakesView, OpenFiles, StudioInput, StudioCommands, S
 
     def session_checkpoint(self) -> Path | None:
         """Where the session of this scene + style is saved when the studio closes (cache folder), or None."""
-        from gstyle_core.pipeline.checkpoint import studio_checkpoint_path
+        from gstyle_core.engine.checkpoint import studio_checkpoint_path
 
         scene = self.engine_config.get("scene")
         return studio_checkpoint_path(scene, self.engine_config.get("style")) if scene else None

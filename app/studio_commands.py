@@ -9,10 +9,10 @@ from pathlib import Path
 from typing import Any
 
 from gstyle_core.assets import DEMO_SCENE
+from gstyle_core.engine.controls import painting_controls
+from gstyle_core.engine.kept_runs import copy_result_state
 from gstyle_core.errors import GStyleError
 from gstyle_core.outputs import SUMMARY, unused_name
-from gstyle_core.pipeline.controls import painting_controls
-from gstyle_core.pipeline.kept_runs import copy_result_state
 from gstyle_core.scene import GaussianScene
 
 from .export import EXPORT_SUFFIXES, export_shown_result
@@ -122,7 +122,7 @@ class StudioCommands:
         self._apply_params({k: v for k, v in shown.items() if k in self.panel.params})  # from the first step
 
     def continue_result(self) -> None:
-        """A result whose run was kept (``pipeline/kept_runs.py``) was opened: open its original and paintings, put its
+        """A result whose run was kept (``engine/kept_runs.py``) was opened: open its original and paintings, put its
         region back, and start the engine from that run (where it ended; nothing is stylized again)."""
         info = self.result
         if info is None or info.state is None or info.source is None:

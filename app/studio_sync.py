@@ -185,7 +185,7 @@ class StudioSync:
         """Seconds left: the run's plan (its steps of each kind) at the session's rate of each kind (the runs
         before a restart's included), else this run's mean so far (``plan.remaining_seconds``); without a plan, the
         mean step so far times the steps left."""
-        from gstyle_core.pipeline.plan import remaining_seconds
+        from gstyle_core.engine.plan import remaining_seconds
 
         plans = st.plans or {}
         plan = plans.get("run")
@@ -200,7 +200,7 @@ class StudioSync:
     def _fill_quality(self, st) -> None:
         """The quality section: the preset run, each preset's estimate at the session's step rates on this
         machine (``MachineRates``: they settle), the widths."""
-        from gstyle_core.pipeline.plan import estimate_seconds
+        from gstyle_core.engine.plan import estimate_seconds
 
         p = self.panel
         plans = st.plans

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from gstyle_core.pipeline.plan import MachineRates, StepTimes
+from gstyle_core.engine.plan import MachineRates, StepTimes
 
 from .child_process import interrupts_ignored
 from .engine_host import worker_main
@@ -231,7 +231,7 @@ class WorkerBridge:
         self._send("checkpoint_path", self.checkpoint_path)
 
     def set_params(self, **params: float) -> None:
-        """Change engine parameters (the live controls of ``gstyle_core.pipeline.controls``: λ weights, strength,
+        """Change engine parameters (the live controls of ``gstyle_core.engine.controls``: λ weights, strength,
         stroke size, keep colours, split rate, lr, style mix) from the next step on."""
         self._send("set_params", dict(params))
 

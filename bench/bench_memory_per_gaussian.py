@@ -32,8 +32,8 @@ def replicated_demo(copies: int):
     sys.path.insert(0, str(ROOT))
     import numpy as np
 
-    from gstyle_core.render_cli import load_scene_and_cameras
     from gstyle_core.scene import GaussianScene
+    from gstyle_core.scene_images import load_scene_and_cameras
 
     scene, _report, cams = load_scene_and_cameras(None, None)
     rng = np.random.default_rng(0)
@@ -56,9 +56,9 @@ def child(copies: int, width: int, device: str = "cpu") -> dict:
     import torch
     from fakes import MeanColourPull
 
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
     from gstyle_core.machine import set_torch_threads
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
 
     set_torch_threads(1)
     big, cameras = replicated_demo(copies)

@@ -27,8 +27,8 @@ from torch.utils._python_dispatch import TorchDispatchMode
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gstyle_core.pipeline.build import SETTING_OPTIONS, BuildRequest, build_stylizer  # noqa: E402
-from gstyle_core.pipeline.phases.stylize import is_optimiser_step  # noqa: E402
+from gstyle_core.engine.build import SETTING_OPTIONS, BuildRequest, build_stylizer  # noqa: E402
+from gstyle_core.engine.phases.stylize import is_optimiser_step  # noqa: E402
 
 
 def next_optimiser_step(engine) -> None:

@@ -27,13 +27,13 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gstyle_core.machine import cpu_description  # noqa: E402
-from gstyle_core.pipeline.build import (  # noqa: E402
+from gstyle_core.engine.build import (  # noqa: E402
     SETTING_OPTIONS,  # noqa: E402
     BuildRequest,
     build_stylizer,
 )
-from gstyle_core.pipeline.phases.stylize import is_optimiser_step  # noqa: E402
+from gstyle_core.engine.phases.stylize import is_optimiser_step  # noqa: E402
+from gstyle_core.machine import cpu_description  # noqa: E402
 
 
 def gpu_description() -> str:
@@ -75,7 +75,7 @@ def warm_up(device: str, precision: str) -> None:
 
 def run_once(args: argparse.Namespace, device: str, precision: str) -> dict:
     """Build and run one engine to the end; per-phase seconds, figures."""
-    from gstyle_core.pipeline.run_figures import evaluate_run
+    from gstyle_core.engine.run_figures import evaluate_run
 
     warm_up(device, precision)
     if device == "cuda":

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/paths.py [--whole] [--cases 3,7] [--csv docs/paths.csv]
 
-The paths are the live controls of ``gstyle_core/pipeline/controls.py``'s table (each row's values drawn from its
+The paths are the live controls of ``gstyle_core/engine/controls.py``'s table (each row's values drawn from its
 kind: a λ off and on, a checkbox off and on, a log slider at half, one and twice its default, a linear one at its
 ends and middle; ``control_values``) and the run options (``RUN_FACTORS``: tier and its level mode, scene kind,
 precision, one or two paintings, a region with a hard or a soft edge, an interruption in each phase and the resume
@@ -10,7 +10,7 @@ after it, a refine or a continue of the finished run, the whole capture held or 
 ``covering_cases`` draws a covering array of strength 2 over them (allpairspy): every pair of values of two factors is
 in at least one case. A control added to the table joins the matrix by itself.
 
-Each case builds its engine through ``pipeline/build.py`` (what ``gstyle stylize`` and the studio's worker build
+Each case builds its engine through ``engine/build.py`` (what ``gstyle stylize`` and the studio's worker build
 with) on a real capture: ``--scene 360`` a crop of 24,000 Gaussians of ``winter_fountain.cropped.splat`` with the
 generated orbit, ``forward`` the fern's LLFF cameras and photos with its COLMAP points as Gaussians (the
 initialisation ``gstyle fit`` starts from; no trained fern is in ``../shared``). ``run_case`` drives it step by step
@@ -35,8 +35,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gstyle_core.pipeline.controls import CONTROLS, Control  # noqa: E402
-from gstyle_core.pipeline.settings import preset_values  # noqa: E402
+from gstyle_core.engine.controls import CONTROLS, Control  # noqa: E402
+from gstyle_core.engine.settings import preset_values  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 WINTER = DATA / "scenes" / "splat" / "winter_fountain.cropped.splat"
@@ -187,8 +187,8 @@ def scene_box(scene, soft: bool) -> tuple[tuple[float, ...], float]:
 
 def case_request(case: dict[str, Any], folder: Path, whole: bool = False):
     """The ``BuildRequest`` of a case (``SHORT`` settings unless ``whole``) and its input scene."""
+    from gstyle_core.engine.build import BuildRequest
     from gstyle_core.io import load_scene
-    from gstyle_core.pipeline.build import BuildRequest
 
     forward = case["scene"] == "forward"
     scene_path = capture_forward(folder) if forward else capture_360(folder)
@@ -215,7 +215,7 @@ def case_request(case: dict[str, Any], folder: Path, whole: bool = False):
     request = BuildRequest(scene=str(scene_path), style=styles, cameras=str(FERN) if forward else None,
                            preset=case["tier"], scene_kind=case["scene"], overrides=overrides)
     if case.get("capacity") == "reduced":  # a cap below what the run would hold: the capture, or the cut's parents
-        from gstyle_core.pipeline.build import build_stylizer
+        from gstyle_core.engine.build import build_stylizer
 
         overrides["max_gaussians"] = int(REDUCED_SHARE * build_stylizer(request).engine.cut_input.count)
     return request, scene
@@ -241,8 +241,8 @@ def _step_to_end(engine, run: CaseRun, stop_in: str | None = None) -> bool:
 def run_case(case: dict[str, Any], folder: Path, whole: bool = False) -> CaseRun:
     """Build the case's engine and drive it as the CLI and the worker do: a stop (checkpoint written and read back,
     a new engine resumed from it) where the case says, then its ``then``."""
-    from gstyle_core.pipeline.build import build_stylizer
-    from gstyle_core.pipeline.checkpoint import read_checkpoint, save_checkpoint
+    from gstyle_core.engine.build import build_stylizer
+    from gstyle_core.engine.checkpoint import read_checkpoint, save_checkpoint
 
     t0 = time.perf_counter()
     request, scene = case_request(case, folder, whole)
@@ -308,7 +308,7 @@ def check_terms(run: CaseRun) -> None:
 def check_painting(run: CaseRun) -> None:
     """The painting is matched at the stroke size (its long side ``style_side`` of each level's width) and two
     paintings are both in the objective, with their weights."""
-    from gstyle_core.pipeline.objective import style_side
+    from gstyle_core.engine.objective import style_side
     from gstyle_core.style.nnfm import WeightedTargets
 
     s = run.engine.settings
@@ -426,7 +426,7 @@ def case_label(case: dict[str, Any]) -> str:
 
 def figures(run: CaseRun) -> dict[str, float]:
     """The run's quality figures at its end (``run_figures.evaluate_run``, no display-size renders)."""
-    from gstyle_core.pipeline.run_figures import evaluate_run
+    from gstyle_core.engine.run_figures import evaluate_run
 
     q = evaluate_run(run.engine, run.scene, run.engine.style_input(), display_width=0)
     return {"nnfm_drop": 1.0 - q["final"]["nnfm"] / q["initial"]["nnfm"], "structure": float(q["structure"])}

@@ -48,8 +48,8 @@ def floor_ms(repeats: int) -> dict[str, dict[str, float]]:
     """Median ms of VGG forward+backward at 256² and of one NNFM search at 192×256 per precision (interleaved)."""
     import torch
 
+    from gstyle_core.engine.objective import resize_long_side, to_bchw
     from gstyle_core.images import load_style_image
-    from gstyle_core.pipeline.objective import resize_long_side, to_bchw
     from gstyle_core.style.features import concat_features, normalise_vectors
     from gstyle_core.style.nnfm import StyleTarget, nearest_indices
     from gstyle_core.style.vgg import load_vgg
@@ -87,8 +87,8 @@ def floor_ms(repeats: int) -> dict[str, dict[str, float]]:
 def child(argv: list[str]) -> None:
     """``gstyle stylize argv`` as the CLI runs it, plus the CPU seconds of each phase (all the process's threads;
     ``time.process_time``) written to OUT.cpu.json: with one thread they do not grow with the machine's load."""
-    from gstyle_core.pipeline.cli import add_stylize_arguments, stylize_command
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.cli.stylize import add_stylize_arguments, stylize_command
+    from gstyle_core.engine.stylizer import Stylizer
 
     cpu: dict[str, float] = {}
     step = Stylizer.step

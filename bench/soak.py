@@ -32,10 +32,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from gstyle_core.engine.settings import resolve_settings  # noqa: E402
+from gstyle_core.engine.stylizer import Stylizer  # noqa: E402
 from gstyle_core.io import validate_and_repair  # noqa: E402
 from gstyle_core.machine import set_torch_threads  # noqa: E402
-from gstyle_core.pipeline.settings import resolve_settings  # noqa: E402
-from gstyle_core.pipeline.stylizer import Stylizer  # noqa: E402
 from tests.fakes import MeanColourPull  # noqa: E402
 from tests.fuzzcases import (  # noqa: E402
     CAMERA_FORMATS,

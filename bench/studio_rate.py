@@ -31,8 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from app.engine_factory import make_stylizer  # noqa: E402
 from app.worker import WorkerBridge  # noqa: E402
+from gstyle_core.engine.phases.stylize import is_optimiser_step  # noqa: E402
 from gstyle_core.machine import cpu_description  # noqa: E402
-from gstyle_core.pipeline.phases.stylize import is_optimiser_step  # noqa: E402
 
 
 def optimiser_report(report: dict | None) -> bool:

@@ -7,7 +7,7 @@ per-phase table, a table of where the stylize step's time goes, and
 frame at the working resolution), measured in the same run; Y = the step against its floor on the same pixels. The
 floor is every network pass the objective runs, forward and backward: VGG-16 (conv1_1…relu3_3) + NNFM on what the
 step's networks saw (for an object scene without photos, the box of each view that the scene covers,
-``pipeline/scene_box.py``) and, with the broad-strokes term, VGG + NNFM on each of its levels (×2, ×4, ×8 of the box
+``engine/scene_box.py``) and, with the broad-strokes term, VGG + NNFM on each of its levels (×2, ×4, ×8 of the box
 grown by the coarsest factor), summed over the step's views. ``--whole-frames`` switches the boxes off
 (``crop_to_scene = False``) to compare. Both floors are at the run's precision (the other precision's network is
 loaded only for the plain whole-frame VGG + NNFM time). ``--levels`` goes on into the finer levels and adds their
@@ -30,10 +30,10 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from gstyle_core.cli.stylize import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.engine.build import build_stylizer  # noqa: E402
+from gstyle_core.engine.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.machine import cpu_description, set_torch_threads  # noqa: E402
-from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
-from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.raster import colour_cache  # noqa: E402
 from gstyle_core.style import losses, nnfm  # noqa: E402
 from gstyle_core.style.features import concat_features  # noqa: E402
@@ -291,7 +291,7 @@ def time_levels(engine, steps: int, view_floor: float) -> dict[str, float]:
     content target), their whole-view steps at the
     working width against the stylization's floor (``view_floor`` a view). Prints a row per level; returns the
     ratios for the RESULT line."""
-    from gstyle_core.pipeline.phases.refine import CROP_TERMS, Refine
+    from gstyle_core.engine.phases.refine import CROP_TERMS, Refine
 
     out: dict[str, float] = {}
     while not engine.done:

@@ -55,9 +55,9 @@ TIER_TABLE_PAGES = (ROOT / "README.md", ROOT / "docs" / "tiers.md")  # pages who
 
 import tradeoff_report as report  # noqa: E402
 
+from gstyle_core.engine.build import SMOKE_DISPLAY_WIDTH, smoke_run  # noqa: E402
 from gstyle_core.errors import GStyleError  # noqa: E402
 from gstyle_core.outputs import BATCH_TABLE  # noqa: E402
-from gstyle_core.pipeline.build import SMOKE_DISPLAY_WIDTH, smoke_run  # noqa: E402
 
 SHARED = Path(os.environ.get("GSTYLE_SHARED_DATA", ROOT.parent / "shared" / "data"))  # a copy elsewhere: the env
 FERN_PHOTOS = SHARED / "scenes" / "llff_fern"  # photos + poses: the fern's cameras and ground truth
@@ -193,7 +193,7 @@ def write_plan(path: Path, scenes: dict[str, tuple[Path, Path | None]], painting
 def run_batch(argv: list[str]) -> None:
     """``gstyle batch`` with ``argv``; a failed job is the batch's one line and leaves its point out."""
     from gstyle_core.cli import build_parser
-    from gstyle_core.pipeline.batch import batch_command
+    from gstyle_core.cli.batch import batch_command
 
     args = build_parser().parse_args(argv)
     args.argv = list(argv)
@@ -216,9 +216,9 @@ def median_depth(scene, camera) -> float:
 
 def evaluation_views(scene: Path, cameras: Path | None, out_ply: Path):
     """The input scene, the stylized one (OUT.ply) and the cameras of the evaluation views of OUT.json's figures."""
+    from gstyle_core.engine.view_choice import choose_views
     from gstyle_core.io import load_scene
-    from gstyle_core.pipeline.view_choice import choose_views
-    from gstyle_core.render_cli import load_scene_and_cameras
+    from gstyle_core.scene_images import load_scene_and_cameras
 
     before, _, cams = load_scene_and_cameras(str(scene), None if cameras is None else str(cameras))
     return before, load_scene(out_ply)[0], [cams.cameras[i] for i in choose_views(cams.cameras, EVAL_VIEWS)]
@@ -226,7 +226,7 @@ def evaluation_views(scene: Path, cameras: Path | None, out_ply: Path):
 
 def consistency(before, after, views: list) -> tuple[float, float]:
     """View consistency of the stylized scene and of the input, on the evaluation views at ``EVAL_WIDTH``."""
-    from gstyle_core.pipeline.consistency import nearby_camera, view_consistency
+    from consistency import nearby_camera, view_consistency
 
     small = [c.resized_to_width(EVAL_WIDTH) for c in views]
     pairs = [(c, nearby_camera(c, NEARBY_SHIFT * median_depth(before, c))) for c in small]
@@ -237,9 +237,9 @@ def display_drop(before, after, views: list, painting: Path) -> float:
     """NNFM drop of the stylized scene at the display's width (``DISPLAY_WIDTH``) on the evaluation views, measured
     as OUT.json's figures at a finer level's width are (``run_figures.views_figures``: the painting resized to that
     width, at most ``EVAL_MAX_VECTORS`` of its vectors), for every tier, the ones that end below it included."""
+    from gstyle_core.engine.evaluate import Evaluator
+    from gstyle_core.engine.run_figures import EVAL_MAX_VECTORS, views_figures
     from gstyle_core.images import load_style_image
-    from gstyle_core.pipeline.evaluate import Evaluator
-    from gstyle_core.pipeline.run_figures import EVAL_MAX_VECTORS, views_figures
     from gstyle_core.style.vgg import load_vgg
 
     ev = Evaluator(load_vgg(), load_style_image(painting), DISPLAY_WIDTH, max_vectors=EVAL_MAX_VECTORS)

@@ -1,5 +1,5 @@
 """Nearest neighbours by centre (scipy's k-d tree, queried in bounded chunks): what a capture larger than a run holds
-takes its colours from (``pipeline/capacity.py``) and where a level-of-detail child finds the descendant that carries
+takes its colours from (``engine/capacity.py``) and where a level-of-detail child finds the descendant that carries
 its parent's change (``lod/carry.py``)."""
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ from .errors import GStyleError, OutputWriteError
 
 FORMAT_SUFFIXES = (".compressed.ply", ".ply", ".splat", ".spz", ".sog", ".mp4", ".gif")  # longest first
 SUMMARY = ".json"  # the summary written beside a scene output (gstyle stylize / fit, the studio's exports)
-BATCH_TABLE = "batch.csv"  # the table gstyle batch writes in its folder, a row per job (pipeline/batch_report.py)
+BATCH_TABLE = "batch.csv"  # the table gstyle batch writes in its folder, a row per job (batch/report.py)
 STYLIZE_COMPANIONS = (SUMMARY, "_before.png", "_after.png")  # beside gstyle stylize's OUT.ply: summary, pictures
 
 _CAUSES = {

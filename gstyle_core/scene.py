@@ -171,7 +171,7 @@ def importance_order(log_scales: np.ndarray, opacity_logits: np.ndarray) -> np.n
     """int32 Gaussian indices by opacity × area of their two largest axes, most important first.
 
     The view-independent order in which the viewer's reduced-detail frames keep Gaussians and a run larger than it
-    can hold picks the Gaussians it stylizes (``pipeline/capacity.py``): small faint ones go first; the ``keep``
+    can hold picks the Gaussians it stylizes (``engine/capacity.py``): small faint ones go first; the ``keep``
     most important are its first ``keep`` entries."""
     s = np.sort(np.nan_to_num(np.asarray(log_scales, np.float64), nan=-30.0, posinf=30.0, neginf=-30.0), axis=1)
     score = (s[:, 1] + s[:, 2]) + np.log(sigmoid(np.asarray(opacity_logits, np.float64)) + 1e-12)

@@ -14,8 +14,8 @@ import numpy as np
 from test_outputs_stylize import TinyEngine
 
 from gstyle_core.cli import run
-from gstyle_core.pipeline import cli
-from gstyle_core.pipeline.build import BuiltEngine, style_paths
+from gstyle_core.cli import stylize as cli
+from gstyle_core.engine.build import BuiltEngine, style_paths
 
 
 def tiny_build(request, built: list | None = None) -> BuiltEngine:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from synthetic import blob_scene, ring_cameras
 
-from gstyle_core.pipeline.build import SMOKE_SETTINGS
+from gstyle_core.engine.build import SMOKE_SETTINGS
 
 BENCH = Path(__file__).resolve().parents[1] / "bench"
 
@@ -53,9 +53,9 @@ def tiny_bench_inputs(module, vgg, style: np.ndarray, tmp_path: Path, monkeypatc
 def tiny_engine(vgg, scene, style, **overrides):
     """A real engine on ``vgg`` over 3 ring cameras at a 32-px working width (a forward-facing preview cut to a few
     steps), not yet stepped; ``overrides`` go to ``resolve_settings``."""
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.objective import StyleObjective
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
 
     opts = dict(max_views=3, epochs=1, min_steps=2, preprocess_rounds=1, refit_iterations=2, split_rate=0.0,
                 working_width=32)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gstyle_core.pipeline.controls import control_names
+from gstyle_core.engine.controls import control_names
 
 
 @dataclass
@@ -107,7 +107,7 @@ class StylizingEngine(FakeEngine):
     decisions: dict = {}
 
     def __init__(self, width: int | None = None, **config) -> None:
-        from gstyle_core.pipeline.settings import resolve_settings
+        from gstyle_core.engine.settings import resolve_settings
 
         super().__init__(**config)
         self.settings, self.width = resolve_settings("preview", "360", 4), width
@@ -192,8 +192,8 @@ def make_small_stylizer(n: int = 150, device: str | None = None, objective=MeanC
     ``kind`` "360": a calibrated 360° preview (its first Refine level takes the weights of runs with levels)."""
     from synthetic import blob_scene, ring_cameras
 
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
 
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0
@@ -243,8 +243,8 @@ def engine_with_random_vgg(monkeypatch, **overrides):
     import torch
     from synthetic import blob_scene, ring_cameras
 
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
     from gstyle_core.style import vgg as vgg_module
     from gstyle_core.style.vgg import VGGFeatures
 
@@ -265,9 +265,9 @@ def engine_at_stylize(vgg, scene, style, **overrides):
     preview settings without pre-processing or splits, 32 px wide, 3 epochs, unless ``overrides`` say otherwise."""
     from synthetic import ring_cameras
 
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.objective import StyleObjective
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
 
     opts = dict(max_views=3, epochs=3, min_steps=0, preprocess_rounds=0, split_rate=0.0, working_width=32)
     opts.update(overrides)
@@ -348,8 +348,8 @@ def short_pull_run(scene, cameras, channel: int, capacity=None, **overrides):
     """A short forward-facing ``preview`` engine on ``scene`` whose objective pulls the colours toward a painting of
     one primary ``channel`` (``MeanColourPull``): four views, 40 px, a forced pre-processing round, one split;
     ``capacity``: a saved cap (``Stylizer``'s); ``overrides``: other settings."""
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
 
     style = np.zeros((8, 8, 3), np.float32)
     style[..., channel] = 1.0

@@ -1,5 +1,5 @@
 """A short stylization of a capture densified from the demo, in its own process (``tests/test_capture_scale.py``,
-``pipeline/resources.py``'s model):
+``engine/resources.py``'s model):
 
     python tests/scale_probe.py N [WIDTH]
 
@@ -21,9 +21,9 @@ sys.path[:0] = [str(ROOT), str(ROOT / "bench")]
 from densify import densify  # noqa: E402
 
 from gstyle_core.assets import DEMO_SCENE  # noqa: E402
+from gstyle_core.engine.build import BuildRequest, build_stylizer  # noqa: E402
 from gstyle_core.io import load_scene, save_scene  # noqa: E402
 from gstyle_core.machine import peak_rss_bytes  # noqa: E402
-from gstyle_core.pipeline.build import BuildRequest, build_stylizer  # noqa: E402
 
 SHORT = {"epochs": 1.0, "refit_iterations": 4, "lod": "off"}  # the cap's model is of Gaussians held as they are
 

@@ -15,7 +15,7 @@ from synthetic import blob_scene, ring_cameras  # noqa: E402
 
 from app.panels import Command  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
-from gstyle_core.pipeline.checkpoint import read_checkpoint  # noqa: E402
+from gstyle_core.engine.checkpoint import read_checkpoint  # noqa: E402
 
 W, H = 700, 1300  # tall enough for the whole panel
 
@@ -70,10 +70,10 @@ def mix_stylizer(style=None, style_weights=None, **_ignored):
     """A tiny real engine on the studio's style path(s) and weights (``MeanColourPull``: no networks)."""
     from fakes import MeanColourPull
 
+    from gstyle_core.engine.build import style_paths
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
     from gstyle_core.images import load_style_image
-    from gstyle_core.pipeline.build import style_paths
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
 
     styles = [load_style_image(p) for p in style_paths(style)]
     settings = resolve_settings("preview", "forward", 3, max_views=3, epochs=3, min_steps=0, split_rate=0.0,

@@ -12,8 +12,8 @@ from synthetic import blob_scene, ring_cameras  # noqa: E402
 
 from app.panels import PanelState, draw_panel, loss_series, param_rows  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
-from gstyle_core.pipeline.controls import control  # noqa: E402
-from gstyle_core.pipeline.settings import resolve_settings, ui_params  # noqa: E402
+from gstyle_core.engine.controls import control  # noqa: E402
+from gstyle_core.engine.settings import resolve_settings, ui_params  # noqa: E402
 from gstyle_core.style.clip import COARSE_NAME  # noqa: E402
 
 W, H = 700, 1300  # tall enough for the whole panel

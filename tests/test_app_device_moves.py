@@ -77,7 +77,7 @@ def test_a_move_to_a_gpu_that_fails_loses_nothing_and_the_cpu_goes_on(window, mo
     """The panel says what the run computes on and offers the GPU where the worker sees one (a stand-in here: this
     machine has none, so the move fails to build); the run's state was handed over first, so Continue on the CPU
     goes on from where the run was moved from."""
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.stylizer import Stylizer
 
     monkeypatch.setattr("app.engine_host.available_devices", lambda: ("cpu", "cuda"))
     load, loaded = Stylizer.load_state_dict, []

@@ -231,8 +231,8 @@ def test_redo_of_a_painting_brings_back_the_result_made_after_it(window, tmp_pat
     from fakes import ring_studio
     from synthetic import blob_scene
 
+    from gstyle_core.engine.settings import resolve_settings
     from gstyle_core.io import save_scene
-    from gstyle_core.pipeline.settings import resolve_settings
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     first, second, _ = _paintings(tmp_path)

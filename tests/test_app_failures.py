@@ -14,8 +14,8 @@ import torch
 from fakes import BUILT, keep_small_stylizer
 
 from app.worker import ThreadWorkerBridge
-from gstyle_core.pipeline.phases import Stylize
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.phases import Stylize
+from gstyle_core.engine.stylizer import Stylizer
 
 W, H = 700, 1300  # the studio window of the panel test: tall enough for the whole panel
 LINE = re.compile(r"the run stopped in phase (\w+) at step (\d+) of \d+: RuntimeError: injected into the "

@@ -55,7 +55,7 @@ def test_no_display_stylizes_headless_and_writes_before_after(tmp_path, syntheti
     """Without a display the studio still shows its job: a preview stylization, before/after renders (two views,
     640 px each) and a headless screenshot of the stylized result. The stylization itself is ``gstyle stylize``
     (tested in its own files); here a fake writes the stylized scene."""
-    import gstyle_core.pipeline.cli as cli
+    import gstyle_core.cli.stylize as cli
     from gstyle_core.io import save_scene
 
     calls = []

@@ -16,8 +16,8 @@ pytest.importorskip("moderngl")
 
 from synthetic import blob_scene  # noqa: E402
 
+from gstyle_core.engine.checkpoint import read_checkpoint, studio_checkpoint_path  # noqa: E402
 from gstyle_core.io import save_scene  # noqa: E402
-from gstyle_core.pipeline.checkpoint import read_checkpoint, studio_checkpoint_path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TESTS = Path(__file__).resolve().parent

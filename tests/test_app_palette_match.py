@@ -6,7 +6,7 @@ import pytest
 from fakes import BUILT, keep_small_stylizer
 
 from app.worker import ThreadWorkerBridge
-from gstyle_core.pipeline.phases.colour_match import ColourMatch, blend_colours
+from gstyle_core.engine.phases.colour_match import ColourMatch, blend_colours
 
 W, H = 700, 1300  # tall enough for the whole panel
 

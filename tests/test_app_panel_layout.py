@@ -12,8 +12,8 @@ from imgui_driver import PanelDriver, install  # noqa: E402
 
 from app.panels import PanelState, draw_panel, loss_series, run_sections  # noqa: E402
 from app.window_size import DEFAULT_SIZE  # noqa: E402
-from gstyle_core.pipeline.controls import CONTROLS, term_label  # noqa: E402
-from gstyle_core.pipeline.settings import resolve_settings, ui_params  # noqa: E402
+from gstyle_core.engine.controls import CONTROLS, term_label  # noqa: E402
+from gstyle_core.engine.settings import resolve_settings, ui_params  # noqa: E402
 
 W, H = DEFAULT_SIZE
 TERMS = ("clip", "nnfm", "multiscale", "content", "tv", "chroma_tv", "edges", "refit")

@@ -11,7 +11,7 @@ pytest.importorskip("moderngl")
 from fakes import BUILT, small_studio  # noqa: E402
 from imgui_driver import paused_studio_driver  # noqa: E402
 
-from gstyle_core.pipeline.plan import (  # noqa: E402
+from gstyle_core.engine.plan import (  # noqa: E402
     MIN_SAMPLES,
     WARMUP_STEPS,
     MachineRates,
@@ -20,7 +20,7 @@ from gstyle_core.pipeline.plan import (  # noqa: E402
     planned_steps,
     step_kind,
 )
-from gstyle_core.pipeline.settings import resolve_settings  # noqa: E402
+from gstyle_core.engine.settings import resolve_settings  # noqa: E402
 
 W, H = 700, 1300  # tall enough for the whole panel
 
@@ -172,7 +172,7 @@ def test_the_eta_counts_the_steps_of_each_kind_still_to_come_and_a_restart_start
     """Early in a run only cheap ground-truth and refit steps are measured: the mean step would promise a fraction of
     the time (issue #35: 0:34-0:41 shown for runs of ~110 s). The ETA prices each kind's remaining steps at the
     session's rates (a restarted run: the runs before's), else at this run's own mean."""
-    from gstyle_core.pipeline.plan import remaining_seconds
+    from gstyle_core.engine.plan import remaining_seconds
 
     plan = {"ground_truth": 10.0, "refit": 100.0, "stylize": 40.0}
     before = MachineRates()

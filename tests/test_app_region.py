@@ -18,7 +18,7 @@ from synthetic import blob_scene, ring_cameras  # noqa: E402
 from app.gl_io import read_rgb  # noqa: E402
 from app.panels import PANEL_WIDTH, Command  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
-from gstyle_core.pipeline.region import box_mask, rect_mask  # noqa: E402
+from gstyle_core.engine.region import box_mask, rect_mask  # noqa: E402
 
 W, H = 700, 1300
 BUILT: list = []
@@ -27,8 +27,8 @@ HALF = (-10.0, -10.0, -10.0, 0.0, 10.0, 10.0)
 
 def region_stylizer(region=None, selection=None, **_ignored):
     """The real ``Stylizer`` on the test's scene with the studio's region/selection (kept for the test to inspect)."""
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
 
     style = np.zeros((8, 8, 3), np.float32)
     style[..., 0] = 1.0

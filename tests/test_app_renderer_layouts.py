@@ -37,7 +37,7 @@ def test_compact_layout_draws_a_real_capture_as_the_float32_one_and_the_rasteriz
     pytest.importorskip("torch")
     from gstyle_core.cameras.generate import generate_cameras
     from gstyle_core.io import load_scene
-    from gstyle_core.render_cli import render_scene_image
+    from gstyle_core.scene_images import render_scene_image
 
     scene, _ = load_scene(SH_CAPTURE)
     assert scene.sh_degree == 3

@@ -12,8 +12,8 @@ from synthetic import blob_scene
 
 from app.export import export_engine
 from app.result_files import read_result
+from gstyle_core.engine.settings import StylizeSettings, resolve_settings, ui_params
 from gstyle_core.io import save_scene
-from gstyle_core.pipeline.settings import StylizeSettings, resolve_settings, ui_params
 
 
 class _Finished:
@@ -176,7 +176,7 @@ def test_a_saved_result_reopens_and_continues_its_run_on_its_original(window, tm
     from fakes import make_small_stylizer, ring_studio
 
     from app.panels import Command
-    from gstyle_core.pipeline.kept_runs import find_result_state
+    from gstyle_core.engine.kept_runs import find_result_state
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     original = tmp_path / "original.ply"
@@ -218,7 +218,7 @@ def test_restart_from_the_original_of_a_refined_preview_goes_back_to_the_presets
     from fakes import ring_studio
 
     from app.panels import Command
-    from gstyle_core.pipeline.settings import level_weight_changes
+    from gstyle_core.engine.settings import level_weight_changes
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     out, original, painting = tmp_path / "out" / "refined.ply", tmp_path / "original.ply", tmp_path / "p.png"

@@ -13,7 +13,7 @@ from PIL import Image  # noqa: E402
 from app.panels import Command  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
 from fakes import make_fake_engine  # noqa: E402
-from gstyle_core.pipeline.checkpoint import read_checkpoint  # noqa: E402
+from gstyle_core.engine.checkpoint import read_checkpoint  # noqa: E402
 from synthetic import blob_scene, look_at_camera  # noqa: E402
 
 W, H = 160, 120

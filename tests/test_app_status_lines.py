@@ -81,8 +81,8 @@ def _result_file(tmp_path: Path, refine_widths: tuple[int, ...]) -> Path:
     """A stylized result with its summary (a 360° run at 256 px and ``refine_widths``)."""
     from synthetic import blob_scene
 
+    from gstyle_core.engine.settings import resolve_settings
     from gstyle_core.io import save_scene
-    from gstyle_core.pipeline.settings import resolve_settings
 
     path = tmp_path / "results" / "made.ply"
     path.parent.mkdir(exist_ok=True)

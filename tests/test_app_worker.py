@@ -86,7 +86,7 @@ def test_geometry_only_sent_when_its_version_changes(bridge_factory):
 
 
 def test_quit_writes_checkpoint_and_resume_reaches_the_engine(tmp_path, monkeypatch):
-    from gstyle_core.pipeline.checkpoint import read_checkpoint, studio_checkpoint_path
+    from gstyle_core.engine.checkpoint import read_checkpoint, studio_checkpoint_path
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     path = studio_checkpoint_path(tmp_path / "scene.ply", tmp_path / "style.png")  # what the studio uses
@@ -114,7 +114,7 @@ def test_quit_writes_checkpoint_and_resume_reaches_the_engine(tmp_path, monkeypa
 
 
 def test_resume_from_a_foreign_checkpoint_is_one_line_and_the_engine_starts_afresh(tmp_path):
-    from gstyle_core.pipeline.checkpoint import save_checkpoint
+    from gstyle_core.engine.checkpoint import save_checkpoint
 
     path = save_checkpoint(tmp_path / "other.ckpt", {"phase": "stylize"}, {"kind": "studio"})  # another engine's
     b = WorkerBridge(make_fake_engine, {"n": 8}, resume_from=path)
@@ -223,7 +223,7 @@ def test_export_writes_the_web_formats(bridge_factory, tmp_path):
 def test_real_stylizer_resumes_from_its_checkpoint_through_the_bridge(tmp_path):
     from fakes import make_small_stylizer
 
-    from gstyle_core.pipeline.checkpoint import read_checkpoint
+    from gstyle_core.engine.checkpoint import read_checkpoint
 
     path = tmp_path / "session.ckpt"
     b = WorkerBridge(make_small_stylizer, {"n": 80}, checkpoint_path=path)
@@ -246,7 +246,7 @@ def test_real_stylizer_resumes_from_its_checkpoint_through_the_bridge(tmp_path):
 
 
 def test_real_stylizer_runs_to_the_end_through_the_bridge():
-    pytest.importorskip("gstyle_core.pipeline.stylizer")
+    pytest.importorskip("gstyle_core.engine.stylizer")
     from fakes import make_small_stylizer
 
     b = WorkerBridge(make_small_stylizer, {"n": 150})
@@ -341,7 +341,7 @@ def test_after_the_gpu_failed_the_run_goes_on_on_the_cpu_from_its_last_finished_
     left, bit for bit) and runs to the end."""
     from fakes import BUILT, stand_in_gpu_stylizer
 
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.stylizer import Stylizer
 
     loaded = []
     load = Stylizer.load_state_dict

@@ -15,10 +15,10 @@ import torch
 from fakes import engine_at_stylize, random_torchvision_vgg_state
 from synthetic import blob_scene
 
+from gstyle_core.engine.objective import MAX_STYLE_SIDE, StyleObjective, style_side
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.io import save_scene
-from gstyle_core.pipeline.objective import MAX_STYLE_SIDE, StyleObjective, style_side
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.scene import rgb_to_sh_dc
 from gstyle_core.style.keep_colours import chroma, luminance, luminance_transfer_matrix, with_chroma_of
 
@@ -159,7 +159,7 @@ def test_style_scale_sets_the_size_of_the_style_features(vgg):
 
 @pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
 def test_style_scale_refuses_nonsense(bad, engine_for, capsys):
-    from gstyle_core.pipeline.cli import add_stylize_arguments
+    from gstyle_core.cli.stylize import add_stylize_arguments
 
     with pytest.raises(ValueError, match="style scale must be a finite number above 0"):
         resolve_settings("preview", "forward", 3, style_scale=bad)
@@ -205,8 +205,8 @@ def test_a_resumed_engine_keeps_both_controls(engine_for):
 
 # ====================================================================== command line and OUT.json
 def test_cli_takes_both_controls_and_records_them(tmp_path, no_clip_weights):
-    from gstyle_core.pipeline import cli
-    from gstyle_core.pipeline.build import build_stylizer
+    from gstyle_core.cli import stylize as cli
+    from gstyle_core.engine.build import build_stylizer
 
     scene_path, style_path = tmp_path / "warm.ply", tmp_path / "blue.png"
     save_scene(warm_scene(120), scene_path)
@@ -243,7 +243,7 @@ def _another_value(row) -> float:
 def test_every_control_set_and_unset_on_a_finished_run_gives_the_same_colours_bit_for_bit(engine_for):
     """Ticking and unticking keep colours (and setting any other row of the controls table and setting it back) on a
     finished run returns the colours a viewer shows, and the settings, exactly as they were."""
-    from gstyle_core.pipeline.controls import CONTROLS
+    from gstyle_core.engine.controls import CONTROLS
 
     engine = engine_for(style=[blue_painting(), blue_painting()[::-1].copy()])
     engine.run()

@@ -16,11 +16,13 @@ from batch_worker import use_tiny_engine
 from PIL import Image
 from synthetic import blob_scene
 
+from gstyle_core.batch import jobs as batch_jobs
+from gstyle_core.batch import pool as batch
+from gstyle_core.batch.report import CELL_WIDTH, CSV_COLUMNS, FAILED_GREY, TEXT_HEIGHT
 from gstyle_core.cli import run
+from gstyle_core.cli.stylize import add_stylize_arguments
+from gstyle_core.engine.checkpoint import stylize_checkpoint_path
 from gstyle_core.io import save_scene
-from gstyle_core.pipeline import batch, batch_jobs
-from gstyle_core.pipeline.batch_report import CELL_WIDTH, CSV_COLUMNS, FAILED_GREY, TEXT_HEIGHT
-from gstyle_core.pipeline.checkpoint import stylize_checkpoint_path
 
 TAILS = (".ply", ".json", "_before.png", "_after.png")
 PICTURE = -(-CELL_WIDTH // 3)  # the stand-in's after pictures are 3:1: 256 px wide, 86 high (rounded up)
@@ -162,7 +164,7 @@ def test_an_interrupted_job_resumes_and_force_runs_all_again(inputs):
     def plan(*extra: str) -> dict:
         args = build_parser().parse_args(argv + list(extra))
         args.argv = argv + list(extra)
-        return {job.out.stem: job for job in batch.plan_jobs(args, out)}
+        return {job.out.stem: job for job in batch.plan_jobs(args, out, add_stylize_arguments)}
 
     jobs = plan()
     assert jobs["scene1__blue"].argv[-1] == "--resume" and "--resume" not in jobs["scene1__red"].argv

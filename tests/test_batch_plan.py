@@ -9,8 +9,8 @@ from batch_worker import use_tiny_engine
 from PIL import Image
 from test_batch import TAILS, make_inputs, rows_of
 
+from gstyle_core.batch.report import CELL_WIDTH, TEXT_HEIGHT
 from gstyle_core.cli import run
-from gstyle_core.pipeline.batch_report import CELL_WIDTH, TEXT_HEIGHT
 
 PICTURE = -(-CELL_WIDTH // 3)  # the stand-in's after pictures are 3:1
 

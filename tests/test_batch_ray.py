@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 from test_batch import TAILS, batch_args, make_inputs, names, painting, rows_of
 
+from gstyle_core.batch import jobs as batch_jobs
+from gstyle_core.batch import ray_tasks as batch_ray
 from gstyle_core.cli import run
-from gstyle_core.pipeline import batch_jobs, batch_ray
 
 ray = pytest.importorskip("ray", reason="the 'ray' extra is not installed (pip install -e '.[ray]')")
 WORKER_SCRIPT = str(Path(__file__).with_name("batch_worker.py"))

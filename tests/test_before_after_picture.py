@@ -5,8 +5,8 @@ import pytest
 from synthetic import blob_scene, ring_cameras
 
 from gstyle_core.errors import GStyleError
-from gstyle_core.render_cli import before_after_picture
 from gstyle_core.scene import rgb_to_sh_dc
+from gstyle_core.scene_images import before_after_picture
 
 
 def test_picture_has_input_above_stylized_cropped_to_the_scene():

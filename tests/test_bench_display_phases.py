@@ -12,8 +12,8 @@ import torch
 from fakes import MeanColourPull
 from synthetic import blob_scene, ring_cameras
 
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench" / "studies"))
 
@@ -45,7 +45,7 @@ def one_network(monkeypatch):
 
 
 def test_each_stage_carries_the_drop_the_run_reports_at_its_working_width(one_network):
-    from gstyle_core.pipeline.run_figures import evaluate_run
+    from gstyle_core.engine.run_figures import evaluate_run
 
     engine = _engine()
     scene_in, style = engine.input_scene, _style()

@@ -23,7 +23,7 @@ def report():
 
 def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_weights, monkeypatch, tmp_path,
                                                                   capsys):
-    from gstyle_core.pipeline import cli
+    from gstyle_core.cli import stylize as cli
 
     tradeoff = load_bench("tradeoff")
     style = np.random.default_rng(0).uniform(size=(16, 16, 3)).astype(np.float32)

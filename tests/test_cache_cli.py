@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 
 from gstyle_core.cli import run
-from gstyle_core.pipeline.checkpoint import save_checkpoint, stylize_checkpoint_path
+from gstyle_core.engine.checkpoint import save_checkpoint, stylize_checkpoint_path
 from gstyle_core.style.vgg import CACHE_FILE
 
 

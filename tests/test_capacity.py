@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from fakes import short_pull_run
 
-from gstyle_core.pipeline.capacity import nearest_rows, plan_capacity, with_neighbour_colours
+from gstyle_core.engine.capacity import nearest_rows, plan_capacity, with_neighbour_colours
 from gstyle_core.scene import importance_order
 from tests.synthetic import blob_scene, ring_cameras
 
@@ -59,8 +59,8 @@ def test_a_reduced_run_stylizes_what_it_holds_and_returns_every_gaussian():
 def test_a_resumed_run_holds_the_part_its_checkpoint_was_planned_with(monkeypatch):
     """The cap derived from the free memory changes between a run and its resume: the resumed engine is planned with
     the saved cap (``saved_capacity``), holds the same Gaussians, loads the state and ends as the run would have."""
-    from gstyle_core.pipeline import resources
-    from gstyle_core.pipeline.checkpoint import engine_fingerprint, saved_capacity
+    from gstyle_core.engine import resources
+    from gstyle_core.engine.checkpoint import engine_fingerprint, saved_capacity
 
     scene = blob_scene(200, seed=6)
     monkeypatch.setattr(resources, "default_max_gaussians", lambda *a, **k: (120, "memory then"))

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from gstyle_core.assets import DEMO_SCENE
+from gstyle_core.engine.resources import bytes_per_gaussian
 from gstyle_core.io import load_scene
-from gstyle_core.pipeline.resources import bytes_per_gaussian
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,4 +1,4 @@
-"""The coarse colour field (``pipeline/colour_field.py``): its grid, its interpolation, its coherent steps, and how the
+"""The coarse colour field (``engine/colour_field.py``): its grid, its interpolation, its coherent steps, and how the
 stylization phase uses it (switch, stroke size, folding into c_s, defaults)."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import pytest
 import torch
 from synthetic import blob_scene, look_at_camera, ring_cameras
 
-from gstyle_core.pipeline.arg_types import on_off_arg
-from gstyle_core.pipeline.colour_field import (
+from gstyle_core.engine.arg_types import on_off_arg
+from gstyle_core.engine.colour_field import (
     FIELD_CELL_PX,
     FIELD_STEP_SHARE,
     ColourField,
@@ -17,8 +17,8 @@ from gstyle_core.pipeline.colour_field import (
     pixel_footprint,
     unique_points,
 )
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 
 
 def test_pixel_footprint_is_distance_over_focal_length():
@@ -94,7 +94,7 @@ def test_a_field_stepped_and_not_yet_folded_is_folded_before_the_next_step():
     (the views must render the whole colour), and a fold leaves nothing unfolded."""
     from types import SimpleNamespace
 
-    from gstyle_core.pipeline.colour_steps import ColourSteps
+    from gstyle_core.engine.colour_steps import ColourSteps
 
     points = torch.rand(50, 3, generator=torch.Generator().manual_seed(4))
     field = ColourField(points, cell=0.3, lr=0.1)

@@ -16,10 +16,10 @@ import torch
 from fakes import MeanColourPull, make_small_stylizer
 from synthetic import blob_scene, look_at_camera
 
-from gstyle_core.pipeline.preprocess import EVEN_ELONGATED_FRACTION, EVEN_FLAT_FRACTION, evenness_verdict
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
-from gstyle_core.pipeline.visibility import seen_mask
+from gstyle_core.engine.flat_split import EVEN_ELONGATED_FRACTION, EVEN_FLAT_FRACTION, evenness_verdict
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
+from gstyle_core.engine.visibility import seen_mask
 from gstyle_core.raster import rasterize
 from gstyle_core.scene import GaussianScene, logit, used_sh_degree
 
@@ -188,7 +188,7 @@ def test_uneven_sizes_are_preprocessed_with_the_criterion_reported():
 @pytest.fixture
 def random_vgg_objective(vgg, no_clip_weights):
     """The real StyleObjective on a randomly initialised VGG, with no CLIP weights anywhere."""
-    from gstyle_core.pipeline.objective import StyleObjective
+    from gstyle_core.engine.objective import StyleObjective
 
     return lambda style, settings: StyleObjective(style, settings, vgg=vgg)
 

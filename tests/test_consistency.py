@@ -1,11 +1,15 @@
 """Multi-view consistency measure: reprojection through rendered depth lines up the same surface points."""
 
 import dataclasses
+import sys
+from pathlib import Path
 
 import numpy as np
-from synthetic import blob_scene, look_at_camera
 
-from gstyle_core.pipeline.consistency import render_with_depth, reprojection_error, view_consistency
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))  # the measure: bench/consistency.py
+from consistency import render_with_depth, reprojection_error, view_consistency  # noqa: E402
+from synthetic import blob_scene, look_at_camera  # noqa: E402
+
 from gstyle_core.scene import rgb_to_sh_dc, sh_dc_to_rgb
 
 W, H = 64, 48

@@ -7,9 +7,9 @@ import argparse
 import numpy as np
 import pytest
 
-from gstyle_core.pipeline import controls
-from gstyle_core.pipeline.controls import CliOption, Control, Effect, apply_controls, control
-from gstyle_core.pipeline.settings import preset_values, resolve_settings, ui_params
+from gstyle_core.engine import controls
+from gstyle_core.engine.controls import CliOption, Control, Effect, apply_controls, control
+from gstyle_core.engine.settings import preset_values, resolve_settings, ui_params
 
 
 def _write_lr_end(s, value) -> None:
@@ -30,7 +30,7 @@ def with_lr_end(monkeypatch):
 
 
 def _stylize_parser() -> argparse.ArgumentParser:
-    from gstyle_core.pipeline.cli import add_stylize_arguments
+    from gstyle_core.cli.stylize import add_stylize_arguments
 
     parser = argparse.ArgumentParser(prog="gstyle stylize")
     add_stylize_arguments(parser)
@@ -38,7 +38,7 @@ def _stylize_parser() -> argparse.ArgumentParser:
 
 
 def _engine():
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.stylizer import Stylizer
     from tests.synthetic import blob_scene, ring_cameras
 
     settings = resolve_settings("preview", "forward", 3, max_views=3, preprocess_rounds=0, working_width=32)

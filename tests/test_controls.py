@@ -41,8 +41,8 @@ def assert_vgg_is(vgg, state: dict[str, torch.Tensor]) -> None:
 
 # ====================================================================== --vgg-weights
 def test_cli_vgg_weights_are_the_ones_loaded(tiny_scene, fake_vgg_file):
-    from gstyle_core.pipeline.build import build_stylizer
-    from gstyle_core.pipeline.cli import add_stylize_arguments, build_request
+    from gstyle_core.cli.stylize import add_stylize_arguments, build_request
+    from gstyle_core.engine.build import build_stylizer
 
     path, state = fake_vgg_file
     parser = argparse.ArgumentParser()
@@ -111,7 +111,7 @@ class StopBeforeStepping(BaseException):
 
 
 def test_cli_names_the_coarse_substitute_before_stepping(tiny_scene, tmp_path, monkeypatch, capsys, no_clip_weights):
-    from gstyle_core.pipeline import cli
+    from gstyle_core.cli import stylize as cli
     from gstyle_core.style.clip import COARSE_NAME
 
     def no_steps(engine, *_):
@@ -157,7 +157,7 @@ class GrowingEngine:
         return self.planned
 
     def step(self):
-        from gstyle_core.pipeline.stylizer import StepReport
+        from gstyle_core.engine.stylizer import StepReport
 
         self.global_step += 1
         if self.global_step == 3:
@@ -175,7 +175,7 @@ class NoCheckpoints:
 
 
 def test_stylize_progress_is_one_bar_with_eta_over_the_whole_run(capsys):
-    from gstyle_core.pipeline.cli import _run_with_progress
+    from gstyle_core.cli.stylize import _run_with_progress
 
     _run_with_progress(GrowingEngine(), NoCheckpoints(), {"stop": False})
     frames = [f for f in capsys.readouterr().err.replace("\n", "\r").split("\r") if f.strip()]
@@ -197,7 +197,7 @@ def _edges_image(seed: int = 0, size: int = 64) -> np.ndarray:
 
 
 def test_structure_is_one_for_the_same_edges_and_falls_with_foreign_ones():
-    from gstyle_core.pipeline.evaluate import structure_kept
+    from gstyle_core.engine.evaluate import structure_kept
 
     before = _edges_image()
     alpha = np.zeros(before.shape[:2], np.float32)
@@ -215,8 +215,8 @@ def test_structure_is_one_for_the_same_edges_and_falls_with_foreign_ones():
 
 
 def test_strength_multiplies_the_style_terms_against_content():
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.engine.objective import StyleObjective
+    from gstyle_core.engine.settings import resolve_settings
 
     style = np.random.default_rng(0).random((32, 32, 3)).astype(np.float32)
     torch.manual_seed(0)
@@ -235,7 +235,7 @@ def test_cli_records_strength_palette_match_and_prints_structure(tiny_scene, fak
                                                                  no_clip_weights):
     import json
 
-    from gstyle_core.pipeline import cli
+    from gstyle_core.cli import stylize as cli
 
     parser = argparse.ArgumentParser()
     cli.add_stylize_arguments(parser)
@@ -261,9 +261,9 @@ def test_cli_records_strength_palette_match_and_prints_structure(tiny_scene, fak
 def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):
     from synthetic import ring_cameras
 
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.objective import StyleObjective
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
 
     torch.manual_seed(0)
     vgg = VGGFeatures().eval()
@@ -276,8 +276,8 @@ def test_calibrated_360_run_says_why_the_substitute_is_off(no_clip_weights):
         engine.step()
     assert settings.weights.clip == 0.0 and "calibrated 360° defaults" in engine.decisions["clip"]
     assert "in CLIP's place" in engine.decisions["broad_strokes"]
-    from gstyle_core.pipeline.controls import CONTROLS
-    from gstyle_core.pipeline.notes import factor_words
+    from gstyle_core.engine.controls import CONTROLS
+    from gstyle_core.engine.notes import factor_words
     from gstyle_core.style.multiscale import DEFAULT_FACTORS
 
     words = factor_words(DEFAULT_FACTORS)  # what the run and the panel say is what the term does

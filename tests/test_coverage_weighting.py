@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.style.clip import CoarseStyleLoss
 from gstyle_core.style.features import feature_weights, weighted_mean
 from gstyle_core.style.losses import StyleLoss, content_loss

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 from gstyle_core.cli import run
-from gstyle_core.pipeline import phases
-from gstyle_core.pipeline.checkpoint import read_checkpoint, stylize_checkpoint_path
+from gstyle_core.engine import phases
+from gstyle_core.engine.checkpoint import read_checkpoint, stylize_checkpoint_path
 
 LOG = re.compile(r"; traceback in (\S+\.log)$")
 
@@ -114,7 +114,7 @@ def test_a_failure_in_each_phase_is_one_line_and_the_run_resumes_to_the_end(cach
 
 def finished_after_the_run(args: list[str], kept_step: int, monkeypatch, capsys) -> None:
     """The last step resumed and done, measuring the run fails: the finished run is kept for --resume."""
-    import gstyle_core.pipeline.cli as stylize_cli
+    import gstyle_core.cli.stylize as stylize_cli
 
     def broken(*_a, **_k):
         raise ZeroDivisionError("injected after the run\nsecond line of the message")
@@ -132,8 +132,8 @@ def finished_after_the_run(args: list[str], kept_step: int, monkeypatch, capsys)
 def test_the_controls_named_are_those_that_differ_from_the_preset(cache):
     """The demo's calibrated preview: its own values are the preset's, a finer level's weights too (a calibrated
     360° run with levels has its own), a control moved is named."""
-    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
-    from gstyle_core.pipeline.run_crash import controls_in_force, where_the_run_is
+    from gstyle_core.engine.build import BuildRequest, build_stylizer
+    from gstyle_core.engine.run_crash import controls_in_force, where_the_run_is
 
     engine = build_stylizer(BuildRequest(overrides={"working_width": 32})).engine
     assert controls_in_force(engine) == "controls: the preview preset's"
@@ -180,8 +180,8 @@ def test_a_run_that_cannot_be_kept_says_so_on_its_line(cache, tmp_path, monkeypa
     """A full cache folder: the failure's line says the run could not be kept, and gives no --resume."""
     import errno
 
+    from gstyle_core.engine import checkpoint
     from gstyle_core.errors import OutputWriteError
-    from gstyle_core.pipeline import checkpoint
 
     def full(path, *_a, **_k):
         raise OutputWriteError(path, "no space left on the device", errno.ENOSPC)

@@ -8,10 +8,10 @@ import pytest
 import torch
 
 from gstyle_core.cli import run
+from gstyle_core.engine.settings import StylizeSettings, check_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.fit.model import params_from_scene, render_params
 from gstyle_core.fit.trainer import FitConfig, Trainer
-from gstyle_core.pipeline.settings import StylizeSettings, check_settings
-from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.style.precision import choose_precision, cuda_card
 from tests.fakes import engine_with_random_vgg
 from tests.synthetic import blob_scene, ring_cameras
@@ -105,7 +105,7 @@ def test_the_gpus_failures_are_told_from_other_errors():
 
 def test_a_checkpoint_resumes_on_another_device_but_not_with_other_settings():
     """The device is where a run computes, not what: the fingerprint leaves it out, and nothing else."""
-    from gstyle_core.pipeline.checkpoint import engine_fingerprint
+    from gstyle_core.engine.checkpoint import engine_fingerprint
     from tests.fakes import make_small_stylizer
 
     auto, cpu = engine_fingerprint(make_small_stylizer(device="auto")), engine_fingerprint(make_small_stylizer(

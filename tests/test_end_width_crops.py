@@ -12,12 +12,12 @@ import torch
 from fakes import MeanColourPull
 from synthetic import blob_scene, ring_cameras
 
+from gstyle_core.engine.levels import end_width
+from gstyle_core.engine.phases.end_width_crops import EndWidthCrops
+from gstyle_core.engine.phases.refit import Refit
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.fit.model import params_from_scene, render_params
-from gstyle_core.pipeline.levels import end_width
-from gstyle_core.pipeline.phases.end_width_crops import EndWidthCrops
-from gstyle_core.pipeline.phases.refit import Refit
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
 
 WORKING, END = 32, 128
 

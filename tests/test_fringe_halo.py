@@ -8,8 +8,8 @@ import pytest
 from fakes import MeanColourPull
 from synthetic import blob_scene, ring_cameras
 
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.scene import logit
 from gstyle_core.style.fringe import fringe_halo
 
@@ -34,7 +34,7 @@ def test_the_halo_figure_sees_a_brighter_rim():
 
 def test_a_runs_display_figures_carry_the_fringe_halo():
     """``quality.display`` (and the studio's summary) hold the halo of the same renders as the speckle figure."""
-    from gstyle_core.pipeline.run_figures import result_summary
+    from gstyle_core.engine.run_figures import result_summary
     from gstyle_core.style.fringe import fringe_halo_line
 
     scene = blob_scene(150, seed=3)

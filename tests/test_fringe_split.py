@@ -10,10 +10,10 @@ import pytest
 from fakes import MeanColourPull
 from synthetic import blob_scene, ring_cameras
 
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.fit.model import scene_from_params
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
-from gstyle_core.render_cli import render_scene_image
+from gstyle_core.scene_images import render_scene_image
 
 
 def _coverage(scene, cameras) -> float:

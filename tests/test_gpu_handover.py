@@ -43,7 +43,7 @@ def let_go_of_the_card(held: list) -> None:
 def test_a_real_out_of_memory_on_the_card_goes_on_on_the_cpu(monkeypatch):
     from fakes import BUILT, keep_small_stylizer
 
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.stylizer import Stylizer
 
     step, load = Stylizer.step, Stylizer.load_state_dict
     loaded = []

@@ -1,4 +1,4 @@
-"""A saved result keeps its run (issue #35 item 3, ``gstyle_core/pipeline/kept_runs.py``): the studio's worker and
+"""A saved result keeps its run (issue #35 item 3, ``gstyle_core/engine/kept_runs.py``): the studio's worker and
 ``gstyle stylize`` keep the engine's state with every result they write, a reopened result whose file is unchanged
 finds it, and the engine rebuilt on the original from the inputs kept with it loads that run where it ended (however
 the sliders stood when it was built)."""
@@ -9,7 +9,7 @@ import numpy as np
 from fakes import make_small_stylizer
 
 from app.worker import WorkerBridge
-from gstyle_core.pipeline.kept_runs import (
+from gstyle_core.engine.kept_runs import (
     file_digest,
     find_result_state,
     note_path,
@@ -82,7 +82,7 @@ def test_a_result_reopened_continues_its_run_where_it_ended(tmp_path, monkeypatc
     assert kept is not None, "the run was not kept with the result"
     state_path, note = kept
     assert note["config"]["n"] == 80
-    from gstyle_core.pipeline.checkpoint import read_checkpoint
+    from gstyle_core.engine.checkpoint import read_checkpoint
 
     state, meta = read_checkpoint(state_path)
     assert meta["build_params"]["lambda_content"] == 0.2 and meta["kind"] == "result"
@@ -107,9 +107,9 @@ def test_the_config_kept_for_a_command_line_run_builds_the_same_engine(tmp_path,
     from synthetic import blob_scene
 
     from app.engine_factory import make_stylizer
+    from gstyle_core.engine.build import BuildRequest, build_stylizer, request_config
+    from gstyle_core.engine.checkpoint import engine_fingerprint
     from gstyle_core.io import save_scene
-    from gstyle_core.pipeline.build import BuildRequest, build_stylizer, request_config
-    from gstyle_core.pipeline.checkpoint import engine_fingerprint
 
     (tmp_path / "work").mkdir()
     save_scene(blob_scene(50, seed=3), tmp_path / "work" / "scene.ply")

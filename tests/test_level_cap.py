@@ -7,9 +7,9 @@ import pytest
 from synthetic import blob_scene, ring_cameras
 from test_resume_phases import NoisyPull
 
-from gstyle_core.pipeline.levels import capped_levels
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.levels import capped_levels
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 
 
 @pytest.mark.parametrize(("widths", "limit", "expected"), [

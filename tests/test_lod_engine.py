@@ -1,4 +1,4 @@
-"""The engine on a level-of-detail cut (``pipeline/lod_run.py``): the cut said before the first step, every input
+"""The engine on a level-of-detail cut (``engine/lod_run.py``): the cut said before the first step, every input
 Gaussian written and shown, the region's outside exact, resume keeps the lineage, ``--lod off`` as before."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from fakes import MeanColourPull
 
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
-from gstyle_core.render_cli import load_scene_and_cameras
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
+from gstyle_core.scene_images import load_scene_and_cameras
 
 
 @pytest.fixture(scope="module")

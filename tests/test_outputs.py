@@ -106,7 +106,7 @@ def _ply(path):
 
 
 def _png(path):
-    from gstyle_core.render_cli import save_png
+    from gstyle_core.scene_images import save_png
 
     save_png(path, np.random.default_rng(0).random((24, 32, 3)))
 
@@ -122,7 +122,7 @@ def _frames(path):
 
 
 def _checkpoint(path):
-    from gstyle_core.pipeline.checkpoint import save_checkpoint
+    from gstyle_core.engine.checkpoint import save_checkpoint
 
     save_checkpoint(path, {"phase": "stylize", "global_step": 3, "c_s": np.ones((50, 3))}, {"kind": "stylize"})
 

@@ -20,11 +20,11 @@ from faults import Faults, listing
 from synthetic import blob_scene
 
 from gstyle_core.cli import run
+from gstyle_core.cli import stylize as cli
+from gstyle_core.engine.build import BuiltEngine
+from gstyle_core.engine.checkpoint import stylize_checkpoint_path
+from gstyle_core.engine.kept_runs import find_result_state
 from gstyle_core.io import load_scene
-from gstyle_core.pipeline import cli
-from gstyle_core.pipeline.build import BuiltEngine
-from gstyle_core.pipeline.checkpoint import stylize_checkpoint_path
-from gstyle_core.pipeline.kept_runs import find_result_state
 
 PHASES = ("ground_truth", "stylize", "finish")
 STEPS_PER_PHASE = 3
@@ -256,7 +256,7 @@ def test_an_output_that_is_a_directory_is_found_before_the_run(tiny, tmp_path, c
 def test_a_stop_whose_checkpoint_cannot_be_written_says_so(tiny, tmp_path, monkeypatch, capsys):
     import contextlib
 
-    from gstyle_core.pipeline import checkpoint
+    from gstyle_core.engine import checkpoint
 
     monkeypatch.setattr(checkpoint, "deferred_interrupts", lambda: contextlib.nullcontext({"stop": True}))
     Faults(monkeypatch).arm(tmp_path / "cache", errno.EROFS)

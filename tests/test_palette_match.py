@@ -12,11 +12,11 @@ import torch
 from fakes import MeanColourPull
 from synthetic import blob_scene, ring_cameras
 
-from gstyle_core.pipeline.checkpoint import engine_fingerprint, read_checkpoint, save_checkpoint
-from gstyle_core.pipeline.controls import Effect, apply_controls, control
-from gstyle_core.pipeline.phases.colour_match import ColourMatch, blend_colours, matched_colours, transfer
-from gstyle_core.pipeline.settings import StylizeSettings, check_settings, resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.checkpoint import engine_fingerprint, read_checkpoint, save_checkpoint
+from gstyle_core.engine.controls import Effect, apply_controls, control
+from gstyle_core.engine.phases.colour_match import ColourMatch, blend_colours, matched_colours, transfer
+from gstyle_core.engine.settings import StylizeSettings, check_settings, resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 
 
 def _style() -> np.ndarray:
@@ -61,7 +61,7 @@ def test_the_row_and_its_setting_refuse_what_lies_outside_0_to_1():
 
 
 def test_the_command_line_takes_it(capsys):
-    from gstyle_core.pipeline.cli import add_stylize_arguments
+    from gstyle_core.cli.stylize import add_stylize_arguments
 
     parser = argparse.ArgumentParser(prog="gstyle stylize")
     add_stylize_arguments(parser)
@@ -186,10 +186,10 @@ def test_a_finer_level_after_the_end_matches_again_at_the_strength_then():
 
 
 def test_the_quality_figures_measure_the_colours_after_the_blend(finished, monkeypatch):
+    from gstyle_core.engine.run_figures import evaluate_run, evaluation_cameras
     from gstyle_core.fit.model import scene_from_params
-    from gstyle_core.pipeline.run_figures import evaluate_run, evaluation_cameras
-    from gstyle_core.render_cli import render_scene_image
     from gstyle_core.scene import rgb_to_sh_dc
+    from gstyle_core.scene_images import render_scene_image
     from gstyle_core.style import vgg as vgg_module
 
     monkeypatch.setattr(vgg_module, "load_vgg", lambda *a, **k: vgg_module.VGGFeatures().eval())

@@ -1,6 +1,6 @@
 """Every pair of an artist's paths, together, on real captures (issue #48): the covering array of ``bench/paths.py``.
 
-Each case is a real engine built as ``gstyle stylize`` and the studio's worker build theirs (``pipeline/build.py``),
+Each case is a real engine built as ``gstyle stylize`` and the studio's worker build theirs (``engine/build.py``),
 on a crop of a real 360° capture or the fern's forward-facing cameras and photos, at short settings (a few steps of
 each phase), with the case's controls and run options together; ``check_case`` asserts what each of them must do.
 The matrix comes from the controls' table: a control added there is in these cases without a new test.
@@ -11,7 +11,7 @@ from __future__ import annotations
 import pytest
 from bench_cli import load_bench
 
-from gstyle_core.pipeline.controls import CONTROLS
+from gstyle_core.engine.controls import CONTROLS
 
 paths = load_bench("paths")
 CASES = paths.covering_cases()

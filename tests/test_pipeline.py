@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import torch
 
-from gstyle_core.pipeline.preprocess import clamp_elongation, flat_split_mask, size_evenness
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.flat_split import clamp_elongation, flat_split_mask, size_evenness
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from tests.synthetic import blob_scene, ring_cameras
 
 
@@ -75,7 +75,7 @@ def test_calibrated_360_defaults_and_the_clip_substitute():
     """360° scenes default to the values measured on this machine (settings.CALIBRATED_360); without CLIP weights the
     calibrated 360° defaults turn the coarse CLIP substitute off (unless λ_CLIP is given) and the broad-strokes term
     on at λ_NNFM; the paper's defaults, real CLIP weights and forward-facing scenes have no broad-strokes term."""
-    from gstyle_core.pipeline.settings import CALIBRATED_360
+    from gstyle_core.engine.settings import CALIBRATED_360
 
     paper = resolve_settings("preview", "360", 16, defaults="paper", clip_available=False)
     cal = resolve_settings("preview", "360", 16, clip_available=False)
@@ -104,7 +104,7 @@ def test_calibrated_360_runs_with_finer_levels_keep_edges():
     """Calibrated 360° runs with finer levels (balanced, final) take λ_edges and a doubled λ_NNFM
     (settings.CALIBRATED_360_LEVELS), the terms tied to λ_NNFM following it; the preview, a run without levels, the
     paper's defaults and forward-facing scenes do not; given values win."""
-    from gstyle_core.pipeline.settings import CALIBRATED_360, CALIBRATED_360_LEVELS
+    from gstyle_core.engine.settings import CALIBRATED_360, CALIBRATED_360_LEVELS
 
     for preset in ("balanced", "final"):
         w = resolve_settings(preset, "360", 16, clip_available=False).weights
@@ -124,7 +124,7 @@ def test_a_previews_first_level_takes_the_weights_of_runs_with_levels():
     """``level_weight_changes``: what a calibrated 360° preview changes when the studio refines it, the same weights
     ``resolve_settings`` gives a run with levels; nothing for weights the artist moved or runs that already have
     levels, forward-facing scenes or the paper's defaults."""
-    from gstyle_core.pipeline.settings import level_weight_changes, ui_params
+    from gstyle_core.engine.settings import level_weight_changes, ui_params
 
     with_levels = ui_params(resolve_settings("balanced", "360", 16, clip_available=False))
     changes = level_weight_changes(resolve_settings("preview", "360", 16, clip_available=False))
@@ -302,8 +302,8 @@ def test_raster_backend_setting_reaches_ground_truth_and_refits_with_the_same_re
     deterministic: the ground-truth images and the refit loss's gradients at one state. (Not the means after a
     100-iteration Adam trajectory: Adam moves a parameter by about lr whatever its gradient's size, so gradients
     of 1e-11 whose sign depends on float32 summation order move the means apart differently on different CPUs.)"""
+    import gstyle_core.engine.phases.ground_truth as ground_truth_module
     import gstyle_core.fit.trainer as trainer_module
-    import gstyle_core.pipeline.phases.ground_truth as ground_truth_module
     from gstyle_core.fit.model import params_from_scene, render_params
     from gstyle_core.fit.ssim import ssim
 

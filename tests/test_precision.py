@@ -101,7 +101,7 @@ def test_the_environment_decides_auto_only(tmp_path):
 
 
 def test_the_test_suite_runs_fp32_without_timing():
-    from gstyle_core.pipeline.settings import resolve_settings
+    from gstyle_core.engine.settings import resolve_settings
 
     settings = resolve_settings("preview", "forward", 3)
     assert settings.precision == "auto"
@@ -246,7 +246,7 @@ def test_the_cli_and_the_studio_take_the_option():
 
     from app.engine_factory import ENGINE_OPTIONS
     from app.main import build_parser
-    from gstyle_core.pipeline.cli import add_stylize_arguments, build_request
+    from gstyle_core.cli.stylize import add_stylize_arguments, build_request
 
     parser = argparse.ArgumentParser()
     add_stylize_arguments(parser)
@@ -258,7 +258,7 @@ def test_the_cli_and_the_studio_take_the_option():
 
 
 def test_gstyle_cache_names_the_file(tmp_path, monkeypatch):
-    from gstyle_core.cache_cli import list_cache
+    from gstyle_core.cli.cache import list_cache
 
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path))
     choose(tmp_path, FakeTimer(0.2, 0.1))

@@ -97,7 +97,7 @@ def test_gsplat_colour_cache_matches_the_sparse_one():
 
 @needs_cuda
 def test_a_cuda_run_stylizes_on_the_gpu(tmp_path):
-    from gstyle_core.pipeline.build import SETTING_OPTIONS, BuildRequest, build_stylizer
+    from gstyle_core.engine.build import SETTING_OPTIONS, BuildRequest, build_stylizer
 
     overrides = dict.fromkeys(SETTING_OPTIONS)
     overrides.update(device="cuda", working_width=64)

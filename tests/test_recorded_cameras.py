@@ -18,12 +18,12 @@ from test_outputs_stylize import TinyEngine, stylize, tiny  # noqa: F401 - the s
 from gstyle_core.cameras import generate_cameras
 from gstyle_core.cameras.recorded import RECORD_KEY, camera_record, cameras_from_record, recorded_cameras
 from gstyle_core.cli import run
+from gstyle_core.cli import stylize as cli
+from gstyle_core.engine.build import BuiltEngine
 from gstyle_core.errors import GStyleError
 from gstyle_core.io import load_scene, save_scene
-from gstyle_core.pipeline import cli
-from gstyle_core.pipeline.build import BuiltEngine
-from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image, save_png
 from gstyle_core.scene import GaussianScene
+from gstyle_core.scene_images import load_scene_and_cameras, render_scene_image, save_png
 
 
 def grown(scene: GaussianScene, count: int = 40, distance: float = 4.0, seed: int = 3) -> GaussianScene:

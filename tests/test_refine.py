@@ -9,12 +9,12 @@ import torch
 from synthetic import blob_scene, ring_cameras
 from test_resume_phases import NoisyPull
 
-from gstyle_core.pipeline.checkpoint import read_checkpoint, save_checkpoint
-from gstyle_core.pipeline.levels import check_refine_widths, level_widths, next_width
-from gstyle_core.pipeline.phases.refine import covered_box, random_window
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
-from gstyle_core.render_cli import render_scene_image
+from gstyle_core.engine.checkpoint import read_checkpoint, save_checkpoint
+from gstyle_core.engine.levels import check_refine_widths, level_widths, next_width
+from gstyle_core.engine.phases.refine import covered_box, random_window
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
+from gstyle_core.scene_images import render_scene_image
 
 
 def style() -> np.ndarray:
@@ -180,8 +180,8 @@ def test_refine_carries_a_finished_run_on_at_the_next_width_and_a_resumed_run_ke
 def test_a_levels_objective_matches_the_painting_at_its_width_within_the_candidate_budget(vgg, no_clip_weights):
     """A finer level's objective resizes the painting for its own width (stroke size × that width) and searches
     among at most ``nnfm_candidates`` of its feature vectors; a crop's objective leaves the large-pattern terms off."""
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.phases.refine import CROP_TERMS
+    from gstyle_core.engine.objective import StyleObjective
+    from gstyle_core.engine.phases.refine import CROP_TERMS
 
     painting = np.random.default_rng(0).uniform(0, 1, (300, 400, 3)).astype(np.float32)
     s = resolve_settings("preview", "360", 4, working_width=64, clip_available=False, nnfm_candidates=0)

@@ -14,11 +14,11 @@ import torch
 from fakes import MeanColourPull
 from synthetic import blob_scene, ring_cameras
 
+from gstyle_core.engine.checkpoint import engine_fingerprint
+from gstyle_core.engine.region import RegionError, box_mask, check_region, parse_region, rect_mask, selection_mask
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.io import load_scene, save_scene
-from gstyle_core.pipeline.checkpoint import engine_fingerprint
-from gstyle_core.pipeline.region import RegionError, box_mask, check_region, parse_region, rect_mask, selection_mask
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
 
 HALF = (-10.0, -10.0, -10.0, 0.0, 10.0, 10.0)  # the x <= 0 half of the blob
 FIELDS = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
@@ -174,7 +174,7 @@ def test_the_selection_is_checkpointed_with_the_rest(finished):
 
 # ====================================================================== command line and OUT.json
 def test_cli_region_is_refused_when_invalid(capsys):
-    from gstyle_core.pipeline import cli
+    from gstyle_core.cli import stylize as cli
 
     parser = argparse.ArgumentParser()
     cli.add_stylize_arguments(parser)
@@ -185,7 +185,8 @@ def test_cli_region_is_refused_when_invalid(capsys):
 
 
 def test_cli_region_runs_and_is_recorded(tmp_path, monkeypatch):
-    from gstyle_core.pipeline import cli, objective
+    from gstyle_core.cli import stylize as cli
+    from gstyle_core.engine import objective
 
     monkeypatch.setattr(objective, "StyleObjective", MeanColourPull)
     monkeypatch.setattr(cli, "evaluate_run", lambda engine, scene, style, **_: {
@@ -220,7 +221,7 @@ def test_cli_region_runs_and_is_recorded(tmp_path, monkeypatch):
 
 # ====================================================================== a soft edge
 def test_feather_weights_fall_from_one_inside_to_zero_at_the_feather():
-    from gstyle_core.pipeline.region import feather_weights, grown_box
+    from gstyle_core.engine.region import feather_weights, grown_box
 
     box = (0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
     points = np.array([[0.5, 0.5, 0.5], [1.0, 0.5, 0.5], [1.1, 0.5, 0.5], [1.2, 0.5, 0.5], [1.3, 1.3, 0.5],
@@ -234,7 +235,7 @@ def test_feather_weights_fall_from_one_inside_to_zero_at_the_feather():
 def test_a_feathered_region_fades_the_style_out_across_its_band():
     """The band outside the box is selected and stylized too, and shown and exported mixed with its own colours by
     its distance: full style inside, the scene's colours beyond the feather."""
-    from gstyle_core.pipeline.region import feather_weights
+    from gstyle_core.engine.region import feather_weights
     from gstyle_core.scene import sh_dc_to_rgb
 
     scene = blob_scene(200, seed=5, sh_degree=0)

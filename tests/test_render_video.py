@@ -16,8 +16,8 @@ from gstyle_core.cameras.camera_path import camera_path_dict, read_camera_path
 from gstyle_core.cli import run
 from gstyle_core.errors import CameraFormatError, GStyleError
 from gstyle_core.io import save_scene
-from gstyle_core.render_cli import render_scene_image
 from gstyle_core.scene import GaussianScene, logit, rgb_to_sh_dc
+from gstyle_core.scene_images import render_scene_image
 from gstyle_core.video import Cancelled, write_frames
 from tests.synthetic import blob_scene, look_at_camera, ring_cameras
 

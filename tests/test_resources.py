@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from fakes import short_pull_run
 
-from gstyle_core.pipeline.resources import (
+from gstyle_core.engine.resources import (
     FALLBACK_MAX_GAUSSIANS,
     GPU_BYTES_AT_512,
     available_memory_bytes,

@@ -17,16 +17,16 @@ import pytest
 from PIL import Image
 
 from gstyle_core.cli import run
-from gstyle_core.errors import WeightsUnavailableError
-from gstyle_core.io import load_scene, save_scene
-from gstyle_core.paths import cache_dir
-from gstyle_core.pipeline.checkpoint import (
+from gstyle_core.engine.checkpoint import (
     CheckpointError,
     engine_fingerprint,
     read_checkpoint,
     save_checkpoint,
     stylize_checkpoint_path,
 )
+from gstyle_core.errors import WeightsUnavailableError
+from gstyle_core.io import load_scene, save_scene
+from gstyle_core.paths import cache_dir
 from tests.synthetic import blob_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,7 +65,7 @@ def test_resume_refuses_corrupt_missing_and_mismatched_checkpoints(inputs, tmp_p
     assert "no checkpoint to resume" in err and "\n" not in err
 
     # a checkpoint made for the same inputs (the CLI's own engine builder), then each input changed in turn
-    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
+    from gstyle_core.engine.build import BuildRequest, build_stylizer
 
     engine = build_stylizer(BuildRequest(scene=str(scene), style=str(style), overrides={"working_width": 48})).engine
     for _ in range(3):
@@ -173,7 +173,7 @@ def test_a_gpu_failure_keeps_the_run_and_the_cpu_goes_on_from_it(inputs, tmp_pat
     """A GPU that fails mid-stylization (a stand-in: every engine not set to "cpu" runs out of memory at its fifth
     stylize step): one line that says where the run is kept, and ``--device cpu --resume`` goes on from there."""
     from gstyle_core.device import DeviceMemoryError
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.stylizer import Stylizer
 
     scene, style, cache = inputs
     _vgg_into(cache)
@@ -223,8 +223,8 @@ class RandomWeightsPull:
 
 
 def test_in_memory_resume_restores_the_objective_random_state():
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
     from tests.synthetic import ring_cameras
 
     def engine():

@@ -18,16 +18,16 @@ import torch
 from synthetic import blob_scene, ring_cameras
 
 from gstyle_core.cli import run as cli_run
-from gstyle_core.io import save_scene
-from gstyle_core.pipeline.checkpoint import (
+from gstyle_core.engine.checkpoint import (
     CheckpointError,
     read_checkpoint,
     save_checkpoint,
     stylize_checkpoint_path,
 )
-from gstyle_core.pipeline.preprocess import ElongationClampStrategy, clamp_points
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.flat_split import ElongationClampStrategy, clamp_points
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
+from gstyle_core.io import save_scene
 from gstyle_core.scene import GaussianScene
 
 REFIT_ITERATIONS = 6  # clamps after iterations 1, 3, 4 and 6 (clamp_points)
@@ -87,7 +87,7 @@ def make_engine(kind: str, unseen: bool, region=None, refine_widths=()) -> Styli
 def interruption(engine: Stylizer) -> str | None:
     """Which of the interruption points the engine is at (before its next step), if any."""
     phase = engine.phase
-    pre, sty = engine.preprocess, engine.stylize
+    pre, sty = engine.flat_split, engine.stylize
     if phase == "preprocess" and pre.refit is not None and pre.refit.steps_done == 2:
         return "inside a pre-processing refit"
     if phase == "preprocess" and pre.refit is not None and pre.refit.steps_done == 0 and pre.round == 1:
@@ -147,7 +147,7 @@ def test_a_refit_whose_first_step_runs_out_of_memory_is_built_by_the_next(monkey
     step): the error is the one-line one, the step is not counted, and the run, stepped on, ends as an
     uninterrupted one."""
     from gstyle_core.device import DeviceMemoryError
-    from gstyle_core.pipeline.phases import Refit
+    from gstyle_core.engine.phases import Refit
 
     variant = VARIANTS["a region, some unseen, 360° settings (4 views a step, random order, visible-rows Adam)"]
     reference = make_engine(**variant)

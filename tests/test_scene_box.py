@@ -7,9 +7,9 @@ import pytest
 import torch
 from torch import nn
 
-from gstyle_core.pipeline.objective import StyleObjective
-from gstyle_core.pipeline.scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, box_fraction, scene_box
-from gstyle_core.pipeline.settings import resolve_settings
+from gstyle_core.engine.objective import StyleObjective
+from gstyle_core.engine.scene_box import SCENE_BOX_ALIGN_PX, SCENE_BOX_MARGIN_PX, box_fraction, scene_box
+from gstyle_core.engine.settings import resolve_settings
 from gstyle_core.style.losses import StyleWeights
 
 

@@ -9,9 +9,9 @@ import torch
 from synthetic import blob_scene, ring_cameras
 from test_resume_phases import NoisyPull
 
-from gstyle_core.pipeline.run_figures import display_speckle_line
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
+from gstyle_core.engine.run_figures import display_speckle_line
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.style.losses import StyleLoss, StyleWeights
 from gstyle_core.style.pixel_terms import chroma_tv_loss
 from gstyle_core.style.speckle import (

@@ -9,9 +9,9 @@ import torch
 from test_pipeline import MeanColourObjective
 
 from gstyle_core.cameras.framing import extent_growth
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.fit import ops
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.raster.projection import quat_to_rotmat
 from gstyle_core.scene import GaussianScene, logit
 from tests.synthetic import blob_scene, ring_cameras

@@ -14,10 +14,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 from torch import nn
 
+from gstyle_core.engine.objective import StyleObjective
+from gstyle_core.engine.settings import resolve_settings
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.errors import WeightsUnavailableError
-from gstyle_core.pipeline.objective import StyleObjective
-from gstyle_core.pipeline.settings import resolve_settings
-from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.style.clip import (
     ClipStyleLoss,
     ClipVisionEncoder,

@@ -7,7 +7,7 @@ import pytest
 import torch
 from fakes import engine_with_random_vgg
 
-from gstyle_core.pipeline.step_losses import StepLosses, backward_views
+from gstyle_core.engine.step_losses import StepLosses, backward_views
 from gstyle_core.style.coarse import position_weights
 from gstyle_core.style.losses import TERM_NAMES, term_values
 from gstyle_core.style.multiscale import DEFAULT_FACTORS

@@ -14,10 +14,10 @@ import torch
 from fakes import engine_at_stylize, random_torchvision_vgg_state
 from synthetic import blob_scene
 
+from gstyle_core.engine.phases.colour_match import surface_pixels
+from gstyle_core.engine.settings import resolve_settings, ui_params
+from gstyle_core.engine.stylizer import Stylizer
 from gstyle_core.errors import GStyleError
-from gstyle_core.pipeline.phases.colour_match import surface_pixels
-from gstyle_core.pipeline.settings import resolve_settings, ui_params
-from gstyle_core.pipeline.stylizer import Stylizer
 from gstyle_core.style import nnfm as nnfm_module
 from gstyle_core.style.clip import CoarseStyleLoss
 from gstyle_core.style.colour_match import Palette, apply_colour_transform, colour_transfer_matrix
@@ -149,7 +149,7 @@ def test_the_engine_matches_colours_to_the_weighted_palette(engine_for):
 
 
 def test_the_mix_moves_the_result_towards_the_heavier_painting(engine_for, vgg):
-    from gstyle_core.pipeline.evaluate import Evaluator
+    from gstyle_core.engine.evaluate import Evaluator
 
     ev = Evaluator(vgg, [BLUE, RED], width=32, weights=(0.5, 0.5))
     distances = {}
@@ -198,8 +198,8 @@ def _save_png(path, img):
 
 
 def test_cli_mixes_two_styles_and_names_them_with_weights(tmp_path, no_clip_weights):
+    from gstyle_core.cli import stylize as cli
     from gstyle_core.io import save_scene
-    from gstyle_core.pipeline import cli
 
     scene_path, blue_path, red_path = tmp_path / "s.ply", tmp_path / "blue.png", tmp_path / "red.png"
     save_scene(blob_scene(120, seed=3), scene_path)

@@ -105,7 +105,7 @@ def test_the_run_figure_takes_the_paintings_luminance_with_keep_colours():
     texture with the painting's luminance; without, with the painting as it is."""
     from types import SimpleNamespace
 
-    from gstyle_core.pipeline.run_figures import run_texture_scale
+    from gstyle_core.engine.run_figures import run_texture_scale
     from gstyle_core.style.keep_colours import grey
     from gstyle_core.style.texture_scale import matched_side, texture_scale
 

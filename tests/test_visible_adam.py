@@ -1,4 +1,4 @@
-"""``VisibleAdam`` (``pipeline/visible_adam.py``): Adam on the rows a step's views see, each with its own step count;
+"""``VisibleAdam`` (``engine/visible_adam.py``): Adam on the rows a step's views see, each with its own step count;
 its one-pass CPU step against the step written with torch's operators, and both against torch's Adam."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import copy
 import pytest
 import torch
 
-from gstyle_core.pipeline.visible_adam import VisibleAdam
+from gstyle_core.engine.visible_adam import VisibleAdam
 
 
 def random_gradients(rows: int, steps: int, seed: int, seen: float = 0.6, nan_rows: int = 0) -> list[torch.Tensor]:

@@ -57,7 +57,7 @@ def test_the_wheel_installs_and_runs_outside_the_checkout(tmp_path):
     wheel = build_wheel(tmp_path)
     names = zipfile.ZipFile(wheel).namelist()
     folders = {name.rsplit("/", 1)[0] for name in names}
-    assert checkout_packages() <= folders, sorted(checkout_packages() - folders)  # e.g. gstyle_core/pipeline/phases
+    assert checkout_packages() <= folders, sorted(checkout_packages() - folders)  # e.g. gstyle_core/engine/phases
     for shader in (ROOT / "shaders").iterdir():
         assert f"app/shaders/{shader.name}" in names
     assert {"gstyle_core/bundled/demo/fountain.splat", "gstyle_core/bundled/styles/starry_night.jpg"} <= set(names)

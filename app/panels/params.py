@@ -1,16 +1,16 @@
 """The panel's engine parameters: each a slider (a loss term's λ with an on/off checkbox), derived from the table of
-live controls (``gstyle_core.pipeline.controls``): the sliders, their reset values and "Reset all" follow it."""
+live controls (``gstyle_core.engine.controls``): the sliders, their reset values and "Reset all" follow it."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gstyle_core.pipeline.controls import panel_controls
+from gstyle_core.engine.controls import panel_controls
 
 
 @dataclass(frozen=True)
 class Param:
-    """One engine parameter shown as a slider (a row of ``gstyle_core.pipeline.controls``); a loss term's λ also
+    """One engine parameter shown as a slider (a row of ``gstyle_core.engine.controls``); a loss term's λ also
     gets an on/off checkbox."""
 
     key: str

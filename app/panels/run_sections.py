@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from imgui_bundle import imgui
 
-from gstyle_core.pipeline.controls import control, term_label
+from gstyle_core.engine.controls import control, term_label
 
 from .decision_words import artist_lines
 from .state import Command, PanelState

@@ -25,9 +25,9 @@ LABEL_WIDTH = 150
 def render_rows(scene: str | None, cameras: str | None, rows: list[tuple[str, str]], views: int, width: int
                 ) -> np.ndarray:
     """[H, W, 3] uint8: one labelled strip of ``views`` renders per (label, scene path) row, cropped to the extent of
-    the first row's scene (``render_cli.scene_rows``)."""
+    the first row's scene (``scene_images.scene_rows``)."""
     from gstyle_core.io import load_scene
-    from gstyle_core.render_cli import load_scene_and_cameras, scene_rows
+    from gstyle_core.scene_images import load_scene_and_cameras, scene_rows
 
     _base, _report, cams = load_scene_and_cameras(scene, cameras)
     strips = scene_rows([load_scene(path)[0] for _label, path in rows], cams.cameras, views, width)

@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image  # noqa: E402
+from gstyle_core.scene_images import load_scene_and_cameras, render_scene_image  # noqa: E402
 
 
 def covered_box(alpha: np.ndarray, margin: int = 8) -> tuple[int, int, int, int]:

@@ -33,7 +33,7 @@ def make_pair(scene_key: str, style_key: str, data: Path, docs: Path, width: int
     from PIL import Image
 
     from gstyle_core.io import load_scene
-    from gstyle_core.render_cli import before_after_picture, load_scene_and_cameras
+    from gstyle_core.scene_images import before_after_picture, load_scene_and_cameras
 
     if scene_key in FITTED:
         fitted, photos = FITTED[scene_key]

@@ -31,9 +31,9 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 from bench_memory_per_gaussian import replicated_demo  # noqa: E402 (the scene of the memory bench, in bench/)
 
+from gstyle_core.engine import colour_steps  # noqa: E402
+from gstyle_core.engine.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.machine import cpu_description, set_torch_threads  # noqa: E402
-from gstyle_core.pipeline import colour_steps  # noqa: E402
-from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
 
 
 def adam_ms(rows: int, by_operators: bool, repeats: int = 12) -> float:
@@ -57,8 +57,8 @@ def bookkeeping_ms(copies: int) -> tuple[int, float, float, int]:
     """(Gaussians, median ms of ``begin``, of ``finish``, steps timed) of a run on the demo ``copies`` times."""
     from fakes import MeanColourPull
 
-    from gstyle_core.pipeline.settings import resolve_settings
-    from gstyle_core.pipeline.stylizer import Stylizer
+    from gstyle_core.engine.settings import resolve_settings
+    from gstyle_core.engine.stylizer import Stylizer
 
     scene, cameras = replicated_demo(copies)
     settings = resolve_settings("preview", "360", len(cameras), working_width=64, preprocess_rounds=0,

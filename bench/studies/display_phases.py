@@ -30,11 +30,11 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
-from gstyle_core.pipeline.evaluate import structure_kept  # noqa: E402
-from gstyle_core.pipeline.run_figures import evaluation_cameras, figure_evaluator  # noqa: E402
-from gstyle_core.render_cli import render_scene_image  # noqa: E402
+from gstyle_core.cli.stylize import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.engine.build import build_stylizer  # noqa: E402
+from gstyle_core.engine.evaluate import structure_kept  # noqa: E402
+from gstyle_core.engine.run_figures import evaluation_cameras, figure_evaluator  # noqa: E402
+from gstyle_core.scene_images import render_scene_image  # noqa: E402
 from gstyle_core.style.fringe import fringe_halo  # noqa: E402
 from gstyle_core.style.speckle import FINE_BANDS, chroma_energies, display_speckle, fine_share  # noqa: E402
 from gstyle_core.style.texture_scale import matched_side  # noqa: E402

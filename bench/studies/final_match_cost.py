@@ -24,12 +24,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from gstyle_core.cli.stylize import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.engine.build import build_stylizer  # noqa: E402
+from gstyle_core.engine.levels import level_widths  # noqa: E402
+from gstyle_core.engine.phases.colour_match import ColourMatch, transfer  # noqa: E402
+from gstyle_core.engine.run_figures import evaluation_cameras, figure_evaluator  # noqa: E402
 from gstyle_core.machine import set_torch_threads  # noqa: E402
-from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
-from gstyle_core.pipeline.levels import level_widths  # noqa: E402
-from gstyle_core.pipeline.phases.colour_match import ColourMatch, transfer  # noqa: E402
-from gstyle_core.pipeline.run_figures import evaluation_cameras, figure_evaluator  # noqa: E402
 
 EVAL_VIEWS = 3  # as evaluate_run
 
@@ -38,7 +38,7 @@ class Figures:
     """The figures of the engine's current colours on the evaluation views at ``widths``, against the input scene."""
 
     def __init__(self, engine, scene_in, style, widths: list[int]) -> None:
-        from gstyle_core.render_cli import render_scene_image
+        from gstyle_core.scene_images import render_scene_image
         from gstyle_core.style.vgg import load_vgg
 
         self.engine, self.render = engine, render_scene_image
@@ -54,7 +54,7 @@ class Figures:
 
     def measure(self) -> dict[int, dict[str, float]]:
         """{width: {nnfm_drop, structure, colour}} of the engine's stylized scene now."""
-        from gstyle_core.pipeline.evaluate import structure_kept
+        from gstyle_core.engine.evaluate import structure_kept
 
         scene, out = self.engine.stylized_scene(), {}
         for width, (ev, cams, before, alpha, initial, whole) in self.views.items():

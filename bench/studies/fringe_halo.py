@@ -21,8 +21,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from gstyle_core.atomic import atomic_path  # noqa: E402
-from gstyle_core.pipeline.view_choice import choose_views  # noqa: E402
-from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image  # noqa: E402
+from gstyle_core.engine.view_choice import choose_views  # noqa: E402
+from gstyle_core.scene_images import load_scene_and_cameras, render_scene_image  # noqa: E402
 from gstyle_core.style.fringe import FRINGE_ALPHA, fringe_halo  # noqa: E402
 
 

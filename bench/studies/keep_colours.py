@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 def luminance_nnfm(vgg, style: np.ndarray, renders: list[np.ndarray], alphas: list[np.ndarray]) -> float:
     """NNFM distance of the renders' luminance to the painting's luminance, weighted by coverage."""
-    from gstyle_core.pipeline.evaluate import Evaluator
+    from gstyle_core.engine.evaluate import Evaluator
     from gstyle_core.style.keep_colours import grey
 
     ev = Evaluator(vgg, grey(style), 256)
@@ -40,10 +40,10 @@ def luminance_nnfm(vgg, style: np.ndarray, renders: list[np.ndarray], alphas: li
 
 def run_variant(name: str, scene: str | None, style_path: str | None, preset: str) -> dict:
     """One stylization and its measurements."""
-    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
-    from gstyle_core.pipeline.objective import StyleObjective
-    from gstyle_core.pipeline.run_figures import evaluate_run, evaluation_cameras
-    from gstyle_core.render_cli import render_scene_image
+    from gstyle_core.engine.build import BuildRequest, build_stylizer
+    from gstyle_core.engine.objective import StyleObjective
+    from gstyle_core.engine.run_figures import evaluate_run, evaluation_cameras
+    from gstyle_core.scene_images import render_scene_image
     from gstyle_core.style.keep_colours import chroma
 
     StyleObjective.luminance_networks = name != "restore"
@@ -83,7 +83,7 @@ def main() -> None:
     args = p.parse_args()
 
     from gstyle_core.machine import set_torch_threads
-    from gstyle_core.render_cli import save_png
+    from gstyle_core.scene_images import save_png
 
     if args.threads:
         set_torch_threads(args.threads)

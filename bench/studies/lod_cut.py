@@ -22,10 +22,10 @@ for path in (ROOT, ROOT / "bench"):
 import torch  # noqa: E402
 from densify import densify  # noqa: E402
 
+from gstyle_core.engine.view_choice import choose_views  # noqa: E402
 from gstyle_core.fit.ssim import psnr  # noqa: E402
 from gstyle_core.lod import build_cut  # noqa: E402
-from gstyle_core.pipeline.view_choice import choose_views  # noqa: E402
-from gstyle_core.render_cli import load_scene_and_cameras, render_scene_image  # noqa: E402
+from gstyle_core.scene_images import load_scene_and_cameras, render_scene_image  # noqa: E402
 
 DEFAULT_SOURCE = ROOT.parent / "shared" / "data" / "scenes" / "playcanvas" / "biker.spz"
 

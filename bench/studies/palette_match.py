@@ -20,11 +20,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from gstyle_core.cli.stylize import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.engine.build import build_stylizer  # noqa: E402
+from gstyle_core.engine.run_figures import evaluate_run  # noqa: E402
 from gstyle_core.machine import set_torch_threads  # noqa: E402
-from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
-from gstyle_core.pipeline.run_figures import evaluate_run  # noqa: E402
-from gstyle_core.render_cli import render_scene_image, save_png  # noqa: E402
+from gstyle_core.scene_images import render_scene_image, save_png  # noqa: E402
 
 
 def strength_row(built, strength: float, view: int, width: int, out_dir: Path) -> dict:

@@ -43,13 +43,13 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from gstyle_core.cli.stylize import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.engine import colour_field  # noqa: E402
+from gstyle_core.engine.build import build_stylizer, style_paths  # noqa: E402
+from gstyle_core.engine.run_figures import evaluate_run, texture_scale_line  # noqa: E402
+from gstyle_core.engine.visible_adam import VisibleAdam  # noqa: E402
 from gstyle_core.machine import set_torch_threads  # noqa: E402
-from gstyle_core.pipeline import colour_field  # noqa: E402
-from gstyle_core.pipeline.build import build_stylizer, style_paths  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
-from gstyle_core.pipeline.run_figures import evaluate_run, texture_scale_line  # noqa: E402
-from gstyle_core.pipeline.visible_adam import VisibleAdam  # noqa: E402
-from gstyle_core.render_cli import save_png  # noqa: E402
+from gstyle_core.scene_images import save_png  # noqa: E402
 from gstyle_core.style import multiscale  # noqa: E402
 
 

@@ -37,8 +37,8 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.cli.stylize import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.engine.build import build_stylizer  # noqa: E402
 from gstyle_core.style.losses import StyleWeights  # noqa: E402
 from gstyle_core.style.texture_scale import band_energies, shares  # noqa: E402
 

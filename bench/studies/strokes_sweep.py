@@ -64,8 +64,8 @@ def run_point(job: tuple) -> dict:
 
     torch.set_num_threads(threads)
     sys.path.insert(0, str(HERE.parents[1]))
-    from gstyle_core.pipeline.build import BuildRequest, build_stylizer
-    from gstyle_core.pipeline.run_figures import evaluate_run
+    from gstyle_core.engine.build import BuildRequest, build_stylizer
+    from gstyle_core.engine.run_figures import evaluate_run
 
     o = dict(overrides)
     request = BuildRequest(scene=scene, style=style, preset=o.pop("preset", "preview"),

@@ -40,13 +40,13 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from gstyle_core.cli.stylize import add_stylize_arguments, build_request  # noqa: E402
+from gstyle_core.engine import colour_field  # noqa: E402
+from gstyle_core.engine.build import build_stylizer  # noqa: E402
+from gstyle_core.engine.run_figures import evaluation_cameras, run_texture_scale  # noqa: E402
 from gstyle_core.fit.model import scene_from_params  # noqa: E402
-from gstyle_core.pipeline import colour_field  # noqa: E402
-from gstyle_core.pipeline.build import build_stylizer  # noqa: E402
-from gstyle_core.pipeline.cli import add_stylize_arguments, build_request  # noqa: E402
-from gstyle_core.pipeline.run_figures import evaluation_cameras, run_texture_scale  # noqa: E402
-from gstyle_core.render_cli import render_scene_image  # noqa: E402
 from gstyle_core.scene import rgb_to_sh_dc  # noqa: E402
+from gstyle_core.scene_images import render_scene_image  # noqa: E402
 from gstyle_core.style.texture_scale import BAND_NAMES, added_energies, shares  # noqa: E402
 
 EVAL_VIEWS, EVAL_WIDTH = 3, 256  # as evaluate_run

@@ -30,7 +30,7 @@ from app.splat_data import LAYOUTS, scene_arrays  # noqa: E402
 from gstyle_core.cameras.generate import generate_cameras  # noqa: E402
 from gstyle_core.io import load_scene  # noqa: E402
 from gstyle_core.machine import cpu_description  # noqa: E402
-from gstyle_core.render_cli import render_scene_image  # noqa: E402
+from gstyle_core.scene_images import render_scene_image  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "scenes"
 SCENES = [DATA / "playcanvas" / "biker.spz", DATA / "splat" / "winter_fountain.cropped.splat",

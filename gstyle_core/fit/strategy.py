@@ -3,7 +3,7 @@
 The optimiser loop (``Trainer``) stays the same; a strategy sees each step before and after the backward pass.
 ``DefaultStrategy`` is 3DGS's adaptive density control (Kerbl et al. 2023): Gaussians whose accumulated 2D positional
 gradient is large are cloned (small ones) or split (large ones); transparent ones are pruned; opacities are reset now
-and then. G-Style's own splits (flat-Gaussian and colour-gradient) live in ``gstyle_core.pipeline`` as strategies of
+and then. G-Style's own splits (flat-Gaussian and colour-gradient) live in ``gstyle_core.engine`` as strategies of
 the same shape.
 """
 

@@ -3,7 +3,7 @@ transfer") in YIQ, as the engine's "keep colours" control uses it.
 
 Y = 0.299 R + 0.587 G + 0.114 B is the luminance; I and Q the chroma. The rows of I and Q sum to 0 and Y's to 1,
 so adding δ·(1, 1, 1) to an RGB colour changes its luminance by δ and its chroma not at all: every function here
-moves colours along (1, 1, 1) only. Used three ways (``pipeline/stylizer.py``):
+moves colours along (1, 1, 1) only. Used three ways (``engine/stylizer.py``):
 
 * luminance-only colour match (before and after stylization): the luminance mean/std of the scene mapped onto the
   painting's, the chroma kept (an affine map of RGB, like the full colour match);

@@ -12,8 +12,8 @@
 6. ``finish``: one step: the stylized colours matched to the painting once more (the same ``ColourMatch``), when
    ``settings.colour_match_after``; ``settings.palette_match`` blends the matched colours with the ones before it
    (0: those, 1: the full match), and a finished run takes a new strength at once.
-They share a ``RunState`` (``pipeline/run_state.py``) and its active set (``pipeline/active.py``); the runner
-``pipeline/stylizer.Stylizer`` steps them and collects their checkpoints.
+They share a ``RunState`` (``engine/run_state.py``) and its active set (``engine/active.py``); the runner
+``engine/stylizer.Stylizer`` steps them and collects their checkpoints.
 """
 
 from .base import Phase, StepReport

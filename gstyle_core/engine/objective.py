@@ -279,7 +279,7 @@ class StyleObjective:
         """Loss of a render [H,W,3] of training view ``view``, and its terms' values unread (``StyleLoss.evaluate``);
         ``content`` is its colour-matched ground truth and ``coverage`` [H,W] the scene's alpha there (None for
         photos: the whole frame is the scene). With ``crop_to_scene`` VGG sees only the box the scene covers
-        (``pipeline/scene_box.py``); with ``keep_colours`` the networks see the luminance of both. ``view`` None: a
+        (``engine/scene_box.py``); with ``keep_colours`` the networks see the luminance of both. ``view`` None: a
         one-off image (a crop): nothing of it is cached. Inputs on another device than the networks' are moved there
         (the render inside the autograd graph; a view's content and coverage once, while they are the same).
         ``together``: ``StyleLoss.evaluate``'s (the terms that take views together left to the caller)."""

@@ -1,15 +1,14 @@
 """Pre-processing: rounds of flat-Gaussian splits, each followed by a refit with elongation clamps.
 
 Skipped when the active Gaussians' sizes are already even (unless ``force_preprocess``) or when the settings ask
-for 0 rounds (``pipeline/preprocess.py`` has the criteria). A round is one split step, then the refit's steps.
+for 0 rounds (``engine/flat_split.py`` has the criteria). A round is one split step, then the refit's steps.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from ..levels import end_width
-from ..preprocess import (
+from ..flat_split import (
     evenness_verdict,
     flat_split_mask,
     gaussian_areas,
@@ -17,6 +16,7 @@ from ..preprocess import (
     shown_split_mask,
     size_evenness,
 )
+from ..levels import end_width
 from .base import Phase, StepReport
 from .refit import Refit
 

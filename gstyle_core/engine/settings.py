@@ -50,16 +50,16 @@ class StylizeSettings:
     # random subset drawn from the seed; 0: all). A 1024-px level's painting has ~51,000, 16× a 256-px run's; at
     # 256 and 512 px (≤ ~13,000) every vector is kept (docs/notes/display-size.md)
     colour_field: bool = False  # coherent strokes: a coarse colour field steps beside each Gaussian's colour
-    # (pipeline/colour_field.py; on with the broad-strokes term)
+    # (engine/colour_field.py; on with the broad-strokes term)
     keep_colours: bool = False  # keep the scene's hues, take the painting's luminance pattern (style/keep_colours.py)
     match_detail_px: float = 0.0  # colour matches map the colours smoothed over this many working-width px and keep
     # each Gaussian's finer difference unscaled (phases/colour_match.py); 0: whole colours mapped, as the paper
     style_weights: tuple[float, ...] = ()  # several paintings: their weights (style/mix.py; the engine normalises
     # them to sum 1; empty: equal shares)
     region: tuple[float, ...] | None = None  # x0,y0,z0,x1,y1,z1: stylize only the Gaussians centred in this box
-    # (pipeline/region.py); None: the whole scene
+    # (engine/region.py); None: the whole scene
     region_feather: float = 0.0  # the region box's soft edge, scene units: the style fades out over this distance
-    # outside the box (pipeline/feather.py); 0: a hard edge
+    # outside the box (engine/feather.py); 0: a hard edge
     epochs: float = 15.0  # stylization steps = epochs × number of views (at least min_steps)
     min_steps: int = 0
     lr_start: float = 1e-1
@@ -79,7 +79,7 @@ class StylizeSettings:
     split_children: int = 4
     split_scale_divisor: float = 16.0
     grad_accumulate_from: float = 2.0 / 15.0  # fraction of the stylization from which ‖∂L/∂c_s‖ accumulates
-    max_gaussians: int = 0  # cap on the count after splits; 0: from the free memory (pipeline/resources.py)
+    max_gaussians: int = 0  # cap on the count after splits; 0: from the free memory (engine/resources.py)
     lod: str = "auto"  # level of detail (gstyle_core/lod): Gaussians far below a pixel at the run's finest width are
     # merged into parents that the run stylizes, every input Gaussian written back with its parent's change; "auto":
     # on for a capture denser than lod_run.AUTO_GAUSSIANS_PER_PIXEL at that width, "on", "off"
@@ -184,7 +184,7 @@ CALIBRATED_360 = dict(
 # weight 100 it cost 3 points of drop and 0.2 of structure; at λ_CLIP 10 no measurable style for ~10 % more time). Real
 # CLIP weights keep the paper's λ_CLIP and no broad-strokes term. Forward-facing scenes keep the paper's values with the
 # substitute: on the fern the term lowered the NNFM drop below 30 % (28.8 %, structure 0.53;
-# docs/notes/texture-scale.md). With the term the coarse colour field (pipeline/colour_field.py) is on: over 9 captures
+# docs/notes/texture-scale.md). With the term the coarse colour field (engine/colour_field.py) is on: over 9 captures
 # × paintings it raised the coarse ratio and the structure on all nine (docs/notes/texture-scale.md).
 BROAD_STROKES = dict(substitute_clip=0.0, multiscale_per_nnfm=1.0, colour_field=True)
 CALIBRATED_360_PRESETS = {tier: dict(epochs=8.0) for tier in PRESETS}  # 32 steps of 4 views at 16 views

@@ -21,8 +21,8 @@ import torch
 
 from ...fit.strategy import Strategy
 from ...fit.trainer import FitConfig, Trainer
+from ..flat_split import ElongationClampStrategy
 from ..levels import end_width
-from ..preprocess import ElongationClampStrategy
 from .base import Phase, StepReport
 from .end_width_crops import EndWidthCrops
 

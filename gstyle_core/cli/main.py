@@ -17,7 +17,7 @@ from .commands import run_parsed
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from .io import load_scene
+    from ..io import load_scene
 
     scene, report = load_scene(args.scene)
     print(report.summary())
@@ -27,9 +27,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_convert(args: argparse.Namespace) -> int:
-    from .atomic import refuse_overwrite
-    from .io import load_scene, save_scene
-    from .outputs import check_writable
+    from ..atomic import refuse_overwrite
+    from ..io import load_scene, save_scene
+    from ..outputs import check_writable
 
     refuse_overwrite(args.output, args.force, inputs=[args.input])
     check_writable(args.output)
@@ -42,31 +42,31 @@ def _cmd_convert(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from .render_cli import render_command
+    from .render import render_command
 
     return render_command(args)
 
 
 def _cmd_fit(args: argparse.Namespace) -> int:
-    from .fit.cli import fit_command
+    from .fit import fit_command
 
     return fit_command(args)
 
 
 def _cmd_cache(args: argparse.Namespace) -> int:
-    from .cache_cli import cache_command
+    from .cache import cache_command
 
     return cache_command(args)
 
 
 def _cmd_stylize(args: argparse.Namespace) -> int:
-    from .pipeline.cli import stylize_command
+    from .stylize import stylize_command
 
     return stylize_command(args)
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
-    from .pipeline.batch import batch_command
+    from .batch import batch_command
 
     return batch_command(args)
 
@@ -120,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--force", action="store_true", help="overwrite an existing output")
     s.set_defaults(func=_cmd_render)
 
-    from .fit.cli import add_fit_arguments
+    from .fit import add_fit_arguments
 
     s = sub.add_parser("fit", help="fit a 3DGS scene to posed images (3DGS optimisation)")
     add_fit_arguments(s)
@@ -128,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_engine_commands(sub)
 
-    from .cache_cli import add_cache_arguments
+    from .cache import add_cache_arguments
 
     s = sub.add_parser("cache", help="list the cache folder (converted weights, checkpoints) or --clear it")
     add_cache_arguments(s)
@@ -139,14 +139,14 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_engine_commands(sub) -> None:
     """``gstyle stylize`` and ``gstyle batch`` on the subcommand parsers ``sub``."""
     try:
-        from .pipeline.cli import add_stylize_arguments
+        from .stylize import add_stylize_arguments
     except ImportError:  # the stylization engine is optional until it lands
         add_stylize_arguments = None
     if add_stylize_arguments is not None:
         s = sub.add_parser("stylize", help="stylize a scene after a painting (G-Style)")
         add_stylize_arguments(s)
         s.set_defaults(func=_cmd_stylize)
-        from .pipeline.batch import add_batch_arguments
+        from .batch import add_batch_arguments
 
         s = sub.add_parser("batch", conflict_handler="resolve", allow_abbrev=False,
                            help="stylize every scene after every painting (gstyle stylize's options for each job)")

@@ -7,8 +7,8 @@ import os
 import shutil
 from pathlib import Path
 
-from .crash import CRASHES
-from .paths import cache_dir
+from ..crash import CRASHES
+from ..paths import cache_dir
 
 
 def add_cache_arguments(p: argparse.ArgumentParser) -> None:
@@ -35,8 +35,8 @@ def human_size(n: int) -> str:
 
 
 def _describe(entry: Path) -> str:
-    from .style import precision
-    from .style.vgg import CACHE_FILE
+    from ..style import precision
+    from ..style.vgg import CACHE_FILE
 
     if entry.name == CACHE_FILE:
         return "converted VGG-16 weights"
@@ -65,7 +65,7 @@ def numba_cache_location() -> Path:
 
 def list_cache() -> list[str]:
     """Lines describing the cache folder's entries (checkpoints one by one) and the numba cache."""
-    from .pipeline.checkpoint import describe_checkpoint
+    from ..engine.checkpoint import describe_checkpoint
 
     root = cache_dir()
     lines = [f"cache folder: {root}"]
@@ -113,7 +113,7 @@ def clear_cache(checkpoints_only: bool = False) -> tuple[int, int]:
 
 def cache_command(args: argparse.Namespace) -> int:
     """Run ``gstyle cache``."""
-    from .errors import GStyleError
+    from ..errors import GStyleError
 
     if args.checkpoints_only and not args.clear:
         raise GStyleError("--checkpoints-only goes with --clear")

@@ -1,4 +1,4 @@
-"""The step-wise G-Style engine: a short runner over the phases of ``pipeline/phases``.
+"""The step-wise G-Style engine: a short runner over the phases of ``engine/phases``.
 
 ``Stylizer.step()`` = one unit of work of the current phase (ground truth, pre-processing, colour match,
 stylization with its splits and refits, final colour match; ``phases/__init__.py`` lists them). Its progress total is

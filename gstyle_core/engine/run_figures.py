@@ -25,7 +25,7 @@ def evaluate_run(engine, scene, style: np.ndarray | list[np.ndarray], n_views: i
     """Quality figures on fixed evaluation views, before (input scene) and after (stylized scene); a list of
     paintings is measured with the engine's mix weights (``Evaluator``). ``display_width`` > 0 adds ``display``, the
     speckle figure of the same views rendered that wide (``run_display_speckle``) and the structure kept there."""
-    from ..render_cli import render_scene_image
+    from ..scene_images import render_scene_image
     from .evaluate import structure_kept
 
     cams = evaluation_cameras(engine, n_views, width)
@@ -83,7 +83,7 @@ def width_figures(engine, scene, after_scene, style, vgg, n_views: int, width: i
 def views_figures(scene, after_scene, cams: list, ev) -> dict:
     """``width_figures`` on given cameras (``cams``, all ``ev.width`` px wide) with a given ``Evaluator``: the NNFM
     drop of ``after_scene`` against ``scene``'s renders over the covered feature vectors, and the structure kept."""
-    from ..render_cli import render_scene_image
+    from ..scene_images import render_scene_image
     from .evaluate import structure_kept
 
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)
@@ -121,7 +121,7 @@ def run_texture_scale(engine, style, before, after, alpha, width: int):
 def display_renders(engine, scene, after_scene, n_views: int, width: int) -> tuple[list, list, list, list]:
     """The evaluation views rendered ``width`` px wide: before and after stylization, each with its coverage
     (alpha): ``(before, after, alpha_before, alpha_after)``."""
-    from ..render_cli import render_scene_image
+    from ..scene_images import render_scene_image
 
     cams = evaluation_cameras(engine, n_views, width)
     before, alpha = zip(*(render_scene_image(scene, c, with_alpha=True) for c in cams), strict=True)

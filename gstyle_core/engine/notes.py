@@ -94,7 +94,7 @@ def note_style(decisions: Decisions, s: StylizeSettings, objective: Any, paintin
 
 
 def network_area_note(s: StylizeSettings, from_photos: bool, coverage: list, region_coverage: list) -> str:
-    """What the networks look at during stylization (see ``pipeline/scene_box.py``)."""
+    """What the networks look at during stylization (see ``engine/scene_box.py``)."""
     if from_photos and not region_coverage:
         return "whole frames (photos: the scene fills every view)"
     if not s.crop_to_scene:

@@ -3,7 +3,7 @@
 A PLY holds only the stylized scene: the engine's state (the ground-truth colours of the split Gaussians, the
 optimisers, the content targets) is not in it. So whenever the studio's engine writes a result (Save, Save As, a
 result kept for undo) and when ``gstyle stylize`` has written OUT.ply, the engine's checkpoint is saved for it
-(``pipeline/checkpoint.py``'s format, in the cache folder; beside the file in the session's history folder for undo's
+(``engine/checkpoint.py``'s format, in the cache folder; beside the file in the session's history folder for undo's
 results) with a small note: the digest of the file written and the engine config it was built from. Reopened later,
 a result whose file still has that digest and whose original scene and paintings are found can be continued: the
 engine is rebuilt on the original from the same inputs and loads that state, so the run is where it ended (Refine,
@@ -76,7 +76,7 @@ def jsonable_config(config: dict[str, Any]) -> dict[str, Any]:
 def save_result_state(result: str | Path, state: dict[str, Any], meta: dict[str, Any]) -> Path:
     """Keep ``state`` (``engine.state_dict()``) as the run of the result file just written at ``result``; ``meta``
     as a checkpoint's (it must hold ``config``, the engine config it was built from). Returns the state's path."""
-    from gstyle_core.pipeline.checkpoint import save_checkpoint
+    from gstyle_core.engine.checkpoint import save_checkpoint
 
     path = result_state_path(result)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """One parsed ``gstyle`` command run under the command line's error contract: ``GStyleError`` and bad paths become
 one line and exit status 2 (writes that fail are ``OutputWriteError``s: ``cannot write PATH: CAUSE``), Ctrl+C exit
 status 130, any other error one line naming its crash log and exit status 1. ``cli.run`` and ``gstyle batch``'s jobs
-run in its own process (``pipeline/batch.py``) both run their commands through ``run_parsed``.
+run in its own process (``cli/batch.py``) both run their commands through ``run_parsed``.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .errors import GStyleError
+from ..errors import GStyleError
 
 
 def run_parsed(args: argparse.Namespace) -> int:
@@ -28,7 +28,7 @@ def run_parsed(args: argparse.Namespace) -> int:
         print(f"gstyle {args.command}: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - a bug: one line for the artist, its traceback in a crash log
-        from .crash import crash_line
+        from ..crash import crash_line
 
         print(crash_line(args.command, exc, args.argv), file=sys.stderr)
         return 1

@@ -13,13 +13,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..cameras.camera import Camera
-from ..scene import GaussianScene
+from gstyle_core.cameras.camera import Camera
+from gstyle_core.scene import GaussianScene
 
 
 def render_with_depth(scene: GaussianScene, camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Diffuse (SH0) render of ``scene`` from ``camera``: image [H,W,3], alpha [H,W], depth [H,W]."""
-    from ..fit.model import params_from_scene, render_params
+    from gstyle_core.fit.model import params_from_scene, render_params
 
     params = params_from_scene(scene.with_sh_degree(0), requires_grad=False)
     with torch.no_grad():

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import re
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,27 +42,29 @@ class _CheckingParser(argparse.ArgumentParser):
         raise _Refused(message)
 
 
-def stylize_parser() -> argparse.ArgumentParser:
-    """``gstyle stylize``'s options, with errors raised (``_Refused``) rather than exiting."""
-    from .cli import add_stylize_arguments
-
+def stylize_parser(add_stylize_arguments: Callable[[argparse.ArgumentParser], None]) -> argparse.ArgumentParser:
+    """``gstyle stylize``'s options (added by ``add_stylize_arguments``), with errors raised (``_Refused``) rather
+    than exiting."""
     p = _CheckingParser(add_help=False, allow_abbrev=False, exit_on_error=False)
     add_stylize_arguments(p)
     return p
 
 
-def batch_runs(args: argparse.Namespace, cli_options: list[str]) -> list[Run]:
+def batch_runs(args: argparse.Namespace, cli_options: list[str],
+               add_stylize_arguments: Callable[[argparse.ArgumentParser], None]) -> list[Run]:
     """The batch's runs: the plan's (``--plan``), else one of ``--scenes`` × ``--styles``; ``cli_options``: the
-    command line's ``gstyle stylize`` options, given to every job."""
+    command line's ``gstyle stylize`` options, given to every job; a plan's are checked against
+    ``add_stylize_arguments``'s."""
     plan = getattr(args, "plan", None)
     if plan is None:
         if not args.scenes or not args.styles:
             raise GStyleError("give the scenes with --scenes and the paintings with --styles (or a --plan)")
         return [Run("", list(args.scenes), list(args.styles), list(cli_options))]
-    return read_plan(Path(plan), cli_options, args.scenes or [], args.styles or [])
+    return read_plan(Path(plan), cli_options, args.scenes or [], args.styles or [], add_stylize_arguments)
 
 
-def read_plan(path: Path, cli_options: list[str], scenes: list[str], styles: list[str]) -> list[Run]:
+def read_plan(path: Path, cli_options: list[str], scenes: list[str], styles: list[str],
+              add_stylize_arguments: Callable[[argparse.ArgumentParser], None]) -> list[Run]:
     """The runs of the plan file at ``path``; ``scenes`` and ``styles`` (the command line's) are the defaults of a
     plan that names none."""
     try:
@@ -69,7 +72,7 @@ def read_plan(path: Path, cli_options: list[str], scenes: list[str], styles: lis
             plan = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise GStyleError(f"{path}: not a TOML plan: {exc}") from None
-    parser, folder = stylize_parser(), path.parent
+    parser, folder = stylize_parser(add_stylize_arguments), path.parent
     tables = plan.pop("run", None)
     no_runs = tables is None  # the top level is the one run, without a name
     tables = [{}] if no_runs else tables

@@ -102,7 +102,7 @@ def build_stylizer(request: BuildRequest) -> BuiltEngine:
     """Load the scene, cameras, photos and style, resolve the settings and build the engine."""
     from ..cameras import classify_scene_kind
     from ..images import load_style_image
-    from ..render_cli import load_scene_and_cameras
+    from ..scene_images import load_scene_and_cameras
     from ..style.mix import normalise_style_weights
     from .settings import resolve_settings
     from .stylizer import Stylizer

@@ -11,13 +11,8 @@ import numpy as np
 
 from ..assets import DEMO_SCENE
 from ..device import DEVICES, DeviceFailure
-from ..errors import GStyleError, OutputWriteError
-from ..outputs import STYLIZE_COMPANIONS, companions
-from ..style.fringe import fringe_halo_line
-from ..style.precision import PRECISIONS
-from ..style.speckle import DEFAULT_DISPLAY_WIDTH
-from .arg_types import display_width_arg, lod_pixels_arg, region_arg, style_weights_arg, widths_arg
-from .build import (
+from ..engine.arg_types import display_width_arg, lod_pixels_arg, region_arg, style_weights_arg, widths_arg
+from ..engine.build import (
     SETTING_OPTIONS,
     BuildRequest,
     BuiltEngine,
@@ -26,9 +21,14 @@ from .build import (
     request_config,
     style_paths,
 )
-from .controls import add_control_arguments
-from .run_crash import crashed_run, kept_for_the_cpu, kept_run_error
-from .run_figures import display_speckle_line, evaluate_run, texture_scale_line
+from ..engine.controls import add_control_arguments
+from ..engine.run_crash import crashed_run, kept_for_the_cpu, kept_run_error
+from ..engine.run_figures import display_speckle_line, evaluate_run, texture_scale_line
+from ..errors import GStyleError, OutputWriteError
+from ..outputs import STYLIZE_COMPANIONS, companions
+from ..style.fringe import fringe_halo_line
+from ..style.precision import PRECISIONS
+from ..style.speckle import DEFAULT_DISPLAY_WIDTH
 
 
 def add_stylize_arguments(p: argparse.ArgumentParser) -> None:
@@ -110,8 +110,8 @@ def region_summary(engine) -> dict | None:
 
 def stylize_command(args: argparse.Namespace) -> int:
     """Run ``gstyle stylize``."""
+    from ..engine.checkpoint import RunCheckpointer, engine_fingerprint, saved_capacity, stylize_checkpoint_path
     from ..machine import set_torch_threads
-    from .checkpoint import RunCheckpointer, engine_fingerprint, saved_capacity, stylize_checkpoint_path
 
     out, every = _checked_output(args)
     ckpt_path = stylize_checkpoint_path(out)
@@ -152,7 +152,7 @@ def _run_and_write(args: argparse.Namespace, out: Path, built: BuiltEngine, chec
     """Step the engine to the end (Ctrl+C saves and stops; a GPU that fails keeps the run for the CPU), say what it
     needed, measure it and write its outputs (a failed write keeps the finished run). Returns the summary, the files
     written and the quality figures."""
-    from .checkpoint import deferred_interrupts
+    from ..engine.checkpoint import deferred_interrupts
 
     engine = built.engine
     with deferred_interrupts() as stop:
@@ -196,8 +196,8 @@ def _print_figures(q: dict) -> None:
 def keep_finished_run(engine, out: Path, request: BuildRequest) -> None:
     """Keep the finished run's state with OUT.ply (``kept_runs.py``), so that the studio can continue or refine the
     result when it is opened there; a failure is one note line (the outputs were written)."""
-    from .checkpoint import engine_fingerprint
-    from .kept_runs import save_result_state
+    from ..engine.checkpoint import engine_fingerprint
+    from ..engine.kept_runs import save_result_state
 
     try:
         config = request_config(request)
@@ -238,7 +238,7 @@ def _write_outputs(args: argparse.Namespace, out: Path, built: BuiltEngine, styl
     from ..io import save_scene
     from ..io.saver import format_of
     from ..outputs import OutputGroup
-    from ..render_cli import save_png
+    from ..scene_images import save_png
 
     engine, scene, cams = built.engine, built.scene, built.cameras
     s = engine.settings
@@ -306,7 +306,7 @@ def _advance(bar, rep, clip_name: str) -> None:
         bar.total = rep.total_steps
     bar.set_description(f"{rep.phase:>12}", refresh=False)
     if rep.losses:
-        from .controls import term_label
+        from ..engine.controls import term_label
 
         bar.set_postfix({(clip_name if k == "clip" else term_label(k) if k != "total" else k): f"{v:.3g}"
                          for k, v in rep.losses.items() if v}, refresh=False)
@@ -315,7 +315,7 @@ def _advance(bar, rep, clip_name: str) -> None:
 
 def _read_resume_checkpoint(path: Path):
     """The checkpoint to resume from, read before the inputs load (a corrupt one fails fast)."""
-    from .checkpoint import CheckpointError, read_checkpoint
+    from ..engine.checkpoint import CheckpointError, read_checkpoint
 
     if not path.exists():
         raise CheckpointError(f"no checkpoint to resume for this --out (looked for {path}); run without --resume")
@@ -324,7 +324,7 @@ def _read_resume_checkpoint(path: Path):
 
 def _resume(engine, path: Path, saved, fingerprint: dict[str, str]) -> dict:
     """Check the checkpoint against this run's inputs and load it into ``engine``; returns what was skipped."""
-    from .checkpoint import CheckpointError, check_fingerprint
+    from ..engine.checkpoint import CheckpointError, check_fingerprint
 
     state, meta = saved
     check_fingerprint(path, meta, fingerprint)

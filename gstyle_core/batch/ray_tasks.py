@@ -26,8 +26,8 @@ from pathlib import Path
 from ..atomic import atomic_write_bytes
 from ..errors import GStyleError
 from ..outputs import STYLIZE_COMPANIONS, companions
-from . import batch_jobs
-from .batch_jobs import DEFAULT_THREADS_PER_JOB, Job, check_counts, finish, job_argv, progress
+from . import jobs as batch_jobs
+from .jobs import DEFAULT_THREADS_PER_JOB, Job, check_counts, finish, job_argv, progress
 
 TAILS = (*STYLIZE_COMPANIONS, ".ply")  # what a job sends back, the scene last, as ``gstyle stylize`` writes them
 WAIT_SECONDS = 1.0
@@ -163,8 +163,8 @@ def run_job(options: list[str], scene_name: str, scene: bytes, painting_name: st
             threads: int, worker: list[str]) -> dict:
     """The Ray task: write the inputs into a temporary folder, run the job there as the local pool does (``worker``:
     the command after the Python executable) and return its exit status, seconds, output files and log."""
-    from .checkpoint import stylize_checkpoint_path
-    from .kept_runs import note_path, result_state_path
+    from ..engine.checkpoint import stylize_checkpoint_path
+    from ..engine.kept_runs import note_path, result_state_path
 
     with tempfile.TemporaryDirectory(prefix="gstyle-batch-") as tmp:
         folder = Path(tmp)

@@ -18,8 +18,8 @@ if TYPE_CHECKING:
     import torch
 
     from ..cameras import CameraSet
+    from ..fit.trainer import Trainer
     from ..scene import GaussianScene
-    from .trainer import Trainer
 
 
 def add_fit_arguments(p: argparse.ArgumentParser) -> None:
@@ -46,9 +46,9 @@ def fit_command(args: argparse.Namespace) -> int:
     """Run ``gstyle fit``."""
     import torch
 
+    from ..fit.model import params_from_scene, scene_from_params
     from ..io.saver import format_of
     from ..outputs import SUMMARY, check_writable, companion, refuse_overwrites
-    from .model import params_from_scene, scene_from_params
 
     if format_of(args.out) in (None, "sog-folder"):  # found now, not after the training
         raise GStyleError(f"--out must end in .ply, .compressed.ply, .splat, .spz or .sog, got {args.out}")
@@ -103,7 +103,7 @@ def _load_views(args: argparse.Namespace) -> _Views:
 def _initial_scene(views: _Views, args: argparse.Namespace) -> tuple[GaussianScene, str]:
     """The starting Gaussians: the sparse points of the cameras, else random points in the training views; and
     a description of which."""
-    from .init import random_points_in_view, scene_from_points
+    from ..fit.init import random_points_in_view, scene_from_points
 
     cams = views.cams
     if cams.points is not None and len(cams.points) > 0:
@@ -131,8 +131,8 @@ def _train(params: torch.nn.ParameterDict, views: _Views, args: argparse.Namespa
     from tqdm import tqdm
 
     from ..device import out_of_memory
-    from .strategy import DefaultStrategy
-    from .trainer import FitConfig, Trainer, scene_scale
+    from ..fit.strategy import DefaultStrategy
+    from ..fit.trainer import FitConfig, Trainer, scene_scale
 
     cfg = FitConfig(iterations=args.iterations, sh_degree=args.sh_degree, backend=args.backend, seed=args.seed,
                     sh_increase_every=max(1, args.iterations // 4), device=fit_device(args))

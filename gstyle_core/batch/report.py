@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..atomic import atomic_path, atomic_write_text
 from ..outputs import companion
-from .batch_jobs import Job, summary_path
+from .jobs import Job, summary_path
 
 CSV_COLUMNS = ("scene", "painting", "run", "status", "seconds", "preset", "nnfm_initial", "nnfm_final", "nnfm_drop",
                "structure", "speckle_ratio", "speckle_width", "out")

@@ -4,8 +4,8 @@ one is one line and the others go on. Ends with ``batch.csv`` (a row per job) an
 
 Jobs run in the calling process one after another (``--jobs 1``) or as ``python -m gstyle_core.cli stylize``
 subprocesses, at most ``--jobs`` at a time (one per CUDA GPU, each seeing only its own, when torch sees GPUs), or
-as Ray tasks with ``--ray ADDRESS`` (``batch_ray.py``). ``--plan plan.toml`` varies settings between runs
-(``batch_plan.py``).
+as Ray tasks with ``--ray ADDRESS`` (``ray_tasks.py``). ``--plan plan.toml`` varies settings between runs
+(``plan.py``). The command (its arguments, ``gstyle stylize`` in this process) is ``gstyle_core/cli/batch.py``.
 """
 
 from __future__ import annotations
@@ -14,11 +14,13 @@ import argparse
 import contextlib
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
+from ..engine.checkpoint import stylize_checkpoint_path
 from ..errors import GStyleError
 from ..outputs import BATCH_TABLE, output_base
-from .batch_jobs import (
+from .jobs import (
     DEFAULT_THREADS_PER_JOB,
     POLL_SECONDS,
     Job,
@@ -28,32 +30,10 @@ from .batch_jobs import (
     progress,
     start,
 )
-from .batch_report import write_contact_sheet, write_csv
-from .checkpoint import stylize_checkpoint_path
+from .report import write_contact_sheet, write_csv
 
-
-def add_batch_arguments(p: argparse.ArgumentParser) -> None:
-    """Arguments of ``gstyle batch``: those of ``gstyle stylize`` (given to every job) and the batch's own; ``p``
-    resolves conflicts (``--out`` and ``--threads`` are the batch's)."""
-    from .cli import add_stylize_arguments
-
-    add_stylize_arguments(p)
-    p.add_argument("--scenes", nargs="+", default=None, metavar="SCENE", help="scene files, one row each")
-    p.add_argument("--styles", nargs="+", default=None, metavar="IMAGE", help="paintings, one column each")
-    p.add_argument("--plan", default=None, metavar="PLAN.toml",
-                   help="runs whose settings vary, each with its scenes and paintings (docs/batch.md); the command "
-                        "line's stylize options go to every job, a run's own win")
-    p.add_argument("--ray", default=None, metavar="ADDRESS",
-                   help="run each job as a task on a Ray cluster: auto, local, HOST:PORT or ray://HOST:PORT, as "
-                        "ray.init(address=...) reads it (needs the 'ray' extra)")
-    p.add_argument("--jobs", type=int, default=None, metavar="N",
-                   help="jobs at a time (default: one per CUDA GPU, else cores // --threads); 1 runs them in this "
-                        "process")
-    p.add_argument("--threads", type=int, default=None,
-                   help=f"torch threads per job (default: cores // --jobs, or {DEFAULT_THREADS_PER_JOB} without it)")
-    p.add_argument("--out", required=True, metavar="DIR",
-                   help="folder of the results: DIR/SCENE__PAINTING.ply with its .json and pictures, batch.csv, "
-                        "contact_sheet.png, logs/")
+AddArguments = Callable[[argparse.ArgumentParser], None]  # adds ``gstyle stylize``'s options to a parser
+RunJob = Callable[[list[str]], int]  # runs one job's ``gstyle stylize`` argv here: its exit status
 
 
 def stylize_options(argv: list[str]) -> list[str]:
@@ -68,16 +48,17 @@ def stylize_options(argv: list[str]) -> list[str]:
     return pre.parse_known_args(args)[1]
 
 
-def plan_jobs(args: argparse.Namespace, out_dir: Path) -> list[Job]:
+def plan_jobs(args: argparse.Namespace, out_dir: Path, add_stylize_arguments: AddArguments) -> list[Job]:
     """A job per run, scene and painting, named ``SCENE__PAINTING.ply`` (stems; ``SCENE__PAINTING__RUN.ply`` with a
     plan); finished ones (OUT.ply exists, written last) are marked done already unless ``--force``; an interrupted
-    one (its checkpoint exists) gets ``--resume``."""
-    from .batch_plan import batch_runs
+    one (its checkpoint exists) gets ``--resume``; ``add_stylize_arguments``: ``gstyle stylize``'s options, which
+    a plan's are checked against."""
+    from .plan import batch_runs
 
     if args.scene is not None or args.style:
         raise GStyleError("give the scenes with --scenes and the paintings with --styles")
     jobs, names = [], set()
-    for run in batch_runs(args, stylize_options(getattr(args, "argv", []))):
+    for run in batch_runs(args, stylize_options(getattr(args, "argv", [])), add_stylize_arguments):
         for scene in run.scenes:
             for painting in run.styles:
                 name = "__".join(x for x in (output_base(Path(scene).name).name, Path(painting).stem, run.name) if x)
@@ -115,13 +96,15 @@ def cuda_gpus(args: argparse.Namespace) -> int:
     return torch.cuda.device_count()
 
 
-def batch_command(args: argparse.Namespace) -> int:
-    """Run ``gstyle batch``: the jobs, a progress line per change, then batch.csv and contact_sheet.png."""
+def run_batch(args: argparse.Namespace, add_stylize_arguments: AddArguments, stylize_here: RunJob) -> int:
+    """Run a batch: the jobs, a progress line per change, then batch.csv and contact_sheet.png; the command line
+    gives ``gstyle stylize``'s options (``add_stylize_arguments``) and how one job runs in this process
+    (``stylize_here``: its argv -> exit status)."""
     out_dir = Path(args.out)
-    jobs = plan_jobs(args, out_dir)
+    jobs = plan_jobs(args, out_dir, add_stylize_arguments)
     pending = [job for job in jobs if job.status == "pending"]
     if getattr(args, "ray", None):
-        from .batch_ray import run_on_ray
+        from .ray_tasks import run_on_ray
 
         (out_dir / "logs").mkdir(parents=True, exist_ok=True)
         run_on_ray(jobs, pending, args)
@@ -135,7 +118,7 @@ def batch_command(args: argparse.Namespace) -> int:
     plan = f"{len(pending)} to run {where}, {threads} threads each" if pending else "nothing to run"
     print(f"batch: {len(jobs)} jobs, {already} done already; {plan}", file=sys.stderr)
     if slots == 1:
-        run_in_process(jobs, pending)
+        run_in_process(jobs, pending, stylize_here)
     else:
         run_in_pool(jobs, pending, slots, gpus, threads)
     return write_results(jobs, out_dir)
@@ -150,28 +133,15 @@ def write_results(jobs: list[Job], out_dir: Path) -> int:
     return 1 if failed else 0
 
 
-def stylize_in_process(argv: list[str]) -> int:
-    """``gstyle stylize`` with a job's arguments (``job_argv``: "stylize" first) in this process, under the command
-    line's error contract (``commands.run_parsed``): its exit status."""
-    from ..commands import run_parsed
-    from .cli import add_stylize_arguments, stylize_command
-
-    parser = argparse.ArgumentParser(prog="gstyle stylize")
-    add_stylize_arguments(parser)
-    args = parser.parse_args(argv[1:])
-    args.command, args.func, args.argv = "stylize", stylize_command, list(argv)
-    return run_parsed(args)
-
-
-def run_in_process(jobs: list[Job], pending: list[Job]) -> None:
-    """Each job through ``stylize_in_process`` here, its output to its log; Ctrl+C stops the batch (the job
+def run_in_process(jobs: list[Job], pending: list[Job], stylize_here: RunJob) -> None:
+    """Each job through ``stylize_here`` in this process, its output to its log; Ctrl+C stops the batch (the job
     keeps its checkpoint: a rerun resumes it)."""
     for job in pending:
         job.status, t0 = "running", time.perf_counter()
         progress(jobs, 1)
         with open(job.log, "w", encoding="utf-8") as log, contextlib.redirect_stdout(log), \
                 contextlib.redirect_stderr(log):
-            code = stylize_in_process(job.argv)
+            code = stylize_here(job.argv)
         finish(job, code, time.perf_counter() - t0)
         if code == 130:
             raise KeyboardInterrupt

@@ -26,7 +26,7 @@ from ..errors import GStyleError, OutputWriteError
 from ..outputs import writing
 from ..paths import cache_dir
 
-FORMAT = "gstyle-stylize-checkpoint/2"  # 2: the engine's state as its phases' states (pipeline/phases)
+FORMAT = "gstyle-stylize-checkpoint/2"  # 2: the engine's state as its phases' states (engine/phases)
 _FORMAT_FAMILY = FORMAT.rsplit("/", 1)[0]
 SUFFIX = ".ckpt"
 _NDARRAY = "__ndarray__"

@@ -1,16 +1,14 @@
-"""``gstyle render``: render one camera of a scene to a PNG (videos and frame folders: ``render_video``)."""
+"""A scene and its cameras loaded, one camera's image of it rendered, PNGs written and before/after pictures: what
+``gstyle render``, ``gstyle stylize``'s pictures, the engine's figures, the studio and the benches share."""
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
 
 from .assets import DEMO_SCENE
 from .errors import GStyleError
-
-DEFAULT_PNG_OUT = "out/render.png"
 
 
 def load_scene_and_cameras(scene_path: str | None, cameras_path: str | None, width: int | None = None):
@@ -88,28 +86,3 @@ def before_after_picture(before_scene, after_scene, cameras: list, n_views: int 
                          margin: int = 8) -> np.ndarray:
     """Input renders above stylized renders of ``n_views`` cameras (``scene_rows``), cropped to the input's extent."""
     return np.concatenate(scene_rows([before_scene, after_scene], cameras, n_views, width, margin), axis=0)
-
-
-def render_command(args: argparse.Namespace) -> int:
-    """Run ``gstyle render``: one PNG, or a video / folder of frames (``render_video.video_command``)."""
-    from .atomic import refuse_overwrite
-    from .outputs import check_writable
-    from .render_video import is_video_request, video_command
-
-    if is_video_request(args):
-        return video_command(args)
-    args.out = args.out or DEFAULT_PNG_OUT
-    index = 0 if args.camera is None else args.camera
-    if args.fps is not None:
-        raise GStyleError("--fps is for videos (--turntable, --camera-path, or --out FILE.mp4/.gif/DIR/)")
-    refuse_overwrite(args.out, args.force, inputs=[args.scene] if args.scene else [])
-    check_writable(args.out)
-    scene, report, cams = load_scene_and_cameras(args.scene, args.cameras, args.width)
-    if not 0 <= index < len(cams.cameras):
-        raise GStyleError(f"camera {index} does not exist (there are {len(cams.cameras)})")
-    cam = cams.cameras[index]
-    image = render_scene_image(scene, cam, args.backend)
-    save_png(args.out, image)
-    print(f"rendered {report.path if hasattr(report, 'path') else args.scene} ({scene.count} Gaussians) "
-          f"from camera {index} of {len(cams.cameras)} ({cams.source}), {cam.width}x{cam.height} -> {args.out}")
-    return 0
