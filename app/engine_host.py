@@ -33,7 +33,7 @@ from gstyle_core.engine.run_crash import all_controls, controls_in_force, where_
 from gstyle_core.errors import GStyleError, one_line_error
 
 from .child_process import lower_priority, single_compute_thread, worker_nice
-from .engine_saves import EngineSaves
+from .engine_saves import RunSaves
 from .export import export_engine
 from .snapshot import GeometrySends
 
@@ -54,7 +54,7 @@ def report_to_dict(report: Any) -> dict[str, Any]:
     return out
 
 
-class EngineHost(EngineSaves):
+class EngineHost:
     """Lives in the child: owns the engine, executes commands, sends reports and snapshots."""
 
     def __init__(self, factory: Callable[..., Any], config: dict[str, Any], events: Any, credits: Any,
@@ -63,9 +63,8 @@ class EngineHost(EngineSaves):
         self.checkpoint_path = checkpoint_path
         self.fingerprint: dict[str, str] = {}  # what the engine was built from (checked before resuming)
         self.engine: Any = None
-        self.paused = False
-        self.done = False
-        self.failed = False
+        self.paused, self.done, self.failed = False, False, False
+        self.saves = RunSaves(self)  # checkpoints, kept runs, resumes, hand-overs (app/engine_saves.py)
         self.geometry_sends = GeometrySends()
         self.snapshot_pending = False
         self.last_report: dict[str, Any] | None = None
@@ -121,7 +120,7 @@ class EngineHost(EngineSaves):
 
     def build(self, config: dict[str, Any] | None = None, resume_from: str | None = None) -> None:
         """Build the engine from ``config`` (default: the current one); ``resume_from``: a checkpoint to continue
-        (a result's run is rebuilt from the inputs kept with it, ``adopt_saved_inputs``)."""
+        (a result's run is rebuilt from the inputs kept with it, ``RunSaves.saved_inputs``)."""
         if config is not None:
             self.config = config
             for key in PAINTING_PARAMS:  # a new config's paintings come with their own mix (its style_weights)
@@ -130,9 +129,9 @@ class EngineHost(EngineSaves):
         self.geometry_sends = GeometrySends()
         self.sent_decisions = None
         self.sent_setup_note = ""
-        saved = self.read_saved(resume_from) if resume_from else None
+        saved = self.saves.read(resume_from) if resume_from else None
         if saved is not None:
-            self.adopt_saved_inputs(saved[1])
+            self.params, self.level_weights, self.config = self.saves.saved_inputs(saved[1], self.params, self.config)
         else:  # a run from its inputs has no finer levels yet: the weights a level set go back
             self.drop_level_weights()
         try:
@@ -158,7 +157,7 @@ class EngineHost(EngineSaves):
                             "device_name": getattr(choice, "name", None), "devices": available_devices()})
         self.send_plans()
         if saved is not None:
-            self.load_checkpoint(resume_from, saved)
+            self.saves.load_checkpoint(resume_from, saved)
         if self.params:
             self.send("params", dict(self.params))
         self.send_decisions()
@@ -294,7 +293,7 @@ class EngineHost(EngineSaves):
             if self.engine is not None and not (self.done or self.failed):  # after a failure: Continue, not a retry
                 self.step()
         elif command in ("restart", "restart_from"):
-            self.handover = None  # a restart starts from its inputs: no run to move on from
+            self.saves.drop_handover()  # a restart starts from its inputs: no run to move on from
             self.paused = False
             self.send("paused", False)
             self.build(*(arg if command == "restart_from" else (arg,)))
@@ -302,7 +301,7 @@ class EngineHost(EngineSaves):
             if self.failed or self.engine is None:  # after a failure the run goes on; a paused one stays paused
                 self.paused = False
             self.send("paused", self.paused)
-            self.move_to(arg if command == "move_to" else self.config)
+            self.saves.move_to(arg if command == "move_to" else self.config)
         elif command == "checkpoint_path":
             self.checkpoint_path = arg
         elif command == "set_params":
@@ -312,7 +311,7 @@ class EngineHost(EngineSaves):
         elif command == "refine":
             self.refine()
         elif command == "quit":
-            self.checkpoint()
+            self.saves.checkpoint()
             self.send("bye", None)
             return False
         return True
@@ -354,7 +353,7 @@ class EngineHost(EngineSaves):
         except Exception as exc:  # noqa: BLE001 - one line in the panel; the run goes on, nothing was written
             self.send("export_failed", self.worded(exc, f"export: {what_failed(exc)}"))
             return
-        self.keep_run(written)
+        self.saves.keep_run(written)
         self.send("exported", written)
 
     def should_step(self) -> bool:

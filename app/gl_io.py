@@ -1,5 +1,5 @@
 """Small moderngl helpers the renderer, the studio, the benches and the tests share: reading a framebuffer back,
-a texture's dtype name and size, and whether the context rasterises on the CPU."""
+a texture's dtype name and size, whether the context rasterises on the CPU, a texture's filter and the scissor."""
 
 from __future__ import annotations
 
@@ -45,3 +45,13 @@ def read_rgb_float(fbo: moderngl.Framebuffer) -> np.ndarray:
     width, height = fbo.size
     data = np.frombuffer(fbo.read(components=3, alignment=1, dtype="f4"), np.float32).reshape(height, width, 3)
     return data[::-1].copy()
+
+
+def set_filter(tex: moderngl.Texture | moderngl.TextureArray, mode: int) -> None:
+    """Sample ``tex`` with ``mode`` (``moderngl.NEAREST``, ``moderngl.LINEAR``) when minified and magnified."""
+    tex.filter = mode, mode
+
+
+def set_scissor(ctx: moderngl.Context, rect: tuple[int, int, int, int] | None) -> None:
+    """Limit drawing and clearing to ``rect`` (x, y from the bottom, width, height; None: no limit)."""
+    ctx.scissor = rect

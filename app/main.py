@@ -191,30 +191,32 @@ def open_studio(window, args: argparse.Namespace):
                                    "precision": args.precision, "device": args.device},
                     output_dir=args.output_dir or "out", show_ui=not args.hide_ui, keys=window.keys)
     if args.output_dir:  # asked for: exports go there too
-        app.save_folder = Path(args.output_dir)
+        app.outputs.save_to(args.output_dir)
     if not args.style:  # a stylized result shows the painting it was made after
-        app.show_result_painting()
+        app.paintings.show_result(app.session.result)
     if len(styles) > 1:
-        app.set_style(styles[1], slot=1, mix=args.style_mix)
-    app.view_mode = args.view
+        app.paintings.set_style(styles[1], slot=1, mix=args.style_mix)
+    app.views.set_mode(args.view)
     if args.region is not None:  # the selection tool on, with this box (the engine starts with it)
-        app.set_region_box(args.region)
+        app.region.set_box(args.region)
     if args.batch:
-        app.open_batch(args.batch)
+        app.takes.open_batch(args.batch)
     if args.camera:
-        if not 1 <= args.camera <= len(app.cameras):
-            raise GStyleError(f"--camera must be 1..{len(app.cameras)}, got {args.camera}")
-        app.control.snap_to(app.cameras[args.camera - 1])
+        cameras = app.session.cameras
+        if not 1 <= args.camera <= len(cameras):
+            raise GStyleError(f"--camera must be 1..{len(cameras)}, got {args.camera}")
+        app.control.snap_to(cameras[args.camera - 1])
     def dropped(_w, paths) -> None:
         window.counter.events += 1  # a frame shows what was opened
-        app.on_drop(paths)
+        app.files.on_drop(paths)
 
     glfw.set_drop_callback(window.handle, dropped)
-    if app.result is not None and not args.resume:  # a stylized result opens as one: nothing starts on it
-        ways = "continue its run, " if app.result.state is not None and app.result.source is not None else ""
-        print(f"gstyle-studio: {app.result.line}; nothing started (the panel offers to {ways}stylize it again or "
+    result = app.session.result
+    if result is not None and not args.resume:  # a stylized result opens as one: nothing starts on it
+        ways = "continue its run, " if result.state is not None and result.source is not None else ""
+        print(f"gstyle-studio: {result.line}; nothing started (the panel offers to {ways}stylize it again or "
               "restart from the original)")
-    elif not app.start_engine(resume=args.resume) and args.resume:
+    elif not app.engine.start(resume=args.resume) and args.resume:
         print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",
               file=sys.stderr)
     return app
@@ -261,7 +263,7 @@ def _run_frames(window, app, args: argparse.Namespace, stop: dict[str, bool]) ->
         window.end_frame(swap=False)
         app.save_screenshots(screen, scene_only=False)
         if last and args.screenshot:
-            saved = app.save_png(args.screenshot, app.capture(screen))
+            saved = app.outputs.save_png(args.screenshot, app.outputs.capture(screen))
             print(f"gstyle-studio: wrote {saved}")
         glfw.swap_buffers(window.handle)
         if last:
@@ -273,7 +275,8 @@ def _run_frames(window, app, args: argparse.Namespace, stop: dict[str, bool]) ->
 
 def interrupted_line(app, clean: bool) -> str:
     """The one line Ctrl+C ends the studio with: where the session was saved, or why it was not."""
-    saved = app.bridge.state.checkpoint if app.bridge is not None else None
+    bridge = app.engine.bridge
+    saved = bridge.state.checkpoint if bridge is not None else None
     if not clean:
         return f"gstyle-studio: interrupted; {NOT_SAVED}"
     if saved:

@@ -1,8 +1,7 @@
 """Opening files in the studio: a scene (with its cameras) or a painting, dropped on the window or chosen with the
 panel's buttons. The buttons open the desktop's file dialog where there is one (Windows, macOS; on Linux zenity,
 kdialog, matedialog or qarma) and the studio's own file browser otherwise (``app/file_browser.py``), saying so.
-``GSTYLE_FILE_DIALOG=studio`` always uses the studio's browser. ``OpenFiles`` is a mixin of ``StudioApp`` (it uses
-the app's panel, scene, style and engine methods)."""
+``GSTYLE_FILE_DIALOG=studio`` always uses the studio's browser. ``OpenFiles`` is a part of ``StudioApp``."""
 
 from __future__ import annotations
 
@@ -13,7 +12,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gstyle_core.cameras.camera import Camera
 from gstyle_core.errors import GStyleError
@@ -23,8 +22,19 @@ from gstyle_core.io.sog_files import is_sog_folder
 from gstyle_core.outputs import BATCH_TABLE
 from gstyle_core.scene import GaussianScene
 
+from .events import Handlers
 from .export import EXPORT_SUFFIXES
 from .file_browser import FileBrowser, has_suffix, load_recent, recent_folders_file, save_recent, with_recent
+
+if TYPE_CHECKING:
+    from .engine_link import EngineLink
+    from .paintings import Paintings
+    from .panels import PanelState
+    from .result_undo import ResultUndo
+    from .session import Session
+    from .status_line import StatusLine
+    from .studio_outputs import Outputs
+    from .takes_view import TakesView
 
 DIALOG_ENV = "GSTYLE_FILE_DIALOG"  # "studio": the studio's browser always; "auto" (default): native where there is one
 DIALOG_PROGRAMS = ("zenity", "kdialog", "matedialog", "qarma")  # what portable_file_dialogs runs on Linux
@@ -99,19 +109,27 @@ def load_scene_with_cameras(scene_path: str | None, cameras_path: str | None) ->
 
 
 class OpenFiles:
-    """``StudioApp``'s file opening; the native dialog's state lives on the app (``_dialog``: kind, dialog, program,
-    start time), the studio's browser in ``panel.browser`` (its kind in ``_browser_kind``)."""
+    """Opening files: owns the native dialog open (``dialog``: kind, dialog, program, start time), the kind the
+    studio's browser was opened for (the browser itself is the panel's ``browser``) and where the recent folders are
+    kept. Built with the panel, the status line, the session (the scene to show), the engine link (stopped for a
+    result, restarted for anything else), the paintings, the undo (a painting opened is a step), the takes (a batch
+    opens as takes) and the outputs (Save As, and where it starts)."""
 
-    recent_file: Path | None = None  # where the recent folders are kept (None: the cache folder's file)
-    _browser_kind = "open_scene"
+    def __init__(self, panel: PanelState, status: StatusLine, session: Session, engine: EngineLink,
+                 paintings: Paintings, undo: ResultUndo, takes: TakesView, outputs: Outputs) -> None:
+        self.panel, self.status, self.session, self.engine = panel, status, session, engine
+        self.paintings, self.undo, self.takes, self.outputs = paintings, undo, takes, outputs
+        self.recent_file: Path | None = None  # where the recent folders are kept (None: the cache folder's file)
+        self.dialog: tuple[str, Any, str, float] | None = None  # a native file dialog and what it is for
+        self._browser_kind = "open_scene"
 
-    def on_drop(self, paths) -> None:
+    def on_drop(self, paths: Any) -> None:
         """glfw drop callback: open the first dropped file (a scene or a style image); more files are ignored."""
         paths = list(paths)
         if paths:
             self.open_path(paths[0])
             if len(paths) > 1:
-                self.panel.status += f" ({len(paths) - 1} more dropped file(s) ignored)"
+                self.status.add(f" ({len(paths) - 1} more dropped file(s) ignored)")
 
     def open_path(self, path: str, style_slot: int = 0, record: bool = True) -> bool:
         """Open a dropped or chosen file: a scene (.ply/.compressed.ply/.splat/.spz/.sog, a SOG folder or its
@@ -122,54 +140,36 @@ class OpenFiles:
         name = Path(path).name
         if style_slot == 0 and (name == BATCH_TABLE or (Path(path) / BATCH_TABLE).is_file()):
             folder = Path(path).parent if name == BATCH_TABLE else Path(path)
-            opened = self.open_batch(folder)
+            opened = self.takes.open_batch(folder)
             if opened:
                 self._remember_folder(folder)
             return opened
-        painting_before = self.painting_state() if record and has_suffix(name, IMAGE_SUFFIXES) else None
-        last_step = self.history.last()
+        painting_before = self.paintings.painting_state() if record and has_suffix(name, IMAGE_SUFFIXES) else None
+        last_step = self.session.history.last()
         try:
             if is_scene(path) and style_slot == 0:
-                self.set_scene(load_scene_with_cameras(path, None))
-                self._say(f"opened {name} ({self.panel.gaussians:,} Gaussians)")
+                self.session.set_scene(load_scene_with_cameras(path, None))
+                self.status.tell(f"opened {name} ({self.panel.gaussians:,} Gaussians)")
             elif has_suffix(name, IMAGE_SUFFIXES):
-                self.set_style(path, style_slot)
-                self._say(f"opened {name} as the {'second ' if style_slot else ''}style")
+                self.paintings.set_style(path, style_slot)
+                self.status.tell(f"opened {name} as the {'second ' if style_slot else ''}style")
             else:
-                self._say(f"not a scene or image: {name}")
+                self.status.tell(f"not a scene or image: {name}")
                 return False
         except GStyleError as exc:
-            self._say(f"could not open {name}: {exc}")
+            self.status.tell(f"could not open {name}: {exc}")
             return False
         self._remember_folder(Path(path).parent)
-        if self.result is not None and style_slot == 0 and is_scene(path):
-            self.stop_engine()  # a result is shown as it is; Stylize again / Restart from the original start one
-            self.show_result_painting()
-            self._say(f"{self.result.line}; nothing started")
-        elif self.bridge is not None:
-            self.start_engine(action=f"opening {name}")
+        result = self.session.result
+        if result is not None and style_slot == 0 and is_scene(path):
+            self.engine.stop()  # a result is shown as it is; Stylize again / Restart from the original start one
+            self.paintings.show_result(result)
+            self.status.tell(f"{result.line}; nothing started")
+        elif self.engine.bridge is not None:
+            self.engine.start(action=f"opening {name}")
         if painting_before is not None:
-            self.choice_step("painting", painting_before, last_step)
+            self.undo.choice_step("painting", painting_before, last_step)
         return True
-
-    def show_result_painting(self) -> None:
-        """A stylized result is shown: show the painting(s) it was made after (a second one at the result's mix),
-        when their files are found and read (else the paintings shown stay; the result opens all the same). These,
-        or the ones the artist opens while it is on show, are what *Restart from the original* stylizes with."""
-        info = self.result
-        if info is None or not info.styles:
-            return
-        second = str(info.styles[1]) if len(info.styles) > 1 else ""
-        mix = float(info.params.get("style_mix", 0.5)) if second else 0.0
-        try:
-            self.put_paintings((str(info.styles[0]), second, mix))
-        except GStyleError:
-            pass
-
-    def _say(self, message: str) -> None:
-        """The status line, and the same line in the terminal."""
-        self.panel.status = message
-        print(f"gstyle-studio: {message}", flush=True)
 
     # ------------------------------------------------------------------ recent folders
     def _recent_file(self) -> Path:
@@ -182,23 +182,23 @@ class OpenFiles:
         save_recent(self._recent_file(), with_recent(self._recent_folders(), folder))
 
     # ------------------------------------------------------------------ commands
-    def _file_command(self, name: str, args: dict[str, Any]) -> bool:
-        """Open buttons, the studio browser's answer or cancel, and "use the studio's browser" instead of a native
-        dialog."""
-        if name in FILE_KINDS:
-            self._open_dialog(name)
-        elif name == "browser_open":
-            self._browser_answer(str(args["path"]))
-        elif name == "browser_cancel":
-            self.panel.browser = None
-            self._say("no file chosen")
-        elif name == "use_browser":
-            kind = self._dialog[0] if self._dialog is not None else self._browser_kind
-            self._drop_native_dialog()
-            self._open_browser(kind, "")
-        else:
-            return False
-        return True
+    def commands(self) -> Handlers:
+        """The panel's commands this part carries out: open buttons (and Save As), the studio browser's answer or
+        cancel, and "use the studio's browser" instead of a native dialog."""
+        opens: Handlers = {
+            kind: (lambda _args, kind=kind: self._open_dialog(kind)) for kind in FILE_KINDS}
+        return {**opens, "browser_open": lambda args: self._browser_answer(str(args["path"])),
+                "browser_cancel": lambda _args: self._cancel_browser(),
+                "use_browser": lambda _args: self._use_browser()}
+
+    def _cancel_browser(self) -> None:
+        self.panel.browser = None
+        self.status.tell("no file chosen")
+
+    def _use_browser(self) -> None:
+        kind = self.dialog[0] if self.dialog is not None else self._browser_kind
+        self._drop_native_dialog()
+        self._open_browser(kind, "")
 
     def _open_dialog(self, kind: str) -> None:
         """The native dialog where there is one, else the studio's browser (the status line says why)."""
@@ -220,35 +220,35 @@ class OpenFiles:
         patterns = " ".join(f"*{s}" for s in spec.suffixes)
         self._drop_native_dialog()
         if spec.saving:
-            start = str(self.export_folder() / "stylized.ply")
+            start = str(self.outputs.export_folder() / "stylized.ply")
             dialog = pfd.save_file(spec.title, start, [spec.filter_name, patterns])
         else:
             dialog = pfd.open_file(spec.title, start, [spec.filter_name, patterns])
-        self._dialog = (kind, dialog, program, time.monotonic())
+        self.dialog = (kind, dialog, program, time.monotonic())
         self.panel.browser = None
         self.panel.dialog_note = f"Waiting for the {program} file dialog ({spec.title})."
-        self._say(f"{spec.title}: choose a file in the {program} file dialog")
+        self.status.tell(f"{spec.title}: choose a file in the {program} file dialog")
 
     def _drop_native_dialog(self) -> None:
-        if self._dialog is not None:
+        if self.dialog is not None:
             try:
-                self._dialog[1].kill()
+                self.dialog[1].kill()
             except Exception:  # noqa: BLE001 - it may have ended already
                 pass
-        self._dialog = None
+        self.dialog = None
         self.panel.dialog_note = ""
 
     def _open_browser(self, kind: str, why_not_native: str) -> None:
         spec = FILE_KINDS[kind]
         self._browser_kind = kind
-        folder = self.export_folder() if spec.saving else None
+        folder = self.outputs.export_folder() if spec.saving else None
         browser = FileBrowser(spec.title, spec.suffixes, folder=folder if folder and folder.is_dir() else None,
                               recent=self._recent_folders(), saving=spec.saving)
         browser.note = f"Not the desktop's file dialog: {why_not_native}." if why_not_native else ""
         self.panel.browser = browser
         reason = f"{why_not_native}; " if why_not_native else ""
         what = "type a file name or choose a file" if spec.saving else "choose a file"
-        self._say(f"{reason}{spec.title}: {what} in the studio's file browser")
+        self.status.tell(f"{reason}{spec.title}: {what} in the studio's file browser")
 
     def _browser_answer(self, path: str) -> None:
         """The studio's browser chose ``path``: open it; on failure the browser stays open and shows why."""
@@ -256,28 +256,28 @@ class OpenFiles:
         spec = FILE_KINDS[self._browser_kind]
         if spec.saving:
             self.panel.browser = None
-            self.save_as(path)
+            self.outputs.save_as(path)
         elif self.open_path(path, style_slot=spec.style_slot):
             self.panel.browser = None
         elif browser is not None:
-            browser.error = self.panel.status
+            browser.error = self.status.text
 
-    def _poll_dialog(self) -> None:
+    def poll_dialog(self) -> None:
         """A native dialog's answer, once it is ready: open the file; a dialog that ended at once without one did not
         open, so the studio's browser takes over."""
-        if self._dialog is None or not self._dialog[1].ready(0):
+        if self.dialog is None or not self.dialog[1].ready(0):
             return
-        kind, dialog, program, started = self._dialog
-        self._dialog = None
+        kind, dialog, program, started = self.dialog
+        self.dialog = None
         self.panel.dialog_note = ""
         answer = dialog.result()
         chosen = ([answer] if answer else []) if isinstance(answer, str) else list(answer or [])[:1]
         for path in chosen:
             if FILE_KINDS[kind].saving:
-                self.save_as(path)
+                self.outputs.save_as(path)
             else:
                 self.open_path(path, style_slot=FILE_KINDS[kind].style_slot)
         if not chosen and time.monotonic() - started < QUICK_EXIT_S:
             self._open_browser(kind, f"the {program} file dialog did not open")
         elif not chosen:
-            self._say("no file chosen")
+            self.status.tell("no file chosen")

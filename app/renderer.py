@@ -17,13 +17,9 @@ passes:
   0.3 px^2 dilation): ``bench/studies/gl_frame_parts.py`` splits a moving frame's time into its parts. On a software GL
   the draw goes in calls of ``draw_chunk`` splats, each waiting for the one before it (llvmpipe's memory).
 
-The back-to-front order comes from a sorter thread (``app/depth_sort.py``: a counting sort of quantised depth keys
-in a numba kernel that releases the GIL). A new view (its depth row) or detail submits a sort and returns at once;
-a frame draws with the newest finished order, uploading only the index buffer when a new one arrives (the data
-textures do not move). ``render(wait=True)`` (the default: screenshots, exports, tests) waits for the order of its
-own view; the studio's paced view (``app/scene_view.py``) never waits. A still camera submits nothing and uploads
-nothing. Uploads are split: ``update_colors`` rewrites one colour texture, ``update_geometry`` the four geometry
-textures.
+The back-to-front order is the renderer's part ``DrawOrder`` (``app/renderer_order.py``); ``render(wait=True)``
+(the default: screenshots, exports, tests) waits for the order of its own view. Uploads are split:
+``update_colors`` rewrites one colour texture, ``update_geometry`` the four geometry textures.
 
 Colour layers: any name -> [N, 3] RGB. The special layer ``"sh"`` (present when the scene was given SH
 coefficients that are not all zero; all-zero bands are dropped) is view dependent: its coefficients are uploaded
@@ -33,7 +29,6 @@ rasterizer's conventions (the original scene in the viewer); the stylized scene 
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Mapping, Sequence
 
 import moderngl
@@ -43,8 +38,8 @@ from gstyle_core.cameras.camera import Camera
 from gstyle_core.scene import used_sh_degree
 
 from .depth_sort import DEFAULT_BITS, DepthSorter
-from .gl_io import gl_dtype, is_software_gl, target_size, texture_bytes
-from .renderer_order import NEAR, DrawOrderMixin
+from .gl_io import gl_dtype, is_software_gl, set_filter, set_scissor, target_size, texture_bytes
+from .renderer_order import NEAR, DrawOrder, Gaussians, draw_points
 from .shader_loader import program_sources, shader_source, with_defines
 from .splat_data import (
     TEXTURE_WIDTH,
@@ -69,7 +64,7 @@ SH_UNIT = 4  # texture unit of the SH coefficients in the projection pass (0-3: 
 SOFTWARE_DRAW_CHUNK = 32768  # splats a draw call on a software GL (``SplatRenderer.draw_chunk``)
 
 
-class SplatRenderer(DrawOrderMixin):
+class SplatRenderer:
     """Draw Gaussians into a moderngl framebuffer, matching ``gstyle_core.raster.rasterize``'s maths."""
 
     def __init__(self, ctx: moderngl.Context, sorter: DepthSorter | None = None, layout: str = "compact") -> None:
@@ -79,7 +74,7 @@ class SplatRenderer(DrawOrderMixin):
         self.program = ctx.program(**program_sources("splat"))
         self.project_program = self._projection_program(sh=False)
         self._project_sh_program: moderngl.Program | None = None  # with the SH colour, made with the first SH
-        self._index_buffer = ctx.buffer(reserve=4)
+        self._order = DrawOrder(ctx, sorter)  # the back-to-front order (app/renderer_order.py)
         self._projected = ctx.buffer(reserve=PROJECTED_SH_STRIDE)
         self._vaos: dict[bool, tuple[moderngl.VertexArray, moderngl.VertexArray]] = {}  # with SH: (draw, project)
         self._projected_for: tuple | None = None
@@ -91,15 +86,9 @@ class SplatRenderer(DrawOrderMixin):
         self._sh: moderngl.TextureArray | None = None  # SH coefficients (layer "sh"), see sh_texture_layers
         self._sh_degree = -1
         self._sh_count = 0
-        self._sorter = sorter if sorter is not None else DepthSorter()
-        self._requested: tuple | None = None  # key of the last sort submitted: (depth row, keep, geometry, bits)
-        self._order_key: tuple | None = None  # key of the order in the index buffer (None: no usable order)
-        self._instances = 0
         self.sort_bits = DEFAULT_BITS  # depth key bits (app/depth_sort.py)
         self.geometry_version = 0
         self.content_version = 0  # bumped by every geometry or colour upload (the view cache's key)
-        self.sort_count = 0  # orders received from the sorter and uploaded (for tests and stats)
-        self.last_wait_ms = 0.0  # how long the last ``prepare`` waited for a sort (0 unless asked to wait)
         self.projection_count = 0  # how many projection passes ran (one per new camera/target/geometry)
         self.uploads = {"geometry": 0, "colors": 0}  # texture uploads so far (colours: any layer, SH included)
         self.highlight = False  # a selection is drawn highlighted (the Gaussians outside it dimmed)
@@ -114,6 +103,41 @@ class SplatRenderer(DrawOrderMixin):
     def count(self) -> int:
         """Number of Gaussians currently loaded."""
         return int(self._means.shape[0])
+
+    @property
+    def sort_count(self) -> int:
+        """Orders received from the sorter and uploaded (for tests and stats)."""
+        return self._order.sort_count
+
+    @property
+    def last_wait_ms(self) -> float:
+        """How long the last ``prepare`` waited for a sort (0 unless asked to wait)."""
+        return self._order.last_wait_ms
+
+    @property
+    def sorter(self) -> DepthSorter:
+        """The thread that sorts this renderer's Gaussians."""
+        return self._order.sorter
+
+    @property
+    def has_order(self) -> bool:
+        """An order of the current geometry's Gaussians is loaded (perhaps of an older view)."""
+        return self._order.key is not None or not self.count
+
+    @property
+    def order_detail(self) -> float:
+        """Fraction of the Gaussians the loaded order was sorted from (the detail it draws)."""
+        return self._order.detail(self.count)
+
+    def order(self) -> np.ndarray:
+        """The draw order in use (int32 Gaussian indices, back to front), read back from the index buffer."""
+        return self._order.read()
+
+    def prepare(self, camera: Camera, detail: float = 1.0, wait: bool = True) -> bool:
+        """Bring the draw order up to date for ``camera`` (``DrawOrder.prepare``); True when the order in use is this
+        request's."""
+        gaussians = Gaussians(self._means, self._by_importance, self.geometry_version, self.sort_bits)
+        return self._order.prepare(gaussians, camera, detail, wait)
 
     @property
     def layers(self) -> list[str]:
@@ -152,7 +176,7 @@ class SplatRenderer(DrawOrderMixin):
                 tex.release()
             self._geometry = [self._texture(content) for content in data]
         if n != self.count:  # the old order's indices mean nothing now; with the same count it is drawn until the
-            self._order_key, self._instances = None, 0  # new geometry's order arrives (as after a camera move)
+            self._order.forget()  # new geometry's order arrives (as after a camera move)
         self._means = np.asarray(arrays["means"], np.float32).copy()  # replaced, never written: the sorter reads it
         self._by_importance = importance_order(arrays["log_scales"], arrays["opacity_logits"])
         if self._sh is not None and self._sh_count != n:
@@ -218,7 +242,7 @@ class SplatRenderer(DrawOrderMixin):
         """
         fbo.use()
         width, height = target_size(fbo)
-        self.ctx.scissor = scissor
+        set_scissor(self.ctx, scissor)
         if clear:
             fbo.clear(*[float(c) for c in background[:3]], 1.0)
         if self.count:
@@ -229,19 +253,19 @@ class SplatRenderer(DrawOrderMixin):
             self.ctx.enable(moderngl.BLEND)
             self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
             self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
-            first, count = (0, self._instances) if instances is None else instances
-            first = min(max(int(first), 0), self._instances)
-            count = min(max(int(count), 0), self._instances - first)
+            first, count = (0, self._order.instances) if instances is None else instances
+            first = min(max(int(first), 0), self._order.instances)
+            count = min(max(int(count), 0), self._order.instances - first)
             if count:
-                self._draw_points(first, count)
+                draw_points(self.ctx, self._arrays()[0], first, count, self.draw_chunk)
             self.ctx.disable(moderngl.BLEND)
-        self.ctx.scissor = None
-        return self._instances if self.count else 0
+        set_scissor(self.ctx, None)
+        return self._order.instances if self.count else 0
 
     def projected(self) -> dict[str, np.ndarray]:
         """The last projection pass's output in draw order: ``center`` [M, 2] (pixels), ``conic`` [M, 4] (a, b, c,
         opacity), ``axes`` [M, 4] (the quad's half axes; zero = culled), ``rgb`` [M, 3] (SH colour, zero without)."""
-        m = self._instances
+        m = self._order.instances
         data = np.frombuffer(self._projected.read(size=self._stride * m), np.float32).reshape(m, -1)
         rgb = data[:, 10:13] if self._stride == PROJECTED_SH_STRIDE else np.zeros((m, 3), np.float32)
         return {"center": data[:, 0:2], "conic": data[:, 2:6], "axes": data[:, 6:10], "rgb": rgb}
@@ -253,15 +277,15 @@ class SplatRenderer(DrawOrderMixin):
         return {"geometry": sum(texture_bytes(t) for t in self._geometry),
                 "colours": sum(texture_bytes(t) for t in self._layers.values()),
                 "sh": texture_bytes(self._sh) if self._sh is not None else 0,
-                "projected": self._projected.size, "order": self._index_buffer.size}
+                "projected": self._projected.size, "order": self._order.index_buffer.size}
 
     def release(self) -> None:
         """Stop the sorter and free all GL objects."""
-        self._sorter.stop()
+        self._order.sorter.stop()
         self._drop_sh()
         programs = [self.project_program] + ([self._project_sh_program] if self._project_sh_program else [])
         vaos = [vao for pair in self._vaos.values() for vao in pair]
-        for obj in [*self._geometry, *self._layers.values(), *vaos, self._index_buffer,
+        for obj in [*self._geometry, *self._layers.values(), *vaos, self._order.index_buffer,
                     self._projected, self.program, *programs]:
             obj.release()
         self._geometry, self._layers = [], {}
@@ -269,31 +293,17 @@ class SplatRenderer(DrawOrderMixin):
     # ----------------------------------------------------------------- internals
     def _texture(self, content: np.ndarray) -> moderngl.Texture:
         tex = self.ctx.texture((TEXTURE_WIDTH, content.shape[0]), 4, content, dtype=gl_dtype(content.dtype))
-        tex.filter = moderngl.NEAREST, moderngl.NEAREST
+        set_filter(tex, moderngl.NEAREST)
         return tex
-
-    def _draw_points(self, first: int, count: int) -> None:
-        """Draw ``count`` projected splats from ``first`` in calls of ``draw_chunk``; after each call, wait for the
-        one before it (a query's result), never for the last: the binning of one overlaps the raster of the other,
-        and at most two are in flight."""
-        step = self.draw_chunk if 0 < self.draw_chunk < count else count
-        previous = None
-        for start in range(first, first + count, step):
-            query = self.ctx.query(primitives=True) if step < count else None
-            with query if query is not None else contextlib.nullcontext():
-                self._arrays()[0].render(moderngl.POINTS, vertices=min(step, first + count - start), first=start)
-            if previous is not None:
-                _ = previous.primitives  # blocks until that call is rasterised
-            previous = query
 
     def _project(self, camera: Camera) -> None:
         """Run the projection pass unless its inputs (camera, order, geometry) are those of the last run."""
         key = (np.asarray(camera.world_to_cam, np.float32).tobytes(), float(camera.fx), float(camera.fy),
                float(camera.cx), float(camera.cy), int(camera.width), int(camera.height), self.geometry_version,
-               self.sort_count)
-        if key == self._projected_for or not self._instances:
+               self._order.sort_count)
+        if key == self._projected_for or not self._order.instances:
             return
-        needed = self._stride * self._instances
+        needed = self._stride * self._order.instances
         if needed > self._projected.size:
             self._projected.orphan(needed)
         prog = self._project_sh_program if self._sh is not None else self.project_program
@@ -313,7 +323,7 @@ class SplatRenderer(DrawOrderMixin):
             prog["u_sh"].value = SH_UNIT
             prog["u_sh_degree"].value = self._sh_degree
             prog["u_camera_pos"].value = tuple(float(v) for v in camera.position)
-        self._arrays()[1].transform(self._projected, mode=moderngl.POINTS, vertices=self._instances)
+        self._arrays()[1].transform(self._projected, mode=moderngl.POINTS, vertices=self._order.instances)
         self._projected_for = key
         self.projection_count += 1
 
@@ -336,8 +346,9 @@ class SplatRenderer(DrawOrderMixin):
             content = (self._projected, "2f 4f 4f 3f", "in_center", "in_conic", "in_axes", "in_rgb") if sh else \
                 (self._projected, "2f 4f 4f", "in_center", "in_conic", "in_axes")
             program = self._project_sh_program if sh else self.project_program
-            self._vaos[sh] = (self.ctx.vertex_array(self.program, [content, (self._index_buffer, "1i", "in_index")]),
-                              self.ctx.vertex_array(program, [(self._index_buffer, "1i", "in_index")]))
+            index = (self._order.index_buffer, "1i", "in_index")
+            self._vaos[sh] = (self.ctx.vertex_array(self.program, [content, index]),
+                              self.ctx.vertex_array(program, [index]))
         return self._vaos[sh]
 
     def _colour_texture(self, layer: str) -> moderngl.Texture | None:
@@ -355,7 +366,7 @@ class SplatRenderer(DrawOrderMixin):
         n = sh_dc.shape[0]
         layers = -(-3 * (degree + 1) ** 2 // 4)
         tex = self.ctx.texture_array((TEXTURE_WIDTH, texture_rows(n), layers), 4, dtype=gl_dtype(self._dtype))
-        tex.filter = moderngl.NEAREST, moderngl.NEAREST
+        set_filter(tex, moderngl.NEAREST)
         if self._project_sh_program is None:
             self._project_sh_program = self._projection_program(sh=True)
         for j, content in enumerate(sh_texture_layers(sh_dc, sh_rest, self._dtype)):

@@ -2,20 +2,30 @@
 stylized result, the engine writes it (scene and summary, as an export) into the session's history folder in the
 cache folder; Ctrl+Z opens it again as a result (``app/result_files.py``: its settings in the panel, nothing
 running), after saving the result it replaced so that Ctrl+Shift+Z brings that one back. At most ``KEPT_RESULTS``
-files are kept (the oldest go first). ``ResultUndo`` is a mixin of ``StudioApp``."""
+files are kept (the oldest go first). ``ResultUndo`` is a part of ``StudioApp``."""
 
 from __future__ import annotations
 
 import os
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from gstyle_core.engine.kept_runs import history_root
 from gstyle_core.engine.plan import STYLIZED_PHASES
 
 from .edit_history import ChoiceEdit, Edit, ParamEdit, RegionEdit, ResultEdit
+from .events import Events, Handlers, RunReplacing
 from .export import summary_path
+from .status_line import StatusLine
+
+if TYPE_CHECKING:
+    from .engine_link import EngineLink
+    from .paintings import Paintings
+    from .region_tool import RegionTool
+    from .session import Session
 
 KEPT_RESULTS = 12
 
@@ -31,13 +41,25 @@ def in_history(path: str | Path) -> bool:
 
 
 class ResultUndo:
-    """``StudioApp``'s undo and redo over parameter steps and replaced results."""
+    """Undo and redo over the session's edit history: parameter steps, the region, choices and replaced results.
+    Built with the status line, the events (a run about to be replaced is saved first: ``RunReplacing``), the
+    session (its history, the scene and result on show), the engine link, the paintings, the region tool,
+    ``open_path`` (a saved result opens as a scene: the file opening's) and ``apply_params`` (controls to the panel
+    and the engine)."""
 
-    _restoring = False  # an undo or redo is opening a saved result: what it replaces was saved already
+    def __init__(self, status: StatusLine, events: Events, session: Session, engine: EngineLink,
+                 paintings: Paintings, region: RegionTool, *, open_path: Callable[[str], bool],
+                 apply_params: Callable[[dict[str, float]], None]) -> None:
+        self.status, self.session, self.engine, self.paintings, self.region = status, session, engine, paintings, region
+        self.history = session.history
+        self.open_path, self.apply_params = open_path, apply_params
+        self._restoring = False  # an undo or redo is opening a saved result: what it replaces was saved already
+        events.subscribe(RunReplacing, lambda event: self.keep_result(event.action))
 
     def has_result(self) -> bool:
         """An engine is running and shows stylized colours (something a restart would throw away)."""
-        st = self.bridge.state if self.bridge is not None and self.bridge.alive else None
+        bridge = self.engine.bridge
+        st = bridge.state if bridge is not None and bridge.alive else None
         return bool(st is not None and st.snapshot and st.snapshot.get("phase") in STYLIZED_PHASES)
 
     def save_result(self) -> Path | None:
@@ -47,7 +69,7 @@ class ResultUndo:
         folder = history_folder()
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"result_{time.strftime('%Y%m%d_%H%M%S')}_{time.monotonic_ns() % 10**6:06d}.ply"
-        self.bridge.export(path)
+        self.engine.bridge.export(path)
         kept = sorted(folder.glob("result_*.ply"), key=lambda p: p.stat().st_mtime)
         for old in kept[:max(0, len(kept) - KEPT_RESULTS + 1)]:
             for f in (old, summary_path(old)):
@@ -57,9 +79,10 @@ class ResultUndo:
     def shown_result_file(self) -> Path | None:
         """The result file on show with no engine (opened, or by an undo or redo): an undo leaves it as it is on
         disk, so redo opens it again."""
-        if self.result is None or self.loaded is None or (self.bridge is not None and self.bridge.alive):
+        bridge, session = self.engine.bridge, self.session
+        if session.result is None or session.loaded is None or (bridge is not None and bridge.alive):
             return None
-        return Path(self.loaded.path)
+        return Path(session.loaded.path)
 
     def keep_result(self, action: str) -> None:
         """Before ``action`` replaces the running result: save it and make it a step back."""
@@ -78,15 +101,15 @@ class ResultUndo:
         result."""
         edit = self.history.undo() if name == "undo" else self.history.redo()
         if edit is None:
-            self.panel.status = f"nothing to {name}"
+            self.status.say(f"nothing to {name}")
             return
         if isinstance(edit, ParamEdit):
-            self._apply_params(edit.before if name == "undo" else edit.after)
-            self.panel.status = f"{name}: {edit.describe()}"
+            self.apply_params(edit.before if name == "undo" else edit.after)
+            self.status.say(f"{name}: {edit.describe()}")
             return
         if isinstance(edit, RegionEdit):
-            self.restore_region(edit.before if name == "undo" else edit.after)
-            self.panel.status = f"{name}: {edit.describe()}"
+            self.region.restore(edit.before if name == "undo" else edit.after)
+            self.status.say(f"{name}: {edit.describe()}")
             return
         if isinstance(edit, ChoiceEdit):
             self.undo_or_redo_choice(edit, name)
@@ -97,17 +120,19 @@ class ResultUndo:
         else:
             target = edit.after
         if target is None or not self._wait_for(target):
-            self.panel.status = f"{name}: that result was not saved (nothing changed)"
+            self.status.say(f"{name}: that result was not saved (nothing changed)")
             return
         self._open_restoring(target)
-        self.panel.status = f"{name}: {edit.describe()} is back" if name == "undo" else f"redo: {target.name} is back"
+        self.status.say(f"{name}: {edit.describe()} is back" if name == "undo" else f"redo: {target.name} is back")
 
     # ------------------------------------------------------------------ choices that restart the engine
-    def choice_state(self, kind: str):
+    def choice_state(self, kind: str) -> Any:
         """What is chosen now: the painting(s) (``painting_state``) or the quality."""
-        return self.painting_state() if kind == "painting" else str(self.engine_config.get("preset") or "preview")
+        if kind == "painting":
+            return self.paintings.painting_state()
+        return str(self.engine.config.get("preset") or "preview")
 
-    def choice_step(self, kind: str, before, last_step: Edit | None) -> None:
+    def choice_step(self, kind: str, before: Any, last_step: Edit | None) -> None:
         """A choice was made (a painting opened, mixed in or removed; another quality): one undo step, unless it
         changed nothing or a result it replaced is the step already (``last_step``: the newest step before it)."""
         after = self.choice_state(kind)
@@ -123,23 +148,23 @@ class ResultUndo:
             edit.result_after = self.save_result() or edit.result_after
         elif edit.result_after is not None and self._wait_for(edit.result_after):
             self._open_restoring(edit.result_after)
-            self.panel.status = f"redo: {edit.result_after.name} is back"
+            self.status.say(f"redo: {edit.result_after.name} is back")
             return
         state = edit.before if name == "undo" else edit.after
         self._restoring = True
         try:
             if edit.kind == "painting":
-                self.put_paintings(state)
+                self.paintings.put_paintings(state)
             else:
-                self.engine_config["preset"] = self.panel.quality = state
-            if self.bridge is not None:
-                self.start_engine(action=f"{name} of the {edit.kind}")
+                self.engine.set_quality(state)
+            if self.engine.bridge is not None:
+                self.engine.start(action=f"{name} of the {edit.kind}")
         except GStyleError as exc:
-            self.panel.status = f"{name}: {exc}"
+            self.status.say(f"{name}: {exc}")
             return
         finally:
             self._restoring = False
-        self.panel.status = f"{name}: {edit.describe()}"
+        self.status.say(f"{name}: {edit.describe()}")
 
     def _open_restoring(self, path: Path) -> None:
         """Open a saved result as undo and redo do: what it replaces was saved already."""
@@ -155,7 +180,11 @@ class ResultUndo:
         while time.monotonic() < deadline:
             if path.is_file() and summary_path(path).is_file():
                 return True
-            if self.bridge is not None:
-                self.bridge.poll()
+            if self.engine.bridge is not None:
+                self.engine.bridge.poll()
             time.sleep(0.05)
         return path.is_file()
+
+    def commands(self) -> Handlers:
+        """The panel's commands this part carries out: undo and redo."""
+        return {"undo": lambda _args: self.undo_or_redo("undo"), "redo": lambda _args: self.undo_or_redo("redo")}

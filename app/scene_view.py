@@ -36,6 +36,7 @@ import numpy as np
 
 from gstyle_core.cameras.camera import Camera
 
+from .gl_io import set_filter
 from .renderer import SplatRenderer
 from .shader_loader import program_sources
 
@@ -220,7 +221,7 @@ class SceneView:
                 fbo.color_attachments[0].release()
                 fbo.release()
             tex = self.ctx.texture(size, 4)
-            tex.filter = moderngl.LINEAR, moderngl.LINEAR
+            set_filter(tex, moderngl.LINEAR)
             fbo = self.ctx.framebuffer([tex])
             self._fbos[name] = fbo
         return fbo

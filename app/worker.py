@@ -39,7 +39,7 @@ class WorkerState:
     done: bool = False
     error: str | None = None
     went_on_after: str | None = None  # an error a step that succeeded since has made stale (the studio's status
-    # shows it once, ``StudioSync``; the red error line is cleared)
+    # shows it once, ``take_went_on_after``; the red error line is cleared)
     last_report: dict[str, Any] | None = None
     loss_history: list[dict[str, float]] = field(default_factory=list)
     snapshot: dict[str, Any] = field(default_factory=dict)  # merged: geometry kept until a new one arrives
@@ -75,6 +75,11 @@ class WorkerState:
     def stepping(self) -> bool:
         """True while the worker steps the engine: alive, built, and not paused, done or stopped by an error."""
         return self.alive and self.ready and not (self.paused or self.done or self.failed)
+
+    def take_went_on_after(self) -> str | None:
+        """The stale error (``went_on_after``) once: it is forgotten as it is read."""
+        line, self.went_on_after = self.went_on_after, None
+        return line
 
 
 # ====================================================================== the UI side

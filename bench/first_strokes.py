@@ -46,20 +46,20 @@ def main() -> None:
     rows, stylize_started = [], None
     try:
         t0 = time.perf_counter()
-        app.start_engine()
+        app.engine.start()
         while marks:
             start = time.perf_counter()
             screen = window.draw(app.frame)
-            report = (app.bridge.state.last_report or {}) if app.bridge is not None else {}
-            if app.bridge is not None and app.bridge.state.error:
-                raise SystemExit(f"worker failed: {app.bridge.state.error}")
+            report = (app.engine.bridge.state.last_report or {}) if app.engine.bridge is not None else {}
+            if app.engine.bridge is not None and app.engine.bridge.state.error:
+                raise SystemExit(f"worker failed: {app.engine.bridge.state.error}")
             elapsed = time.perf_counter() - t0
             if stylize_started is None and report.get("phase") == "stylize":
                 stylize_started = elapsed
             if elapsed >= marks[0]:
                 t = marks.pop(0)
                 path = out / f"at_{int(t):03d}s.png"
-                app.save_png(str(path), app.capture(screen))
+                app.outputs.save_png(str(path), app.outputs.capture(screen))
                 rows.append((t, report.get("phase", "-"), f"{report.get('step', 0)}/{report.get('total_steps', 0)}",
                              path))
             time.sleep(max(0.0, 1.0 / args.fps - (time.perf_counter() - start)))

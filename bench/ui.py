@@ -107,7 +107,7 @@ def ui_session(args, config: dict) -> dict:
     scales: list[float] = []
     details: list[float] = []
     try:
-        app.start_engine()
+        app.engine.start()
         t_measure = None
         start_steps = 0
         deadline = time.perf_counter()
@@ -115,15 +115,15 @@ def ui_session(args, config: dict) -> dict:
         warmup_end = time.perf_counter() + args.warmup_timeout
         while True:
             start = time.perf_counter()
-            if t_measure is None and app.bridge is not None and stylize_started(app.bridge):
-                t_measure, start_steps, last_start = start, app.bridge.state.reports_received, None
+            if t_measure is None and app.engine.bridge is not None and stylize_started(app.engine.bridge):
+                t_measure, start_steps, last_start = start, app.engine.bridge.state.reports_received, None
                 cpu0 = time.process_time()
-                worker_cpu0 = worker_cpu_seconds(app.bridge)
+                worker_cpu0 = worker_cpu_seconds(app.engine.bridge)
             elapsed = start - (t_measure if t_measure is not None else start)
             if t_measure is not None and elapsed >= args.seconds:
                 break
             if t_measure is None and start > warmup_end:
-                raise SystemExit(f"worker did not reach stylize: {app.bridge.state.error or 'timeout'}")
+                raise SystemExit(f"worker did not reach stylize: {app.engine.bridge.state.error or 'timeout'}")
             moving = int(elapsed // SEGMENT_S) % 2 == 0
             if last_start is not None and t_measure is not None:
                 frames["moving" if moving else "still"].append((start - last_start) * 1e3)
@@ -144,26 +144,26 @@ def ui_session(args, config: dict) -> dict:
             if t_measure is not None:
                 parts.append({**timed, "imgui draw + finish": (time.perf_counter() - t_ui) * 1e3,
                               "frame": (time.perf_counter() - t_frame) * 1e3, "moving": float(moving)})
-                scales.append(app.view.stats.last_scale)
+                scales.append(app.views.view.stats.last_scale)
                 if moving:
-                    details.append(app.view.stats.last_detail)
+                    details.append(app.views.view.stats.last_detail)
             if period:
                 deadline = max(deadline + period, time.perf_counter() - period)
                 time.sleep(max(0.0, deadline - time.perf_counter()))
         wall = time.perf_counter() - t_measure
-        steps = (app.bridge.state.reports_received - start_steps) / wall
+        steps = (app.engine.bridge.state.reports_received - start_steps) / wall
         ui_cores = (time.process_time() - cpu0) / wall  # the UI process, all its threads (llvmpipe's included)
-        worker_cores = (worker_cpu_seconds(app.bridge) - worker_cpu0) / wall
+        worker_cores = (worker_cpu_seconds(app.engine.bridge) - worker_cpu0) / wall
         if args.worker == "thread":
             ui_cores -= worker_cores  # the worker thread is part of the UI process
-        stats = app.view.stats
-        memory = {"ui": peak_rss_bytes(), "worker": worker_peak_rss(app.bridge)}
+        stats = app.views.view.stats
+        memory = {"ui": peak_rss_bytes(), "worker": worker_peak_rss(app.engine.bridge)}
         result = {"memory": memory, "parts": parts, "frames": frames, "steps_per_s": steps,
-                  "steps": app.bridge.state.reports_received - start_steps,
+                  "steps": app.engine.bridge.state.reports_received - start_steps,
                   "median_scale": float(np.median(scales)),
                   "moving_detail": float(np.median(details)) if details else 1.0, "ui_cores": ui_cores,
                   "worker_cores": worker_cores,
-                  "builds": stats.builds_completed, "gaussians": app.stylized.count}
+                  "builds": stats.builds_completed, "gaussians": app.views.stylized.count}
         result["controls"] = drive_controls(app, window, args.warmup_timeout) if args.controls else []
         return result
     finally:
@@ -188,7 +188,7 @@ def time_parts(app: StudioApp) -> dict[str, float]:
                 timed[name] = timed.get(name, 0.0) + (time.perf_counter() - t0) * 1e3
         return timed_method
 
-    app._apply_engine_updates = wrap("engine updates", app._apply_engine_updates)
+    app.sync.apply_updates = wrap("engine updates", app.sync.apply_updates)
     app.render_view = wrap("scene view", app.render_view)
     return timed
 
@@ -221,7 +221,7 @@ def drive_controls(app: StudioApp, window, timeout: float) -> list[tuple[str, fl
             draw_frame(app, window)
         return time.perf_counter() - t0
 
-    bridge, done = app.bridge, []
+    bridge, done = app.engine.bridge, []
     app.execute(Command("pause"))
     done.append(("pause", until(lambda: bridge.state.paused), "the worker says it paused"))
     value = 2 * float(bridge.state.params.get("lambda_nnfm", 1.0))
@@ -236,11 +236,13 @@ def drive_controls(app: StudioApp, window, timeout: float) -> list[tuple[str, fl
     done.append(("export .ply", until(lambda: len(bridge.state.exported) > exported or bridge.state.error),
                  f"written: {bridge.state.exported[-1] if bridge.state.exported else bridge.state.error}"))
     app.execute(Command("restart"))
-    done.append(("restart", until(lambda: app.history.done and app.history.done[-1].action == "restart"),
+    history = app.session.history
+    done.append(("restart", until(lambda: history.done and history.done[-1].action == "restart"),
                  "the result before it is kept for undo"))
     app.execute(Command("undo"))
-    done.append(("undo of the result", until(lambda: app.result is not None), f"{app.loaded.scene.count:,} Gaussians "
-                 "shown again" if app.loaded is not None else "shown"))
+    session = app.session
+    done.append(("undo of the result", until(lambda: session.result is not None),
+                 f"{session.loaded.scene.count:,} Gaussians shown again" if session.loaded is not None else "shown"))
     return done
 
 

@@ -16,7 +16,7 @@ MAP_EVERY = 0.2  # seconds between two maps
 
 def studio_state(app) -> dict:
     """What the test checks besides the pixels: the engine's state, the scene shown and whether it is a result."""
-    bridge = app.bridge
+    bridge = app.engine.bridge
     state = None if bridge is None else bridge.state
     return {"engine": None if state is None else {"alive": state.alive, "done": state.done, "error": state.error,
                                                    "snapshots": state.snapshots_received,
@@ -24,9 +24,9 @@ def studio_state(app) -> dict:
                                                    "snapshot_phase": state.snapshot.get("phase"),
                                                    "colour_version": state.snapshot.get("colour_version"),
                                                    "resumed": state.resumed},
-            "scene": None if app.loaded is None else str(app.loaded.path),
-            "result": None if app.result is None else str(app.result.summary),
-            "save_folder": str(getattr(app, "save_folder", "")), "gaussians": app.stylized.count,
+            "scene": None if app.session.loaded is None else str(app.session.loaded.path),
+            "result": None if app.session.result is None else str(app.session.result.summary),
+            "save_folder": str(app.outputs.save_folder), "gaussians": app.views.stylized.count,
             "status": app.panel.status, "time": time.time()}
 
 

@@ -306,7 +306,7 @@ def still_studio(window, tmp_path, size: tuple[int, int]):
     loaded = LoadedScene(str(tmp_path / "first.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), *size)])
     app = StudioApp(window.ctx, loaded=loaded, style_path=None, engine_factory=None, engine_config={},
                     output_dir=tmp_path / "out")
-    app.recent_file = tmp_path / "recent.json"
+    app.files.recent_file = tmp_path / "recent.json"
     return app
 
 
@@ -320,8 +320,9 @@ def ring_studio(window, tmp_path, factory=make_fake_engine, snapshots: int = 1, 
 
     app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
                     engine_factory=factory, engine_config={"n": 150, **config}, worker_mode="thread")
-    app.start_engine()
-    assert app.bridge.wait_until(lambda s: s.snapshots_received >= snapshots or s.error, 60), app.bridge.state.error
+    app.engine.start()
+    assert app.engine.bridge.wait_until(lambda s: s.snapshots_received >= snapshots or s.error, 60), \
+        app.engine.bridge.state.error
     return app
 
 

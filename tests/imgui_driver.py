@@ -139,8 +139,8 @@ def studio_driver(window, monkeypatch, app) -> PanelDriver:
 
 def paused_studio_driver(window, monkeypatch, app) -> PanelDriver:
     """Start the studio's engine, wait until it is ready, pause it, and return a driver for the studio frame."""
-    app.start_engine()
-    assert app.bridge.wait_until(lambda s: s.ready or s.error, 60) and app.bridge.state.error is None
-    app.bridge.pause()
-    assert app.bridge.wait_until(lambda s: s.paused, 30)
+    app.engine.start()
+    assert app.engine.bridge.wait_until(lambda s: s.ready or s.error, 60) and app.engine.bridge.state.error is None
+    app.engine.bridge.pause()
+    assert app.engine.bridge.wait_until(lambda s: s.paused, 30)
     return studio_driver(window, monkeypatch, app)

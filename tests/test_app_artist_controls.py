@@ -35,18 +35,18 @@ def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, m
         commands = driver.click("keep colours")
         assert [c.args for c in commands if c.name == "set_params"] == [{"keep_colours": 1.0}]
         assert driver.recorder.find("keep colours").tooltip
-        assert app.bridge.wait_until(lambda s: s.params.get("keep_colours") == 1.0, 30)
+        assert app.engine.bridge.wait_until(lambda s: s.params.get("keep_colours") == 1.0, 30)
         assert app.panel.params["colour_field"] == 0.0  # forward-facing settings: off
         commands = driver.click("coherent strokes")
         assert [c.args for c in commands if c.name == "set_params"] == [{"colour_field": 1.0}]
         assert "neighbouring Gaussians" in driver.recorder.find("coherent strokes").tooltip
-        assert app.bridge.wait_until(lambda s: s.params.get("colour_field") == 1.0, 30)
+        assert app.engine.bridge.wait_until(lambda s: s.params.get("colour_field") == 1.0, 30)
         engine = BUILT[-1]
         assert engine.settings.style_scale == pytest.approx(asked) and engine.settings.keep_colours is True
         assert engine.settings.colour_field is True
-        app.bridge.step_once()
-        assert app.bridge.wait_until(lambda s: s.reports_received >= 1, 60), app.bridge.state.error
-        path = app.session_checkpoint()
+        app.engine.bridge.step_once()
+        assert app.engine.bridge.wait_until(lambda s: s.reports_received >= 1, 60), app.engine.bridge.state.error
+        path = app.engine.session_checkpoint()
     finally:
         assert app.close(timeout=60)
     state, meta = read_checkpoint(path)
@@ -56,12 +56,13 @@ def test_stroke_size_and_keep_colours_reach_the_engine_and_the_session(window, m
     app = studio()
     try:
         app.execute(Command("resume_session"))
-        assert app.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), app.bridge.state.error
-        assert app.bridge.state.error is None
+        assert app.engine.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), \
+            app.engine.bridge.state.error
+        assert app.engine.bridge.state.error is None
         resumed = BUILT[-1]
         assert resumed.settings.keep_colours is True and resumed.settings.style_scale == pytest.approx(asked)
         assert resumed.settings.colour_field is True
-        assert app.bridge.wait_until(lambda s: s.params.get("keep_colours") == 1.0, 30)
+        assert app.engine.bridge.wait_until(lambda s: s.params.get("keep_colours") == 1.0, 30)
     finally:
         app.close(timeout=60)
 
@@ -99,32 +100,34 @@ def test_a_second_style_and_its_mix_slider_reach_the_engine_and_the_export(windo
         driver = paused_studio_driver(window, monkeypatch, app)
         driver.frame()
         assert driver.recorder.find("Mix in a second style...").tooltip
-        one_path = app.session_checkpoint()
-        app.open_path(str(second), style_slot=1)  # what the file dialog of that button does
-        assert app.bridge.wait_until(lambda s: len(BUILT) == 2 and s.ready or s.error, 60), app.bridge.state.error
+        one_path = app.engine.session_checkpoint()
+        app.files.open_path(str(second), style_slot=1)  # what the file dialog of that button does
+        assert app.engine.bridge.wait_until(lambda s: len(BUILT) == 2 and s.ready or s.error, 60), \
+            app.engine.bridge.state.error
         engine = BUILT[-1]
         assert len(engine.styles) == 2 and engine.settings.style_weights == pytest.approx((0.5, 0.5))
-        assert app.session_checkpoint() != one_path  # a mix is its own session
-        app.bridge.pause()
-        assert app.bridge.wait_until(lambda s: s.paused, 30)
+        assert app.engine.session_checkpoint() != one_path  # a mix is its own session
+        app.engine.bridge.pause()
+        assert app.engine.bridge.wait_until(lambda s: s.paused, 30)
         commands = driver.click("style mix", fx=0.95)
         assert driver.recorder.find("style mix").tooltip
         asked = [c.args["style_mix"] for c in commands if c.name == "set_params"][-1]
         assert asked > 0.8
-        assert app.bridge.wait_until(lambda s: s.params.get("style_mix") == pytest.approx(asked), 30)
+        assert app.engine.bridge.wait_until(lambda s: s.params.get("style_mix") == pytest.approx(asked), 30)
         assert engine.settings.style_weights == pytest.approx((1 - asked, asked))
-        assert app.engine_config["style_weights"] == pytest.approx((1 - asked, asked))  # a restart keeps the mix
-        app.bridge.step_once()
-        assert app.bridge.wait_until(lambda s: s.reports_received >= 1, 60), app.bridge.state.error
+        assert app.engine.config["style_weights"] == pytest.approx((1 - asked, asked))  # a restart keeps the mix
+        app.engine.bridge.step_once()
+        assert app.engine.bridge.wait_until(lambda s: s.reports_received >= 1, 60), app.engine.bridge.state.error
         out = tmp_path / "out" / "mix.ply"
-        app.export(out)
-        assert app.bridge.wait_until(lambda s: out.with_suffix(".json").exists() or s.error, 60)
+        app.outputs.export(out)
+        assert app.engine.bridge.wait_until(lambda s: out.with_suffix(".json").exists() or s.error, 60)
         summary = json.loads(out.with_suffix(".json").read_text())
         assert [s["path"] for s in summary["styles"]] == [str(first), str(second)]
         assert [s["weight"] for s in summary["styles"]] == pytest.approx([1 - asked, asked], abs=1e-5)
         commands = driver.click("remove")
         assert [c.name for c in commands] == ["remove_style2"]
-        assert app.bridge.wait_until(lambda s: len(BUILT) == 3 and s.ready or s.error, 60), app.bridge.state.error
-        assert len(BUILT[-1].styles) == 1 and app.engine_config["style"] == str(first)
+        assert app.engine.bridge.wait_until(lambda s: len(BUILT) == 3 and s.ready or s.error, 60), \
+            app.engine.bridge.state.error
+        assert len(BUILT[-1].styles) == 1 and app.engine.config["style"] == str(first)
     finally:
         app.close(timeout=60)

@@ -69,35 +69,36 @@ def studio(window, tmp_path):
 
 
 def test_a_batch_folder_or_its_table_dropped_opens_its_jobs_as_takes_to_compare(studio, batch_dir, tmp_path):
-    studio.on_drop([str(batch_dir)])
-    assert [t.name for t in studio.takes.takes] == FINISHED
+    studio.files.on_drop([str(batch_dir)])
+    assert [t.name for t in studio.takes.shelf.takes] == FINISHED
     assert studio.panel.status == "opened the batch batch: 2 takes to compare (scene1 after red, ...)"
     # the studio showed another scene: the first take opens as the scene, compared with its original
-    assert studio.loaded.path == str(batch_dir / "scene1__red.ply") and studio.result is not None
-    assert studio.view_mode == "compare" and not studio.compare_with_take and studio.take_shown is None
-    texture = studio.take_texture(studio.takes.takes[1])  # its after picture, fitted in the thumbnail
+    assert studio.session.loaded.path == str(batch_dir / "scene1__red.ply") and studio.session.result is not None
+    assert studio.views.mode == "compare" and not studio.views.compare_with_take and studio.views.take_shown is None
+    texture = studio.takes.texture(studio.takes.shelf.takes[1])  # its after picture, fitted in the thumbnail
     assert texture is not None and texture[1] == (96, 32)
-    assert studio.show_take(1, compare=False) and studio.loaded.path == str(batch_dir / "scene2__red.ply")
-    assert studio.view_mode == "stylized" and studio.panel.status == (
+    assert studio.takes.show_take(1, compare=False) and studio.session.loaded.path == str(batch_dir / "scene2__red.ply")
+    assert studio.views.mode == "stylized" and studio.panel.status == (
         "opened scene2 after red (scene2__red.ply), a take of another scene, as the scene")
     # a take of the scene on show (scene2's input) is drawn beside it from the same camera
-    same = replace(studio.takes.takes[0], name="scene2 again", path=str(batch_dir / "scene1__red.ply"),
-                   scene=studio.takes.takes[1].scene)
-    studio.takes.takes.append(same)
-    assert studio.show_take(2, compare=True) and studio.loaded.path == str(batch_dir / "scene2__red.ply")
-    assert studio.take_shown == same.path and studio.compare_with_take and studio.take_view.count == 40
+    same = replace(studio.takes.shelf.takes[0], name="scene2 again", path=str(batch_dir / "scene1__red.ply"),
+                   scene=studio.takes.shelf.takes[1].scene)
+    studio.takes.shelf.takes.append(same)
+    assert studio.takes.show_take(2, compare=True) and studio.session.loaded.path == str(batch_dir / "scene2__red.ply")
+    views = studio.views
+    assert views.take_shown == same.path and views.compare_with_take and views.take_view.count == 40
 
-    assert studio.open_path(str(batch_dir / "batch.csv")) and len(studio.takes.takes) == 2  # the same takes
+    assert studio.files.open_path(str(batch_dir / "batch.csv")) and len(studio.takes.shelf.takes) == 2  # the same takes
     empty = tmp_path / "empty"
     empty.mkdir()
     (empty / "batch.csv").write_text("scene,painting,status,out\n")
-    assert not studio.open_path(str(empty / "batch.csv"))
+    assert not studio.files.open_path(str(empty / "batch.csv"))
     assert studio.panel.status == f"no finished jobs in {empty / 'batch.csv'}"
     (empty / "batch.csv").write_text("a,b\n1,2\n")
-    assert not studio.open_path(str(empty))
+    assert not studio.files.open_path(str(empty))
     assert studio.panel.status == (f"could not open the batch: {empty / 'batch.csv'} is not a gstyle batch table "
                                    "(no scene, painting, status and out columns)")
-    assert len(studio.takes.takes) == 2
+    assert len(studio.takes.shelf.takes) == 2
 
 
 def test_gstyle_studio_batch_shows_the_first_result_with_the_batch_as_takes(batch_dir, tmp_path, capsys):

@@ -152,7 +152,7 @@ def test_strength_slider_reaches_the_engine(window, monkeypatch, tmp_path):
         commands = driver.click("strength/style strength", fx=0.9)
         assert commands and commands[0].name == "set_params" and commands[0].args["strength"] > 10
         asked = commands[-1].args["strength"]
-        assert app.bridge.wait_until(lambda s: s.params.get("strength") == asked, 30)
+        assert app.engine.bridge.wait_until(lambda s: s.params.get("strength") == asked, 30)
         assert BUILT[-1].settings.strength == pytest.approx(asked)
     finally:
         app.close()

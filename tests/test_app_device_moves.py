@@ -20,26 +20,28 @@ W, H = 700, 1300  # tall enough for the whole panel
 def test_the_panel_offers_the_cpu_after_the_gpu_failed_and_the_run_goes_on_there(window, monkeypatch, tmp_path):
     app = small_studio(window, monkeypatch, tmp_path, factory=stand_in_gpu_stylizer)
     try:
-        app.start_engine()
-        assert app.bridge.wait_until(lambda s: s.error is not None or s.done, 120)
+        app.engine.start()
+        assert app.engine.bridge.wait_until(lambda s: s.error is not None or s.done, 120)
         driver = studio_driver(window, monkeypatch, app)
         driver.frame()
         assert app.panel.device_failed and "ran out of memory in stylize" in app.panel.error
         assert "slower" in driver.recorder.find("Continue on the CPU").tooltip
-        failed, step = BUILT[-1], app.bridge.state.last_report["step"]
+        failed, step = BUILT[-1], app.engine.bridge.state.last_report["step"]
         commands = driver.click("Continue on the CPU")
         assert [(c.name, c.args) for c in commands] == [("move_to", {"device": "cpu"})]
-        assert app.engine_config["device"] == "cpu"
-        assert app.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), app.bridge.state.error
+        assert app.engine.config["device"] == "cpu"
+        assert app.engine.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), \
+            app.engine.bridge.state.error
         driver.frame()
         assert app.panel.status == f"continued on the CPU at step {step}"
         assert BUILT[-1] is not failed and BUILT[-1].settings.device == "cpu"
-        assert app.bridge.wait_until(lambda s: s.done or s.error, 120) and app.bridge.state.error is None
+        assert app.engine.bridge.wait_until(lambda s: s.done or s.error, 120) and app.engine.bridge.state.error is None
         driver.frame()
         assert not app.panel.device_failed and "Continue on the CPU" not in [w.path for w in driver.recorder.widgets]
         app.execute(Command("restart"))  # a restart stays on the CPU
-        assert app.bridge.wait_until(lambda s: s.reports_received >= 1 or s.error, 60), app.bridge.state.error
-        assert BUILT[-1].settings.device == "cpu" and app.bridge.state.error is None
+        assert app.engine.bridge.wait_until(lambda s: s.reports_received >= 1 or s.error, 60), \
+            app.engine.bridge.state.error
+        assert BUILT[-1].settings.device == "cpu" and app.engine.bridge.state.error is None
     finally:
         assert app.close(timeout=60)
 
@@ -58,14 +60,15 @@ def unavailable_gpu_stylizer(device=None, **config):
 def test_with_no_engine_to_take_over_the_cpu_starts_afresh_and_says_so(window, monkeypatch, tmp_path):
     app = small_studio(window, monkeypatch, tmp_path, factory=unavailable_gpu_stylizer)
     try:
-        app.start_engine()
-        assert app.bridge.wait_until(lambda s: s.error is not None, 60)
+        app.engine.start()
+        assert app.engine.bridge.wait_until(lambda s: s.error is not None, 60)
         driver = studio_driver(window, monkeypatch, app)
         driver.frame()
         assert app.panel.device_failed and "sees no CUDA device" in app.panel.error and not BUILT
         app.execute(Command("move_to", {"device": "cpu"}))
         assert app.panel.status == "moving the run to the CPU ..."
-        assert app.bridge.wait_until(lambda s: s.reports_received >= 1 or s.error, 60), app.bridge.state.error
+        assert app.engine.bridge.wait_until(lambda s: s.reports_received >= 1 or s.error, 60), \
+            app.engine.bridge.state.error
         driver.frame()
         assert app.panel.status == "started afresh on the CPU" and app.panel.error is None
         assert BUILT[-1].settings.device == "cpu"
@@ -90,27 +93,28 @@ def test_a_move_to_a_gpu_that_fails_loses_nothing_and_the_cpu_goes_on(window, mo
     app = small_studio(window, monkeypatch, tmp_path)
     try:
         driver = paused_studio_driver(window, monkeypatch, app)
-        app.bridge.resume()
+        app.engine.bridge.resume()
         # (a stylize step reported: the last report alone may be past the phase, its steps drained in one poll)
-        assert app.bridge.wait_until(lambda s: s.step_times.counts.get("stylize") or s.error, 120)
-        app.bridge.pause()
-        assert app.bridge.wait_until(lambda s: s.paused, 30)
+        assert app.engine.bridge.wait_until(lambda s: s.step_times.counts.get("stylize") or s.error, 120)
+        app.engine.bridge.pause()
+        assert app.engine.bridge.wait_until(lambda s: s.paused, 30)
         driver.frame()
         assert "Computing on: CPU" in driver.recorder.texts and app.panel.devices == ("cpu", "cuda")
         assert "from where the run is, computing on the GPU" in driver.recorder.find("Move to the GPU").tooltip
-        moved, step = BUILT[-1], app.bridge.state.last_report["step"]
+        moved, step = BUILT[-1], app.engine.bridge.state.last_report["step"]
         colours = moved.c_s.clone()
         commands = driver.click("Move to the GPU")
         assert [(c.name, c.args) for c in commands] == [("move_to", {"device": "cuda"})]
-        assert app.engine_config["device"] == "cuda"
-        assert app.bridge.wait_until(lambda s: s.error is not None, 60)
+        assert app.engine.config["device"] == "cuda"
+        assert app.engine.bridge.wait_until(lambda s: s.error is not None, 60)
         assert torch.equal(moved.c_s, colours)  # a paused run stays paused while it is handed over
         driver.frame()
         assert app.panel.device_failed and "sees no CUDA device" in app.panel.error
         widgets = [w.path for w in driver.recorder.widgets]
         assert "Continue on the CPU" in widgets and not any(w.startswith("Move to") for w in widgets)
         driver.click("Continue on the CPU")
-        assert app.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), app.bridge.state.error
+        assert app.engine.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), \
+            app.engine.bridge.state.error
         driver.frame()
         assert app.panel.status == f"continued on the CPU at step {step}"
         assert BUILT[-1] is not moved and torch.equal(loaded[-1], colours)  # the state as handed over

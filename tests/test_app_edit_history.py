@@ -56,7 +56,7 @@ def test_ctrl_z_takes_a_slider_back_in_the_panel_and_the_engine(studio, window):
 
     start = studio.panel.params["lambda_nnfm"]
     studio.execute(Command("set_params", {"lambda_nnfm": start * 3}))
-    studio.history.done[-1].at = float("-inf")  # a later change, not the same drag
+    studio.session.history.done[-1].at = float("-inf")  # a later change, not the same drag
     studio.execute(Command("set_params", {"keep_colours": 1.0}))
     studio.keys.press("z", ctrl=True)
     frame()
@@ -64,7 +64,7 @@ def test_ctrl_z_takes_a_slider_back_in_the_panel_and_the_engine(studio, window):
     studio.keys.press("z", ctrl=True)
     frame()
     assert studio.panel.params["lambda_nnfm"] == start
-    assert studio.bridge.wait_until(
+    assert studio.engine.bridge.wait_until(
         lambda s: (s.snapshot or {}).get("params", {}).get("lambda_nnfm") == start, 30)  # the engine has it
     frame()  # the panel shows the stacks as they were when the frame began
     assert studio.panel.redo_note.startswith("lambda_nnfm") and studio.panel.undo_note == ""
@@ -91,26 +91,26 @@ def test_a_restart_leaves_its_result_a_step_back_and_redo_brings_the_new_one(win
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     app = ring_studio(window, tmp_path, make_stylizing_engine, snapshots=3)
     try:
-        bridge = app.bridge
+        bridge = app.engine.bridge
         bridge.pause()
         assert bridge.wait_until(lambda s: s.paused, 30)
         time.sleep(0.3)
         bridge.poll()
         shown = float(bridge.state.snapshot["colors"][0, 0])
         app.execute(Command("restart"))
-        assert [e.action for e in app.history.done] == ["restart"] and app.bridge is bridge
+        assert [e.action for e in app.session.history.done] == ["restart"] and app.engine.bridge is bridge
         assert bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60)
         app.execute(Command("undo"))
-        before = app.history.undone[-1].before
-        assert app.bridge is None and app.result is not None and app.loaded.path == str(before)
-        assert before.parent == history_folder() and app.takes.takes == []  # saved for undo: no take
-        rgb = sh_dc_to_rgb(app.loaded.scene.sh_dc)
+        before = app.session.history.undone[-1].before
+        assert app.engine.bridge is None and app.session.result is not None and app.session.loaded.path == str(before)
+        assert before.parent == history_folder() and app.takes.shelf.takes == []  # saved for undo: no take
+        rgb = sh_dc_to_rgb(app.session.loaded.scene.sh_dc)
         assert np.allclose(rgb, shown, atol=2e-3)  # the colours the paused run showed
         assert app.panel.status.startswith("undo: the result before restart")
         assert app.panel.phase == "result (nothing running)" and app.panel.loss_history == []  # the run's gone
         app.execute(Command("redo"))
-        after = app.history.done[-1].after
-        assert after is not None and app.loaded.path == str(after) and after != before
+        after = app.session.history.done[-1].after
+        assert after is not None and app.session.loaded.path == str(after) and after != before
     finally:
         app.close(timeout=30)
     assert not history_folder().exists()  # the undo stack ends with the session
@@ -121,27 +121,27 @@ def test_region_changes_are_undone_a_drag_at_a_time(studio):
     rectangle selected; Ctrl+Z walks back through them to the tool off, Ctrl+Shift+Z forward again."""
     from app.panels import Command
 
-    box = studio.scene_box()
+    box = studio.region.scene_box()
     half = tuple(v * 0.5 for v in box)
     studio.execute(Command("region_box", {"box": half}))
-    first = studio.region_state()
-    studio.history.done[-1].at = float("-inf")  # a later change is a step of its own
+    first = studio.region.state()
+    studio.session.history.done[-1].at = float("-inf")  # a later change is a step of its own
     for k in range(5):  # a drag: moves within the coalescing time
-        studio.set_region_box(tuple(v + 0.01 * (k + 1) for v in half))
-    dragged = studio.region_state()
-    studio.history.done[-1].at = float("-inf")
-    assert studio.select_rectangle((0, 0, W, H), W, H) > 0
-    assert studio.region_rect_mask is not None
-    studio.undo_or_redo("undo")
-    assert studio.region_state()[:2] == dragged[:2] and studio.region_rect_mask is None
-    studio.undo_or_redo("undo")
-    assert studio.region_state()[:2] == first[:2]
-    studio.undo_or_redo("undo")
-    assert not studio.region_enabled and "region selection" in studio.panel.status
-    studio.undo_or_redo("redo")
-    studio.undo_or_redo("redo")
-    studio.undo_or_redo("redo")
-    assert studio.region_enabled and studio.region_rect_mask is not None
+        studio.region.set_box(tuple(v + 0.01 * (k + 1) for v in half))
+    dragged = studio.region.state()
+    studio.session.history.done[-1].at = float("-inf")
+    assert studio.region.select_rectangle((0, 0, W, H), W, H) > 0
+    assert studio.region.rect_mask is not None
+    studio.undo.undo_or_redo("undo")
+    assert studio.region.state()[:2] == dragged[:2] and studio.region.rect_mask is None
+    studio.undo.undo_or_redo("undo")
+    assert studio.region.state()[:2] == first[:2]
+    studio.undo.undo_or_redo("undo")
+    assert not studio.region.enabled and "region selection" in studio.panel.status
+    studio.undo.undo_or_redo("redo")
+    studio.undo.undo_or_redo("redo")
+    studio.undo.undo_or_redo("redo")
+    assert studio.region.enabled and studio.region.rect_mask is not None
 
 
 def test_an_unchanged_region_is_no_step():
@@ -178,27 +178,27 @@ def test_a_painting_choice_is_a_step_of_its_own(window, tmp_path, monkeypatch):
     first, second, third = _paintings(tmp_path)
     app = ring_studio(window, tmp_path)
     try:
-        assert app.open_path(first, record=False) and app.history.done == []
-        assert app.open_path(second)
-        assert isinstance(app.history.last(), ChoiceEdit) and app.engine_config["style"] == second
-        assert app.open_path(third, style_slot=1)
+        assert app.files.open_path(first, record=False) and app.session.history.done == []
+        assert app.files.open_path(second)
+        assert isinstance(app.session.history.last(), ChoiceEdit) and app.engine.config["style"] == second
+        assert app.files.open_path(third, style_slot=1)
         app.execute(Command("set_params", {"style_mix": 0.8}))
-        app.history.done[-1].at = float("-inf")
+        app.session.history.done[-1].at = float("-inf")
         app.execute(Command("remove_style2"))
-        assert app.panel.style2_path == "" and app.engine_config["style"] == second
+        assert app.panel.style2_path == "" and app.engine.config["style"] == second
         app.execute(Command("undo"))  # the second painting back, at its mix
-        assert app.panel.style2_path == third and app.engine_config["style"] == [second, third]
-        assert app.engine_config["style_weights"] == pytest.approx((0.2, 0.8))
+        assert app.panel.style2_path == third and app.engine.config["style"] == [second, third]
+        assert app.engine.config["style_weights"] == pytest.approx((0.2, 0.8))
         assert app.panel.status == "undo: the painting (second.png + third.png -> second.png)"
         app.execute(Command("undo"))  # the mix
         app.execute(Command("undo"))  # the second painting mixed in
-        assert app.panel.style2_path == "" and app.engine_config["style"] == second
+        assert app.panel.style2_path == "" and app.engine.config["style"] == second
         app.execute(Command("undo"))  # the first painting
-        assert app.panel.style_path == first and app.engine_config["style"] == first
-        assert app.bridge.wait_until(lambda s: s.ready and not s.error, 30)
-        assert app.bridge.config["style"] == first  # the engine restarted with it
+        assert app.panel.style_path == first and app.engine.config["style"] == first
+        assert app.engine.bridge.wait_until(lambda s: s.ready and not s.error, 30)
+        assert app.engine.bridge.config["style"] == first  # the engine restarted with it
         app.execute(Command("redo"))
-        assert app.panel.style_path == second and app.bridge.config["style"] == second
+        assert app.panel.style_path == second and app.engine.bridge.config["style"] == second
     finally:
         app.close(timeout=30)
 
@@ -214,11 +214,11 @@ def test_a_painting_that_replaces_a_result_is_one_step_with_it(window, tmp_path,
     first, second, _ = _paintings(tmp_path)
     app = ring_studio(window, tmp_path, make_stylizing_engine, snapshots=2)
     try:
-        assert app.open_path(first, record=False)
-        assert app.bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60)
-        steps = len(app.history.done)
-        assert app.open_path(second)
-        assert len(app.history.done) == steps + 1 and isinstance(app.history.last(), ResultEdit)
+        assert app.files.open_path(first, record=False)
+        assert app.engine.bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60)
+        steps = len(app.session.history.done)
+        assert app.files.open_path(second)
+        assert len(app.session.history.done) == steps + 1 and isinstance(app.session.history.last(), ResultEdit)
     finally:
         app.close(timeout=30)
 
@@ -241,13 +241,13 @@ def test_redo_of_a_painting_brings_back_the_result_made_after_it(window, tmp_pat
     made.with_suffix(".json").write_text(json.dumps({"settings": resolve_settings("preview", "360", 4).to_dict()}))
     app = ring_studio(window, tmp_path)
     try:
-        app.open_path(first, record=False)
-        app.open_path(second)
-        monkeypatch.setattr(app, "save_result", lambda: made)  # the run with the second painting made a result
-        app.undo_or_redo("undo")
-        assert app.panel.style_path == first and app.history.undone[-1].result_after == made
-        app.undo_or_redo("redo")
-        assert app.result is not None and app.loaded.path == str(made) and app.bridge is None
+        app.files.open_path(first, record=False)
+        app.files.open_path(second)
+        monkeypatch.setattr(app.undo, "save_result", lambda: made)  # the run with the second painting made a result
+        app.undo.undo_or_redo("undo")
+        assert app.panel.style_path == first and app.session.history.undone[-1].result_after == made
+        app.undo.undo_or_redo("redo")
+        assert app.session.result is not None and app.session.loaded.path == str(made) and app.engine.bridge is None
         assert app.panel.status == f"redo: {made.name} is back"
     finally:
         app.close(timeout=30)
@@ -264,15 +264,15 @@ def test_another_quality_is_a_step_of_its_own(window, tmp_path, monkeypatch):
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     app = ring_studio(window, tmp_path)
     try:
-        assert app.choice_state("quality") == "preview"
+        assert app.undo.choice_state("quality") == "preview"
         app.execute(Command("restart_quality", {"preset": "balanced"}))
-        assert isinstance(app.history.last(), ChoiceEdit) and app.bridge.config["preset"] == "balanced"
+        assert isinstance(app.session.history.last(), ChoiceEdit) and app.engine.bridge.config["preset"] == "balanced"
         app.execute(Command("undo"))
-        assert app.panel.quality == "preview" and app.bridge.config["preset"] == "preview"
+        assert app.panel.quality == "preview" and app.engine.bridge.config["preset"] == "preview"
         assert app.panel.status == "undo: the quality (preview -> balanced)"
         app.execute(Command("redo"))
-        assert app.panel.quality == "balanced" and app.bridge.config["preset"] == "balanced"
+        assert app.panel.quality == "balanced" and app.engine.bridge.config["preset"] == "balanced"
         app.execute(Command("restart_quality", {"preset": "balanced"}))  # the same quality again: no step
-        assert len(app.history.done) == 1
+        assert len(app.session.history.done) == 1
     finally:
         app.close(timeout=30)

@@ -108,8 +108,8 @@ def test_the_panel_disables_what_cannot_work_and_offers_continue(window, monkeyp
     try:
         with monkeypatch.context() as patch:
             fail_third_stylize_step(patch)
-            app.start_engine()
-            assert app.bridge.wait_until(lambda s: s.failed or s.done, 120), app.bridge.state.error
+            app.engine.start()
+            assert app.engine.bridge.wait_until(lambda s: s.failed or s.done, 120), app.engine.bridge.state.error
         driver = studio_driver(window, monkeypatch, app)
         driver.frame()
         p, step = app.panel, BUILT[-1].global_step
@@ -121,10 +121,11 @@ def test_the_panel_disables_what_cannot_work_and_offers_continue(window, monkeyp
         assert refine and driver.click(refine[0]) == []  # disabled too
         commands = driver.click(f"Continue from step {step}")
         assert [c.name for c in commands] == ["continue_run"]
-        assert app.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), app.bridge.state.error
+        assert app.engine.bridge.wait_until(lambda s: s.resumed is not None or s.error, 60), \
+            app.engine.bridge.state.error
         driver.frame()
         assert app.panel.status == f"continued on the CPU at step {step}" and not app.panel.failed
-        assert app.bridge.wait_until(lambda s: s.done or s.error, 120) and app.bridge.state.error is None
+        assert app.engine.bridge.wait_until(lambda s: s.done or s.error, 120) and app.engine.bridge.state.error is None
     finally:
         assert app.close(timeout=60)
 

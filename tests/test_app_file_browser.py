@@ -41,7 +41,7 @@ def studio(window, tmp_path, monkeypatch):
     monkeypatch.setattr(open_files.shutil, "which", lambda _name: None)
     loaded = LoadedScene(str(tmp_path / "first.ply"), blob_scene(50), [look_at_camera((0, 0, -3), (0, 0, 0), W, H)])
     app = StudioApp(window.ctx, loaded=loaded, engine_factory=None, engine_config={}, output_dir=tmp_path / "out")
-    app.recent_file = tmp_path / "recent.json"
+    app.files.recent_file = tmp_path / "recent.json"
     yield app
     app.close()
 
@@ -68,11 +68,11 @@ def test_without_a_dialog_program_the_studio_browser_opens_and_clicks_through_it
     driver.click("sub/")
     assert [e.name for e in browser.entries()] == ["scene.splat"]
     driver.click("scene.splat")
-    assert browser.selected == "scene.splat" and studio.stylized.count == 50
+    assert browser.selected == "scene.splat" and studio.views.stylized.count == 50
     driver.click("Open")
-    assert studio.stylized.count == 120 and studio.panel.browser is None
+    assert studio.views.stylized.count == 120 and studio.panel.browser is None
     assert studio.panel.status == "opened scene.splat (120 Gaussians)" and studio.panel.gaussians == 120
-    assert json.loads(studio.recent_file.read_text()) == [str((files / "sub").resolve())]
+    assert json.loads(studio.files.recent_file.read_text()) == [str((files / "sub").resolve())]
 
 
 def test_a_typed_path_or_a_double_click_opens_a_painting_and_the_second_one_goes_to_the_mix(
@@ -94,7 +94,7 @@ def test_a_typed_path_or_a_double_click_opens_a_painting_and_the_second_one_goes
 
 
 def test_the_recent_folders_list_goes_back_to_an_earlier_folder(window, monkeypatch, studio, files):
-    studio.recent_file.write_text(json.dumps([str(files / "sub"), str(files)]))
+    studio.files.recent_file.write_text(json.dumps([str(files / "sub"), str(files)]))
     driver = studio_driver(window, monkeypatch, studio)
     driver.click("Open scene...")
     assert studio.panel.browser.folder == files / "sub"
@@ -118,7 +118,7 @@ def test_a_file_that_does_not_open_keeps_the_browser_with_the_reason_cancel_and_
     driver.click("Open scene...")
     driver.frame(lambda io: io.add_key_event(imgui.Key.escape, True))
     driver.frame(lambda io: io.add_key_event(imgui.Key.escape, False))
-    assert studio.panel.browser is None and studio.stylized.count == 50
+    assert studio.panel.browser is None and studio.views.stylized.count == 50
 
 
 class FakeNativeDialog:
@@ -153,7 +153,7 @@ def native(monkeypatch):
 
 def test_a_native_dialog_is_used_where_there_is_one_and_its_answer_opened(window, monkeypatch, studio, files,
                                                                            native):
-    studio.recent_file.write_text(json.dumps([str(files)]))
+    studio.files.recent_file.write_text(json.dumps([str(files)]))
     driver = studio_driver(window, monkeypatch, studio)
     driver.click("Open scene...")
     assert studio.panel.browser is None and len(native) == 1
@@ -162,28 +162,28 @@ def test_a_native_dialog_is_used_where_there_is_one_and_its_answer_opened(window
     assert "zenity file dialog" in studio.panel.status and "zenity" in studio.panel.dialog_note
     native[0].answer = [str(files / "sub" / "scene.splat")]
     driver.frame()
-    assert studio.stylized.count == 120 and studio.panel.dialog_note == "" and studio._dialog is None
+    assert studio.views.stylized.count == 120 and studio.panel.dialog_note == "" and studio.files.dialog is None
 
 
 def test_the_panel_offers_the_studio_browser_while_a_native_dialog_is_open(window, monkeypatch, studio, native):
     driver = studio_driver(window, monkeypatch, studio)
     driver.click("Open style...")
     driver.click("Use the studio's browser")
-    assert native[0].killed and studio._dialog is None and studio.panel.dialog_note == ""
+    assert native[0].killed and studio.files.dialog is None and studio.panel.dialog_note == ""
     assert studio.panel.browser is not None and studio.panel.browser.title == "Open style image"
 
 
 def test_a_native_dialog_that_ends_at_once_without_an_answer_hands_over_to_the_studio_browser(studio, native):
-    studio._open_dialog("open_scene")
+    studio.files._open_dialog("open_scene")
     native[0].answer = []  # zenity could not show its window and exited
-    studio._poll_dialog()
+    studio.files.poll_dialog()
     assert studio.panel.browser is not None and "the zenity file dialog did not open" in studio.panel.browser.note
     studio.panel.browser = None
-    studio._open_dialog("open_style")
-    kind, dialog, program, started = studio._dialog
-    studio._dialog = (kind, dialog, program, started - 10)  # the person looked for ten seconds, then cancelled
+    studio.files._open_dialog("open_style")
+    kind, dialog, program, started = studio.files.dialog
+    studio.files.dialog = (kind, dialog, program, started - 10)  # the person looked for ten seconds, then cancelled
     dialog.answer = []
-    studio._poll_dialog()
+    studio.files.poll_dialog()
     assert studio.panel.browser is None and studio.panel.status == "no file chosen"
 
 

@@ -96,7 +96,7 @@ def demo_studio(window, tmp_path):
 
 def view_margins(app) -> np.ndarray:
     """Free shares of the view (left, top, right, bottom) beside the demo's projected robust box."""
-    return margins(app.control.camera(*app._view_size), box_corners(*scene_box(app.loaded.scene.means)))
+    return margins(app.control.camera(*app.framing.view_size), box_corners(*scene_box(app.session.loaded.scene.means)))
 
 
 def test_the_demo_opens_framed_beside_the_panel_and_stays_framed(window, demo_studio):
@@ -104,17 +104,17 @@ def test_the_demo_opens_framed_beside_the_panel_and_stays_framed(window, demo_st
 
     app = demo_studio
     screen = window.draw(app.frame)
-    assert app._view_size == (W - PANEL_WIDTH, H)
+    assert app.framing.view_size == (W - PANEL_WIDTH, H)
     free = view_margins(app)
     assert free.min() >= MARGIN_LO and free.min() < 0.06  # inside with a margin, and not lost in the distance
-    rgb = app.capture(screen)
+    rgb = app.outputs.capture(screen)
     lit = rgb[:, int(PANEL_WIDTH):].astype(int).sum(-1) > 60
     ys, xs = np.nonzero(lit)
     assert lit.sum() > 1000 and ys.min() > 0.03 * H and ys.max() < 0.97 * H  # the fountain's top clear of the edge
     # the panel hidden: the view is the whole window, framed again
     app.show_ui = False
     window.draw(app.frame)
-    assert app._view_size == (W, H) and view_margins(app).min() >= MARGIN_LO
+    assert app.framing.view_size == (W, H) and view_margins(app).min() >= MARGIN_LO
     # the camera moved: a new view size no longer re-frames it; R does, for the view's size then
     app.control.orbit(120, 0)
     app.control.zoom(-12)
@@ -124,7 +124,7 @@ def test_the_demo_opens_framed_beside_the_panel_and_stays_framed(window, demo_st
     app.keys.press("r")
     window.draw(app.frame)
     window.draw(app.frame)
-    assert app._view_size == (W - PANEL_WIDTH, H)
+    assert app.framing.view_size == (W - PANEL_WIDTH, H)
     free = view_margins(app)
     assert free.min() >= MARGIN_LO and free.min() < 0.06
 

@@ -34,40 +34,40 @@ def _style_png(path, colour):
 def test_dropped_scene_and_style_are_opened(studio, tmp_path):
     scene_path = tmp_path / "dropped.ply"
     save_scene(blob_scene(120, seed=2), scene_path)
-    studio.on_drop([str(scene_path), str(tmp_path / "ignored.ply")])
-    assert studio.stylized.count == 120
+    studio.files.on_drop([str(scene_path), str(tmp_path / "ignored.ply")])
+    assert studio.views.stylized.count == 120
     assert "opened dropped.ply" in studio.panel.status and "1 more dropped file(s) ignored" in studio.panel.status
     style = _style_png(tmp_path / "style.png", (200, 40, 40))
-    studio.on_drop([str(style)])
+    studio.files.on_drop([str(style)])
     assert studio.panel.style_path == str(style)
-    studio.on_drop([])  # an empty drop changes nothing
-    assert studio.stylized.count == 120
+    studio.files.on_drop([])  # an empty drop changes nothing
+    assert studio.views.stylized.count == 120
 
 
 def test_sog_bundles_folders_and_their_meta_json_open(studio, tmp_path):
     save_scene(blob_scene(130, seed=3, sh_degree=1), tmp_path / "scene.sog")
     save_scene(blob_scene(140, seed=4), tmp_path / "web" / "meta.json")
     for path, count in ((tmp_path / "scene.sog", 130), (tmp_path / "web", 140), (tmp_path / "web" / "meta.json", 140)):
-        studio.on_drop([str(path)])
-        assert studio.stylized.count == count and f"opened {path.name}" in studio.panel.status
+        studio.files.on_drop([str(path)])
+        assert studio.views.stylized.count == count and f"opened {path.name}" in studio.panel.status
     (tmp_path / "web" / "quats.webp").unlink()
-    studio.open_path(str(tmp_path / "web"))
-    assert studio.stylized.count == 140 and studio.panel.status.startswith("could not open web: ")
+    studio.files.open_path(str(tmp_path / "web"))
+    assert studio.views.stylized.count == 140 and studio.panel.status.startswith("could not open web: ")
     assert "quats (quats.webp) is missing" in studio.panel.status and "\n" not in studio.panel.status
 
 
 def test_unknown_or_broken_files_leave_the_studio_as_it_was(studio, tmp_path):
     (tmp_path / "notes.txt").write_text("hello")
-    studio.on_drop([str(tmp_path / "notes.txt")])
-    assert studio.stylized.count == 50 and studio.panel.status == "not a scene or image: notes.txt"
+    studio.files.on_drop([str(tmp_path / "notes.txt")])
+    assert studio.views.stylized.count == 50 and studio.panel.status == "not a scene or image: notes.txt"
     broken = tmp_path / "broken.ply"
     broken.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nend_header\n")
-    studio.open_path(str(broken))
-    assert studio.stylized.count == 50
+    studio.files.open_path(str(broken))
+    assert studio.views.stylized.count == 50
     assert studio.panel.status.startswith("could not open broken.ply: ") and "\n" not in studio.panel.status
     fake_image = tmp_path / "fake.png"
     fake_image.write_bytes(b"not a png")
-    studio.open_path(str(fake_image))
+    studio.files.open_path(str(fake_image))
     assert studio.panel.status.startswith("could not open fake.png: ")
 
 
@@ -89,15 +89,15 @@ class _FakeDialog:
 
 def test_a_dialog_answer_is_opened_when_ready_and_a_cancel_changes_nothing(studio, tmp_path):
     style = _style_png(tmp_path / "chosen.jpg", (30, 90, 200))
-    studio._dialog = ("open_style", _FakeDialog([str(style)]), "zenity", 0.0)
-    studio._poll_dialog()
+    studio.files.dialog = ("open_style", _FakeDialog([str(style)]), "zenity", 0.0)
+    studio.files.poll_dialog()
     assert studio.panel.style_path != str(style)  # not ready yet
-    studio._poll_dialog()
-    assert studio.panel.style_path == str(style) and studio._dialog is None
-    studio._dialog = ("open_scene", _FakeDialog([]), "zenity", 0.0)  # cancelled (long after it opened)
-    studio._poll_dialog()
-    studio._poll_dialog()
-    assert studio._dialog is None and studio.stylized.count == 50
+    studio.files.poll_dialog()
+    assert studio.panel.style_path == str(style) and studio.files.dialog is None
+    studio.files.dialog = ("open_scene", _FakeDialog([]), "zenity", 0.0)  # cancelled (long after it opened)
+    studio.files.poll_dialog()
+    studio.files.poll_dialog()
+    assert studio.files.dialog is None and studio.views.stylized.count == 50
 
 
 def test_sliders_show_the_preset_of_the_scene_kind_before_any_engine_runs(window, tmp_path):
@@ -108,7 +108,7 @@ def test_sliders_show_the_preset_of_the_scene_kind_before_any_engine_runs(window
                     engine_config={}, output_dir=tmp_path / "out")
     try:
         assert app.panel.params["lambda_nnfm"] == 100.0 and app.panel.params["lr"] == 0.1
-        app.set_scene(LoadedScene("o.ply", blob_scene(30), ring_cameras(8)))  # cameras all around: 360°
+        app.session.set_scene(LoadedScene("o.ply", blob_scene(30), ring_cameras(8)))  # cameras all around: 360°
         assert app.panel.params["lambda_nnfm"] == 200.0 and app.panel.params["lr"] == 0.05  # calibrated 360°
         assert app.panel.params["split_rate"] == 0.02
     finally:

@@ -60,10 +60,10 @@ def test_the_slider_changes_a_finished_result_and_ctrl_z_takes_it_back(window, m
 
     app = small_studio(window, monkeypatch, tmp_path)
     try:
-        app.start_engine()
-        assert app.bridge.wait_until(lambda s: s.done or s.error, 180), app.bridge.state.error
+        app.engine.start()
+        assert app.engine.bridge.wait_until(lambda s: s.done or s.error, 180), app.engine.bridge.state.error
         final = _final(BUILT[-1])
-        assert app.bridge.wait_until(lambda s: _shows(s, final.matched) and s.summary is not None, 60)
+        assert app.engine.bridge.wait_until(lambda s: _shows(s, final.matched) and s.summary is not None, 60)
         driver = studio_driver(window, monkeypatch, app)
         driver.frame()  # the finished run's lines in the panel before the slider is found
         commands = driver.click("palette_match/palette match", fx=0.1)
@@ -71,11 +71,11 @@ def test_the_slider_changes_a_finished_result_and_ctrl_z_takes_it_back(window, m
         asked = [c.args["palette_match"] for c in commands if c.name == "set_params"][-1]
         assert 0.0 <= asked < 0.5
         blended = blend_colours(final.before, final.matched, asked)
-        assert app.bridge.wait_until(lambda s: _shows(s, blended), 30), app.bridge.state.error
-        app.history.done[-1].at = float("-inf")  # the drag is over
+        assert app.engine.bridge.wait_until(lambda s: _shows(s, blended), 30), app.engine.bridge.state.error
+        app.session.history.done[-1].at = float("-inf")  # the drag is over
         app.keys.press("z", ctrl=True)
         driver.frame()
         assert app.panel.params["palette_match"] == 1.0
-        assert app.bridge.wait_until(lambda s: _shows(s, final.matched), 30), app.bridge.state.error
+        assert app.engine.bridge.wait_until(lambda s: _shows(s, final.matched), 30), app.engine.bridge.state.error
     finally:
         assert app.close(timeout=60)

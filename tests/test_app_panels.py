@@ -47,25 +47,25 @@ def test_space_pauses_the_engine_through_the_panel(window, tmp_path):
     app = StudioApp(window.ctx, loaded=LoadedScene("synthetic", blob_scene(200), [cam]),
                     engine_factory=make_fake_engine, engine_config={"n": 200}, output_dir=tmp_path)
     try:
-        app.start_engine()
-        assert app.bridge.wait_until(lambda s: s.snapshots_received >= 3 or s.error, 60)
-        assert app.bridge.state.error is None
+        app.engine.start()
+        assert app.engine.bridge.wait_until(lambda s: s.snapshots_received >= 3 or s.error, 60)
+        assert app.engine.bridge.state.error is None
         frame(window, app)
-        assert not app.bridge.state.paused
+        assert not app.engine.bridge.state.paused
 
         app.keys.press("space")  # as the window's key callback queues it (app/keys.py)
         commands = frame(window, app)
         assert [c.name for c in commands] == ["pause"]
-        assert app.bridge.wait_until(lambda s: s.paused, 10)
+        assert app.engine.bridge.wait_until(lambda s: s.paused, 10)
         # colour updates stop: the version shown stays put over several frames
         for _ in range(3):
             frame(window, app)
-        version = app.bridge.state.snapshot["colour_version"]
+        version = app.engine.bridge.state.snapshot["colour_version"]
         import time
 
         time.sleep(0.3)
         frame(window, app)
-        assert app.bridge.state.snapshot["colour_version"] == version
+        assert app.engine.bridge.state.snapshot["colour_version"] == version
         assert app.panel.paused
         # Space again resumes
         app.keys.press("space")
@@ -79,8 +79,8 @@ def test_compare_divider_shows_both_sources_and_can_be_dragged(window, tmp_path)
     cam = look_at_camera((0, 0, 0), (0, 0, 3), W, H, fov_deg=60)
     app = StudioApp(window.ctx, loaded=LoadedScene("wall", wall_scene([0.0, 0.0, 1.0]), [cam]), output_dir=tmp_path)
     app.progressive = False  # each render_view shows the exact current state (pacing: tests/test_scene_view.py)
-    app.stylized.update_colors(np.tile([1.0, 0.0, 0.0], (app.stylized.count, 1)).astype(np.float32))
-    app.view_mode = "compare"
+    app.views.stylized.update_colors(np.tile([1.0, 0.0, 0.0], (app.views.stylized.count, 1)).astype(np.float32))
+    app.views.mode = "compare"
     fbo = window.ctx.framebuffer([window.ctx.texture((W, H), 4)])
     app.render_view(fbo)
     img = read_rgb(fbo)
@@ -96,7 +96,7 @@ def test_compare_divider_shows_both_sources_and_can_be_dragged(window, tmp_path)
     frame(window, app, lambda io: io.add_mouse_button_event(0, True))
     frame(window, app, lambda io: io.add_mouse_pos_event(W / 4, H / 2))
     frame(window, app, lambda io: io.add_mouse_button_event(0, False))
-    assert abs(app.divider - 0.25) < 0.01
+    assert abs(app.views.divider - 0.25) < 0.01
     app.render_view(fbo)
     img = read_rgb(fbo)
     assert img[H // 2, W // 8][0] > 200 and img[H // 2, 3 * W // 8][2] > 200

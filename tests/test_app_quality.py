@@ -29,27 +29,28 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
     app = small_studio(window, monkeypatch, tmp_path)
     try:
         driver = paused_studio_driver(window, monkeypatch, app)
-        assert app.bridge.wait_until(lambda s: bool(s.plans), 30)
+        assert app.engine.bridge.wait_until(lambda s: bool(s.plans), 30)
         driver.frame()
         assert set(app.panel.quality_estimates) == {"preview", "balanced", "final"}
         assert all(v is None for v in app.panel.quality_estimates.values())  # nothing measured yet
         assert "Width: 32 px" in driver.recorder.texts
-        app.bridge.resume()
-        assert app.bridge.wait_until(lambda s: s.done and s.summary is not None or s.error, 120), \
-            app.bridge.state.error
+        app.engine.bridge.resume()
+        assert app.engine.bridge.wait_until(lambda s: s.done and s.summary is not None or s.error, 120), \
+            app.engine.bridge.state.error
         driver.frame()
         estimates = app.panel.quality_estimates
         assert 0 < estimates["preview"] < estimates["balanced"] < estimates["final"]  # priced at this run's steps
         result = [t for t in driver.recorder.texts if t.startswith("Fine grain at screen size: ")]
         assert result and result[0].endswith("(1 = the painting's own)"), driver.recorder.texts
-        ratio = app.bridge.state.summary["display"]["speckle_ratio"]
+        ratio = app.engine.bridge.state.summary["display"]["speckle_ratio"]
         assert app.panel.grain == ("-" if ratio is None else f"{ratio:.2f}") and app.panel.grain in result[0]
         colours = BUILT[-1].c_s.clone()
         assert driver.recorder.find("Refine -> 64 px").tooltip
         commands = driver.click("Refine -> 64 px")
         assert [c.name for c in commands] == ["refine"]
-        assert app.bridge.wait_until(lambda s: s.done and s.summary is not None and s.plans.get("levels") == [32, 64]
-                                     or s.error, 120), app.bridge.state.error
+        assert app.engine.bridge.wait_until(lambda s: s.done and s.summary is not None
+                                            and s.plans.get("levels") == [32, 64] or s.error, 120), \
+            app.engine.bridge.state.error
         engine = BUILT[-1]
         assert len(BUILT) == 1 and engine.levels == (32, 64)  # the same engine went on: no restart
         assert not np.array_equal(engine.c_s.numpy(), colours.numpy())
@@ -62,7 +63,7 @@ def test_refine_and_the_quality_choice_in_the_panel(window, monkeypatch, tmp_pat
         assert [c.args for c in commands if c.name == "set_quality"] == [{"preset": "balanced"}]
         driver.frame()
         commands = driver.click("Restart at balanced")
-        assert [c.name for c in commands] == ["restart_quality"] and app.engine_config["preset"] == "balanced"
+        assert [c.name for c in commands] == ["restart_quality"] and app.engine.config["preset"] == "balanced"
         driver.frame()  # the runs before price the presets from the restart on: no "measuring" again
         assert all(v is not None for v in app.panel.quality_estimates.values()), app.panel.quality_estimates
     finally:
@@ -79,19 +80,19 @@ def test_refine_moves_the_weights_for_its_level_only_and_a_restart_returns_the_p
     app = small_studio(window, monkeypatch, tmp_path, factory=keep_small_360_stylizer)
     try:
         driver = paused_studio_driver(window, monkeypatch, app)
-        before = dict(app.bridge.state.params)
+        before = dict(app.engine.bridge.state.params)
         assert (before["lambda_nnfm"], before["lambda_edges"]) == (200.0, 0.0)
-        app.bridge.resume()
-        assert app.bridge.wait_until(lambda s: s.done or s.error, 120), app.bridge.state.error
+        app.engine.bridge.resume()
+        assert app.engine.bridge.wait_until(lambda s: s.done or s.error, 120), app.engine.bridge.state.error
         app.execute(Command("refine"))
-        assert app.bridge.wait_until(lambda s: s.params.get("lambda_edges") == 4000.0 or s.error, 60)
+        assert app.engine.bridge.wait_until(lambda s: s.params.get("lambda_edges") == 4000.0 or s.error, 60)
         driver.frame()
         assert (app.panel.params["lambda_nnfm"], app.panel.params["lambda_edges"]) == (400.0, 4000.0)
         assert BUILT[-1].settings.weights.edges == 4000.0  # the level runs at them
         app.execute(Command("set_params", {"lambda_multiscale": 250.0}))  # the artist's own, after the refine
         app.execute(Command("restart"))
-        assert app.bridge.wait_until(lambda s: len(BUILT) == 2 and s.params.get("lambda_edges") == 0.0 or s.error,
-                                     60), app.bridge.state.error
+        assert app.engine.bridge.wait_until(lambda s: len(BUILT) == 2 and s.params.get("lambda_edges") == 0.0
+                                            or s.error, 60), app.engine.bridge.state.error
         driver.frame()
         kept = {**before, "lambda_multiscale": 250.0}
         assert {k: app.panel.params[k] for k in kept} == kept

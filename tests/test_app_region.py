@@ -61,14 +61,14 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         driver = studio_driver(window, monkeypatch, app)
         driver.frame()
         plain = read_rgb(window.ctx.screen)
-        assert not app.stylized.highlight and app.region_mask() is None
+        assert not app.views.stylized.highlight and app.region.mask() is None
         driver.click("Selected region")  # open the section
         commands = driver.click("select a region")
         assert [c.args for c in commands if c.name == "region_enable"] == [{"on": True}]
         assert driver.recorder.find("select a region").tooltip  # the control explains itself
         driver.frame()
         # on: the box starts as the scene's bounds, every Gaussian selected (none dimmed), outlined with its box
-        assert app.region_mask().all() and app.stylized.highlight and app.original.highlight
+        assert app.region.mask().all() and app.views.stylized.highlight and app.views.original.highlight
         assert app.panel.selection_outline
         assert any("150 of 150 Gaussians selected by the box" in t for t in driver.recorder.texts)
         assert len(app.panel.region_outline) == 12
@@ -78,14 +78,14 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         app.execute(Command("region_box", {"box": HALF}))
         driver.frame()
         inside = box_mask(scene.means, HALF)
-        assert np.array_equal(app.region_mask(), inside) and 20 < inside.sum() < 130
+        assert np.array_equal(app.region.mask(), inside) and 20 < inside.sum() < 130
         lit = read_rgb(window.ctx.screen)[:, int(PANEL_WIDTH) + 20:].astype(np.float32).sum()
         assert lit < 0.9 * read_rgb_sum_all_selected  # the Gaussians outside the box are dimmed
         assert any(f"{int(inside.sum())} of 150 Gaussians" in t for t in driver.recorder.texts)
         # Alt + drag moves the box in the view (its centre follows the mouse), Alt + wheel resizes it
         def centre_pixel():
-            box = np.asarray(app.region_box)
-            cam = app.control.camera(*app._view_size)
+            box = np.asarray(app.region.box)
+            cam = app.control.camera(*app.framing.view_size)
             p = np.asarray(cam.world_to_cam)[:3, :3] @ ((box[:3] + box[3:]) / 2) + np.asarray(cam.world_to_cam)[:3, 3]
             return np.array([cam.fx * p[0] / p[2] + cam.cx, cam.fy * p[1] / p[2] + cam.cy])
 
@@ -99,7 +99,7 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         assert np.allclose(centre_pixel() - before, (40, 0), atol=0.5)
         driver.frame(lambda io: io.add_mouse_wheel_event(0, 1))
         driver.frame(lambda io: io.add_key_event(imgui.Key.mod_alt, False))
-        box = np.asarray(app.region_box)
+        box = np.asarray(app.region.box)
         assert np.allclose(box[3:] - box[:3], 1.1 * extent) and np.allclose(centre_pixel() - before, (40, 0), atol=0.5)
         app.execute(Command("region_box", {"box": HALF}))
         # Shift + drag a rectangle over the right part of the view (clear of the panel)
@@ -112,13 +112,13 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         driver.frame(lambda io: io.add_mouse_button_event(0, False))
         driver.frame(lambda io: io.add_key_event(imgui.Key.mod_shift, False))
         left = app.panel.view_rect[0]  # the view starts right of the docked panel
-        expected = rect_mask(scene.means, app.control.camera(*app._view_size),
+        expected = rect_mask(scene.means, app.control.camera(*app.framing.view_size),
                              (rect[0] - left, rect[1], rect[2] - left, rect[3]))
         assert 0 < expected.sum() < 150
-        assert np.array_equal(app.region_mask(), expected) and app.panel.region_mode == "rectangle"
+        assert np.array_equal(app.region.mask(), expected) and app.panel.region_mode == "rectangle"
         # the engine starts with the selection; its snapshot's selection keeps the highlight after the start
-        app.start_engine()
-        assert app.bridge.wait_until(lambda s: s.ready or s.error, 60) and app.bridge.state.error is None
+        app.engine.start()
+        assert app.engine.bridge.wait_until(lambda s: s.ready or s.error, 60) and app.engine.bridge.state.error is None
         engine = BUILT[-1]
         assert np.array_equal(engine.input_selection, expected)
         assert "selected and stylized" in engine.decisions["region"]
@@ -127,13 +127,13 @@ def test_region_tool_box_rectangle_highlight_and_engine(window, monkeypatch, tmp
         # the box again, then B turns the tool off: no highlight, and a restart runs on the whole scene
         app.execute(Command("region_box", {"box": HALF}))
         app.execute(Command("restart"))
-        assert app.bridge.wait_until(lambda s: s.ready or s.error, 60)
-        assert app.bridge.wait_until(lambda s: len(BUILT) >= 2, 30)
+        assert app.engine.bridge.wait_until(lambda s: s.ready or s.error, 60)
+        assert app.engine.bridge.wait_until(lambda s: len(BUILT) >= 2, 30)
         assert BUILT[-1].settings.region == HALF and np.array_equal(BUILT[-1].input_selection, inside)
         app.keys.press("b")  # as the window's key callback queues it (app/keys.py)
         driver.frame()
         driver.frame()  # the key is read as the panel is drawn, after the scene: the next frame draws undimmed
-        assert not app.region_enabled and not app.stylized.highlight
+        assert not app.region.enabled and not app.views.stylized.highlight
     finally:
         assert app.close(timeout=60)
 
@@ -147,11 +147,11 @@ def test_the_feather_slider_goes_to_the_engine_with_the_box(window, monkeypatch,
     try:
         app.execute(Command("region_box", {"box": HALF}))
         app.execute(Command("region_feather", {"value": 0.25}))
-        app._region_to_config()
-        assert app.engine_config["region"] == HALF and app.engine_config["region_feather"] == 0.25
-        assert "feathered over 0.25" in app.engine_region
-        app.select_rectangle((0, 0, 200, 200), 400, 300)
-        app._region_to_config()
-        assert "region_feather" not in app.engine_config and "selection" in app.engine_config
+        app.engine.take_region()
+        assert app.engine.config["region"] == HALF and app.engine.config["region_feather"] == 0.25
+        assert "feathered over 0.25" in app.region.engine_region
+        app.region.select_rectangle((0, 0, 200, 200), 400, 300)
+        app.engine.take_region()
+        assert "region_feather" not in app.engine.config and "selection" in app.engine.config
     finally:
         app.close(timeout=30)

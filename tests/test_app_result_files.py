@@ -85,17 +85,18 @@ def test_opening_a_result_starts_nothing_and_restart_from_the_original_does(wind
     out, original, painting, _ = _result(tmp_path, lambda_nnfm=321.0)
     app = ring_studio(window, tmp_path)
     try:
-        app.region_enabled = True
-        assert app.open_path(str(out))
-        assert app.bridge is None and app.result is not None  # the running engine stopped; none started
-        assert not app.region_enabled  # the region tool does not stay on from the scene before
+        app.region.enabled = True
+        assert app.files.open_path(str(out))
+        assert app.engine.bridge is None and app.session.result is not None  # the running engine stopped; none started
+        assert not app.region.enabled  # the region tool does not stay on from the scene before
         assert app.panel.result_line.startswith("stylized.ply: a stylized result")
         assert app.panel.params["lambda_nnfm"] == 321.0 and app.panel.result_source_found
         assert "nothing started" in app.panel.status and app.panel.style_path == str(painting.resolve())
         app.execute(Command("restart_from_original"))
-        assert app.bridge is not None and app.result is None and app.loaded.path == str(original.resolve())
-        assert app.bridge.wait_until(lambda s: (s.snapshot or {}).get("params", {}).get("lambda_nnfm") == 321.0
-                                     or s.error, 30), app.bridge.state.error
+        assert app.engine.bridge is not None and app.session.result is None
+        assert app.session.loaded.path == str(original.resolve())
+        assert app.engine.bridge.wait_until(lambda s: (s.snapshot or {}).get("params", {}).get("lambda_nnfm") == 321.0
+                                     or s.error, 30), app.engine.bridge.state.error
     finally:
         app.close(timeout=30)
 
@@ -114,19 +115,20 @@ def test_a_painting_and_a_slider_chosen_on_a_result_are_what_restart_from_the_or
     Image.fromarray(np.random.default_rng(1).integers(0, 255, (12, 12, 3), dtype=np.uint8)).save(other)
     app = ring_studio(window, tmp_path)
     try:
-        assert app.open_path(str(out)) and app.panel.style_path == str(painting.resolve())
-        assert app.open_path(str(other)) and app.bridge is None and app.result is not None  # still the result
+        assert app.files.open_path(str(out)) and app.panel.style_path == str(painting.resolve())
+        assert app.files.open_path(str(other)) and app.engine.bridge is None
+        assert app.session.result is not None  # still the result
         app.execute(Command("set_params", {"lambda_nnfm": 123.0}))
         app.execute(Command("restart_from_original"))
-        assert app.loaded.path == str(original.resolve()) and app.panel.style_path == str(other)
-        assert app.bridge.config["style"] == str(other)  # the engine stylizes with the painting opened on the result
-        assert app.bridge.wait_until(lambda s: (s.snapshot or {}).get("params", {}).get("lambda_nnfm") == 123.0
-                                     or s.error, 30), app.bridge.state.error
-        app.stop_engine()
-        assert app.open_path(str(out)) and app.panel.style_path == str(painting.resolve())
-        assert app.open_path(str(other))
+        assert app.session.loaded.path == str(original.resolve()) and app.panel.style_path == str(other)
+        assert app.engine.bridge.config["style"] == str(other)  # the engine stylizes with the painting opened on it
+        assert app.engine.bridge.wait_until(lambda s: (s.snapshot or {}).get("params", {}).get("lambda_nnfm") == 123.0
+                                     or s.error, 30), app.engine.bridge.state.error
+        app.engine.stop()
+        assert app.files.open_path(str(out)) and app.panel.style_path == str(painting.resolve())
+        assert app.files.open_path(str(other))
         app.execute(Command("restart"))  # Stylize it again
-        assert app.bridge.config["style"] == str(other) and app.bridge.config["scene"] == str(out)
+        assert app.engine.bridge.config["style"] == str(other) and app.engine.bridge.config["scene"] == str(out)
     finally:
         app.close(timeout=30)
 
@@ -153,17 +155,17 @@ def test_a_result_on_show_without_an_engine_saves_as_it_is(window, tmp_path, mon
     out, original, _, settings = _result(tmp_path, lambda_nnfm=321.0)
     app = ring_studio(window, tmp_path)
     try:
-        assert app.open_path(str(out)) and app.bridge is None
+        assert app.files.open_path(str(out)) and app.engine.bridge is None
         target = tmp_path / "saved" / "again.spz"
         target.parent.mkdir()
-        app.save_as(target)
-        assert target.is_file() and "saved" in app.panel.status and app.takes.takes[0].path == str(target)
+        app.outputs.save_as(target)
+        assert target.is_file() and "saved" in app.panel.status and app.takes.shelf.takes[0].path == str(target)
         summary = json.loads(target.with_suffix(".json").read_text())
         assert summary["scene"] == str(target) and summary["settings"]["weights"]["nnfm"] == 321.0
         assert summary["source_scene"] == str(original.resolve()) and summary["gaussians"] == 60
         again, _ = load_scene(target)
-        assert again.count == 60 and np.allclose(again.means, app.loaded.scene.means, atol=1e-2)
-        app.export(fmt="ply")  # Ctrl+S: into the folder saved to last
+        assert again.count == 60 and np.allclose(again.means, app.session.loaded.scene.means, atol=1e-2)
+        app.outputs.export(fmt="ply")  # Ctrl+S: into the folder saved to last
         assert len(list(target.parent.glob("stylized_*.ply"))) == 1
     finally:
         app.close(timeout=30)
@@ -183,28 +185,30 @@ def test_a_saved_result_reopens_and_continues_its_run_on_its_original(window, tm
     save_scene(blob_scene(80, seed=5), original)
     app = ring_studio(window, tmp_path, factory=make_small_stylizer)
     try:
-        assert app.open_path(str(original))  # the engine restarts on it
-        assert app.bridge.wait_until(lambda s: (s.last_report or {}).get("step", 0) >= 6 or s.error, 120)
-        app.bridge.pause()
+        assert app.files.open_path(str(original))  # the engine restarts on it
+        assert app.engine.bridge.wait_until(lambda s: (s.last_report or {}).get("step", 0) >= 6 or s.error, 120)
+        app.engine.bridge.pause()
         out = tmp_path / "saved" / "kept.ply"
         out.parent.mkdir()
-        app.save_as(out)
-        assert app.bridge.wait_until(lambda s: s.exported or s.error, 60) and app.bridge.state.error is None
-        assert app.bridge.wait_until(lambda s: find_result_state(out) is not None, 30), "the run was not kept"
-        step = app.bridge.state.last_report["step"]
+        app.outputs.save_as(out)
+        assert app.engine.bridge.wait_until(lambda s: s.exported or s.error, 60) \
+            and app.engine.bridge.state.error is None
+        assert app.engine.bridge.wait_until(lambda s: find_result_state(out) is not None, 30), "the run was not kept"
+        step = app.engine.bridge.state.last_report["step"]
 
-        assert app.open_path(str(out)) and app.bridge is None
-        assert app.panel.result_continuable and app.result.state is not None
+        assert app.files.open_path(str(out)) and app.engine.bridge is None
+        assert app.panel.result_continuable and app.session.result.state is not None
         app.execute(Command("continue_result"))
-        assert app.bridge is not None and app.result is None and app.loaded.path == str(original.resolve())
-        assert app.bridge.wait_until(lambda s: s.resumed or s.error, 120), "did not resume"
-        assert app.bridge.state.error is None, app.bridge.state.error
-        assert app.bridge.state.resumed["step"] >= step  # where the run was when it was saved
+        assert app.engine.bridge is not None and app.session.result is None
+        assert app.session.loaded.path == str(original.resolve())
+        assert app.engine.bridge.wait_until(lambda s: s.resumed or s.error, 120), "did not resume"
+        assert app.engine.bridge.state.error is None, app.engine.bridge.state.error
+        assert app.engine.bridge.state.resumed["step"] >= step  # where the run was when it was saved
 
-        app.stop_engine()
-        assert app.open_path(str(out)) and app.result.state is not None
+        app.engine.stop()
+        assert app.files.open_path(str(out)) and app.session.result.state is not None
         copy = tmp_path / "saved" / "copy.ply"
-        app.save_as(copy)
+        app.outputs.save_as(copy)
         assert copy.is_file() and find_result_state(copy) is not None  # the copy can be continued too
     finally:
         app.close(timeout=30)
@@ -234,7 +238,7 @@ def test_restart_from_the_original_of_a_refined_preview_goes_back_to_the_presets
     assert info.level_weights["lambda_nnfm"] == (400.0, 200.0) and info.level_weights["lambda_edges"] == (4000.0, 0.0)
     app = ring_studio(window, tmp_path)
     try:
-        assert app.open_path(str(out)) and app.panel.params["lambda_nnfm"] == 400.0
+        assert app.files.open_path(str(out)) and app.panel.params["lambda_nnfm"] == 400.0
         app.execute(Command("set_params", {"lambda_edges": 1234.0}))  # the artist's own value
         app.execute(Command("restart_from_original"))
         assert app.panel.params["lambda_nnfm"] == preset["lambda_nnfm"] == 200.0

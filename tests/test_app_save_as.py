@@ -27,18 +27,19 @@ def test_save_as_writes_where_chosen_and_ctrl_s_follows(window, tmp_path, monkey
     monkeypatch.setenv("GSTYLE_FILE_DIALOG", "studio")
     app = ring_studio(window, tmp_path / "out")
     try:
-        assert app.export_folder() == tmp_path / "out"  # "ring" is no file: the output folder
+        assert app.outputs.export_folder() == tmp_path / "out"  # "ring" is no file: the output folder
         chosen = tmp_path / "mine"
         chosen.mkdir()
         app.execute(Command("save_as"))
         browser = app.panel.browser
         assert browser is not None and browser.saving
         app.execute(Command("browser_open", {"path": str(browser.submit(str(chosen / "first")))}))
-        assert app.panel.browser is None and app.save_folder == chosen.resolve()
-        assert app.bridge.wait_until(lambda s: len(s.exported) >= 1 or s.error, 30), app.bridge.state.error
+        assert app.panel.browser is None and app.outputs.save_folder == chosen.resolve()
+        assert app.engine.bridge.wait_until(lambda s: len(s.exported) >= 1 or s.error, 30), \
+            app.engine.bridge.state.error
         assert (chosen / "first.ply").is_file() and (chosen / "first.json").is_file()
         app.execute(Command("export"))  # Ctrl+S: into the folder saved to last
-        assert app.bridge.wait_until(lambda s: len(s.exported) >= 2 or s.error, 30)
+        assert app.engine.bridge.wait_until(lambda s: len(s.exported) >= 2 or s.error, 30)
         assert len(list(chosen.glob("stylized_*.ply"))) == 1
     finally:
         app.close(timeout=30)
@@ -56,9 +57,9 @@ def test_exports_go_beside_an_opened_scene_unless_it_is_the_demo(window, tmp_pat
         scene = tmp_path / "captures" / "garden.ply"
         scene.parent.mkdir()
         save_scene(blob_scene(40), scene)
-        assert app.open_path(str(scene))
-        assert app.export_folder() == scene.parent
-        assert app.open_path(str(pytest.importorskip("gstyle_core.assets").DEMO_SCENE))
-        assert app.export_folder() == tmp_path / "out"
+        assert app.files.open_path(str(scene))
+        assert app.outputs.export_folder() == scene.parent
+        assert app.files.open_path(str(pytest.importorskip("gstyle_core.assets").DEMO_SCENE))
+        assert app.outputs.export_folder() == tmp_path / "out"
     finally:
         app.close(timeout=30)

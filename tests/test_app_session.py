@@ -38,10 +38,10 @@ def test_close_saves_the_session_and_resume_continues_it(window, tmp_path, monke
                          engine_config={"n": 50}, output_dir=tmp_path / "out")
 
     app = studio()
-    assert not app.resume_available()
-    app.start_engine()
-    assert app.bridge.wait_until(lambda s: s.snapshots_received >= 4, 60), app.bridge.state.error
-    path = app.session_checkpoint()
+    assert not app.engine.resume_available()
+    app.engine.start()
+    assert app.engine.bridge.wait_until(lambda s: s.snapshots_received >= 4, 60), app.engine.bridge.state.error
+    path = app.engine.session_checkpoint()
     assert path.parent == tmp_path / "cache" / "checkpoints"
     assert app.close(timeout=60)  # what closing the window does
     state, meta = read_checkpoint(path)
@@ -53,15 +53,15 @@ def test_close_saves_the_session_and_resume_continues_it(window, tmp_path, monke
         _frame(window, app)
         assert app.panel.resume_available  # the panel shows "Resume last session"
         app.execute(Command("resume_session"))
-        assert app.bridge.wait_until(lambda s: s.resumed is not None, 60), app.bridge.state.error
-        assert app.bridge.state.resumed["step"] == state["steps"]
-        assert app.bridge.wait_until(lambda s: s.snapshots_received >= 1, 30)
-        assert app.bridge.state.snapshot["colour_version"] >= state["steps"]  # counting on, not from 0
+        assert app.engine.bridge.wait_until(lambda s: s.resumed is not None, 60), app.engine.bridge.state.error
+        assert app.engine.bridge.state.resumed["step"] == state["steps"]
+        assert app.engine.bridge.wait_until(lambda s: s.snapshots_received >= 1, 30)
+        assert app.engine.bridge.state.snapshot["colour_version"] >= state["steps"]  # counting on, not from 0
         _frame(window, app)
         assert not app.panel.resume_available and "resumed the last session" in app.panel.status
         # another style is another session: nothing to resume for it
-        app.engine_config["style"] = str(tmp_path / "other.png")
-        assert not app.resume_available()
+        app.engine.config["style"] = str(tmp_path / "other.png")
+        assert not app.engine.resume_available()
     finally:
         app.close(timeout=60)
 

@@ -37,9 +37,9 @@ def test_the_red_error_goes_when_a_step_succeeds_after_it_and_stays_while_none_d
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     app = ring_studio(window, tmp_path, make_priceless_engine)
     try:
-        assert app.bridge.wait_until(lambda s: s.reports_received >= 3 or s.error and s.reports_received, 30)
-        assert app.bridge.state.error is None  # the steps after it made it stale
-        app._fill_panel()
+        assert app.engine.bridge.wait_until(lambda s: s.reports_received >= 3 or s.error and s.reports_received, 30)
+        assert app.engine.bridge.state.error is None  # the steps after it made it stale
+        app.fill_panel()
         assert app.panel.error is None
         assert app.panel.status == "the run went on after: estimating the presets: RuntimeError: no plans here"
         app.execute(Command("restart"))  # the line was about the run before: it goes with it
@@ -48,11 +48,11 @@ def test_the_red_error_goes_when_a_step_succeeds_after_it_and_stays_while_none_d
         app.close(timeout=30)
     app = ring_studio(window, tmp_path, make_failing_engine)
     try:
-        assert app.bridge.wait_until(lambda s: s.error is not None, 30)
-        reports = app.bridge.state.reports_received
-        app.bridge.wait_until(lambda s: s.reports_received > reports, 1.0)  # nothing steps after the failure
-        app._fill_panel()
-        assert "fake engine failure" in app.panel.error and app.bridge.state.reports_received == reports
+        assert app.engine.bridge.wait_until(lambda s: s.error is not None, 30)
+        reports = app.engine.bridge.state.reports_received
+        app.engine.bridge.wait_until(lambda s: s.reports_received > reports, 1.0)  # nothing steps after the failure
+        app.fill_panel()
+        assert "fake engine failure" in app.panel.error and app.engine.bridge.state.reports_received == reports
     finally:
         app.close(timeout=30)
 
@@ -61,17 +61,18 @@ def test_a_resumes_status_goes_with_the_run_it_describes(window, tmp_path, monke
     monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
     app = ring_studio(window, tmp_path, snapshots=3)
     try:
-        app.stop_engine()  # the session is saved
-        assert app.session_checkpoint().is_file()
-        assert app.start_engine(resume=True)
-        assert app.bridge.wait_until(lambda s: s.resumed is not None or s.error, 30), app.bridge.state.error
-        app._fill_panel()
+        app.engine.stop()  # the session is saved
+        assert app.engine.session_checkpoint().is_file()
+        assert app.engine.start(resume=True)
+        assert app.engine.bridge.wait_until(lambda s: s.resumed is not None or s.error, 30), \
+            app.engine.bridge.state.error
+        app.fill_panel()
         assert app.panel.status.startswith("resumed the last session at step ")
         for _ in range(2):
             app.execute(Command("restart"))
             assert (app.panel.phase, app.panel.step) == ("starting", 0)  # not the run before's progress
-            assert app.bridge.wait_until(lambda s: s.reports_received >= 1 or s.error, 30)
-            app._fill_panel()
+            assert app.engine.bridge.wait_until(lambda s: s.reports_received >= 1 or s.error, 30)
+            app.fill_panel()
             assert "resumed" not in app.panel.status
     finally:
         app.close(timeout=30)
@@ -99,15 +100,15 @@ def test_the_width_shown_is_the_one_of_the_run_or_result_on_show(window, tmp_pat
     app = ring_studio(window, tmp_path, lambda **config: make_stylizing_engine(width=512, **config), snapshots=2)
     try:
         driver = studio_driver(window, monkeypatch, app)
-        assert app.bridge.wait_until(lambda s: s.reports_received >= 1, 30)
+        assert app.engine.bridge.wait_until(lambda s: s.reports_received >= 1, 30)
         driver.frame()
         assert app.panel.width == 512 and "Width: 512 px" in driver.recorder.texts
         app.execute(Command("restart"))  # the run at 512 px is saved first: a step back
         app.execute(Command("undo"))  # its result (256 px, no levels) is on show, nothing running
-        assert app.bridge is None and app.result is not None
+        assert app.engine.bridge is None and app.session.result is not None
         driver.frame()
         assert app.panel.width == 256 and "Width: 256 px" in driver.recorder.texts
-        assert app.open_path(str(_result_file(tmp_path, (512, 1024))))
+        assert app.files.open_path(str(_result_file(tmp_path, (512, 1024))))
         driver.frame()
         assert "Width: 1024 px (levels 256 px -> 512 px -> 1024 px)" in driver.recorder.texts
     finally:
@@ -123,25 +124,25 @@ def test_undo_and_redo_name_what_they_bring_back(window, tmp_path, monkeypatch):
         saved = []
         for _ in range(2):
             app.execute(Command("restart"))
-            saved.append(app.history.done[-1].before)
-            assert app.bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 30)
-        app._fill_panel()
+            saved.append(app.session.history.done[-1].before)
+            assert app.engine.bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 30)
+        app.fill_panel()
         assert saved[1].name in app.panel.undo_note and app.panel.redo_note == ""
         app.execute(Command("undo"))
-        shown, newest = Path(app.loaded.path), app.history.undone[-1].after
+        shown, newest = Path(app.session.loaded.path), app.session.history.undone[-1].after
         assert shown == saved[1] and newest is not None
-        app._fill_panel()
+        app.fill_panel()
         assert saved[0].name in app.panel.undo_note and newest.name in app.panel.redo_note
         assert shown.name not in app.panel.redo_note
         app.execute(Command("undo"))
-        app._fill_panel()
-        assert Path(app.loaded.path) == saved[0] and app.panel.undo_note == ""
+        app.fill_panel()
+        assert Path(app.session.loaded.path) == saved[0] and app.panel.undo_note == ""
         assert saved[1].name in app.panel.redo_note  # the result the first undo opened comes back
         app.execute(Command("redo"))
-        assert Path(app.loaded.path) == saved[1]
-        app._fill_panel()
+        assert Path(app.session.loaded.path) == saved[1]
+        app.fill_panel()
         assert newest.name in app.panel.redo_note
         app.execute(Command("redo"))
-        assert Path(app.loaded.path) == newest
+        assert Path(app.session.loaded.path) == newest
     finally:
         app.close(timeout=30)

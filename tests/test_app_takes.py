@@ -56,14 +56,14 @@ def _render(app: StudioApp, fbo) -> np.ndarray:
 def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_path):
     app = ring_studio(window, tmp_path, snapshots=2, min_level=0.4)  # the fake's colours cycle; never black here
     try:
-        bridge = app.bridge
+        bridge = app.engine.bridge
         driver = studio_driver(window, monkeypatch, app)
         exported = []
         for count, name in enumerate(("early", "late"), start=1):
             bridge.pause()
             assert bridge.wait_until(lambda s: s.paused, 30)
             exported.append(tmp_path / f"{name}.ply")
-            app.export(exported[-1])
+            app.outputs.export(exported[-1])
             assert bridge.wait_until(lambda s, n=count: len(s.exported) >= n or s.error, 30)
             driver.frame()
             bridge.resume()
@@ -79,17 +79,17 @@ def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_p
         picture = np.asarray(Image.open(thumbnail_path(tmp_path, str(exported[0]))))
         assert picture.shape == (72, 96, 3) and (picture.sum(-1) > 30).sum() > 50  # the scene is in it
         assert all(t is not None for t in app.panel.take_thumbnails)  # each take shows its picture
-        assert [t.path for t in app.takes.takes] == [str(exported[1]), str(exported[0])]
+        assert [t.path for t in app.takes.shelf.takes] == [str(exported[1]), str(exported[0])]
         assert json.loads((tmp_path / TAKES_FILE).read_text())[1]["path"] == str(exported[0])
         assert driver.recorder.find("take1/compare").tooltip
         commands = driver.click("take1/compare")  # the older take, beside the current run
         assert [c.name for c in commands] == ["show_take"]
-        assert app.view_mode == "compare" and app.compare_with_take and app.take_shown == str(exported[0])
+        assert app.views.mode == "compare" and app.views.compare_with_take and app.views.take_shown == str(exported[0])
         # C after T compares with the original (stylized left, original right, as its tooltip says); C again leaves
         for expected in (("compare", False, "comparing with the original"), ("stylized", False, "")):
             app.keys.press("c")  # as the window's key callback queues it (app/keys.py)
             driver.frame()
-            assert (app.view_mode, app.compare_with_take, app.panel.status) == expected
+            assert (app.views.mode, app.views.compare_with_take, app.panel.status) == expected
         driver.frame()
         assert not app.panel.compare_with_take
         app.execute(Command("show_take", {"index": 1, "compare": True}))
@@ -105,20 +105,20 @@ def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_p
             driver.frame()
         app.progressive = False
         fbo = window.ctx.simple_framebuffer((160, 120))
-        app.divider = 0.5
+        app.views.divider = 0.5
         compare = _render(app, fbo)
-        app.view_mode = "take"
+        app.views.mode = "take"
         take_alone = _render(app, fbo)
-        app.view_mode = "stylized"
+        app.views.mode = "stylized"
         now_alone = _render(app, fbo)
-        app.compare_with_original()
+        app.takes.compare_with_original()
         with_original = _render(app, fbo)
         right, left = np.s_[:, 82:], np.s_[:, :78]
         assert np.abs(compare[right] - take_alone[right]).max() <= 1
         assert np.abs(compare[left] - now_alone[left]).max() <= 1
         assert np.abs(take_alone[right] - now_alone[right]).max() > 10  # the take is not the current state
         assert np.abs(with_original[right] - compare[right]).max() > 10
-        app.forget_take(1)
-        assert app.take_shown is None and [t.name for t in app.takes.takes] == ["take 2"]
+        app.takes.forget_take(1)
+        assert app.views.take_shown is None and [t.name for t in app.takes.shelf.takes] == ["take 2"]
     finally:
         app.close()

@@ -59,14 +59,14 @@ def test_turntable_button_renders_in_the_background_while_the_ui_keeps_drawing(w
         app.execute(Command("turntable_settings", {"frames": 6}))  # the frame count's input field does the same
         commands = driver.click("Turntable video...")
         assert [(c.name, c.args) for c in commands] == [("turntable", {"frames": 6, "format": "gif"})]
-        assert app.video_job is not None and app.panel.video_running
+        assert app.outputs.video_job is not None and app.panel.video_running
         frames_while_rendering = 0
         deadline = time.monotonic() + 600  # seconds here, minutes on a loaded machine (spawn, torch import)
-        while app.video_job is not None and time.monotonic() < deadline:
+        while app.outputs.video_job is not None and time.monotonic() < deadline:
             driver.frame()
             frames_while_rendering += 1
             time.sleep(0.02)  # paced like a vsync'd UI (a busy loop would starve the niced renderer)
-        assert app.video_job is None and app.panel.status.startswith("wrote "), app.panel.status
+        assert app.outputs.video_job is None and app.panel.status.startswith("wrote "), app.panel.status
         assert frames_while_rendering >= 5  # the studio kept drawing (and showing progress) meanwhile
         written = list(tmp_path.glob("turntable_*.gif"))
         assert len(written) == 1 and Image.open(written[0]).n_frames == 6
@@ -80,12 +80,12 @@ def test_cancel_button_stops_the_video(window, monkeypatch, tmp_path):
                     worker_mode="thread")
     try:
         driver = studio_driver(window, monkeypatch, app)
-        assert app.start_turntable(3000, "png frames") is not None
+        assert app.outputs.start_turntable(3000, "png frames") is not None
         driver.frame()
         assert driver.recorder.find("Cancel###video").tooltip
         driver.click("Cancel###video")
         deadline = time.monotonic() + 300
-        while app.video_job is not None and time.monotonic() < deadline:
+        while app.outputs.video_job is not None and time.monotonic() < deadline:
             driver.frame()
         assert app.panel.status == "video cancelled; nothing written" and list(tmp_path.iterdir()) == []
     finally:
@@ -96,13 +96,14 @@ def test_turntable_of_the_stylized_scene_and_web_exports(window, monkeypatch, tm
     app = StudioApp(window.ctx, loaded=LoadedScene("ring", blob_scene(150), ring_cameras(4)), output_dir=tmp_path,
                     engine_factory=make_fake_engine, engine_config={"n": 150}, worker_mode="thread")
     try:
-        app.start_engine()
-        assert app.bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60), app.bridge.state.error
-        app.bridge.pause()
-        assert app.bridge.wait_until(lambda s: s.paused, 30)
-        app.bridge.poll()
-        snap = app.bridge.state.snapshot
-        scene = app.current_scene()
+        app.engine.start()
+        assert app.engine.bridge.wait_until(lambda s: s.snapshots_received >= 2 or s.error, 60), \
+            app.engine.bridge.state.error
+        app.engine.bridge.pause()
+        assert app.engine.bridge.wait_until(lambda s: s.paused, 30)
+        app.engine.bridge.poll()
+        snap = app.engine.bridge.state.snapshot
+        scene = app.outputs.current_scene()
         assert np.allclose(scene.rgb, snap["colors"], atol=1e-6) and np.allclose(scene.means, snap["means"])
         driver = studio_driver(window, monkeypatch, app)
         for label, fmt in (("Export .spz", "spz-v3"), ("Export .compressed.ply", "ply-playcanvas-compressed"),
@@ -111,8 +112,8 @@ def test_turntable_of_the_stylized_scene_and_web_exports(window, monkeypatch, tm
             app.panel.status = ""  # height, and a long status line would push these buttons below its bottom
             commands = driver.click(label)
             assert [c.name for c in commands] == ["export"]
-            assert app.bridge.wait_until(lambda s, fmt=fmt: s.exported and fmt[:3] in s.exported[-1], 30)
-            loaded, report = load_scene(app.bridge.state.exported[-1])
+            assert app.engine.bridge.wait_until(lambda s, fmt=fmt: s.exported and fmt[:3] in s.exported[-1], 30)
+            loaded, report = load_scene(app.engine.bridge.state.exported[-1])
             assert report.format == fmt and loaded.count == 150
     finally:
         app.close()

@@ -379,8 +379,8 @@ def test_studio_uploads_only_what_changed_and_shows_decisions(ctx, tmp_path):
     scene = blob_scene(200, seed=2, sh_degree=3)
     app = StudioApp(ctx, loaded=LoadedScene("synthetic", scene, cameras(64, 48)), output_dir=tmp_path)
     try:
-        assert "sh" in app.original.layers and "sh" not in app.stylized.layers  # SH: original view only
-        bridge = app.bridge = _StubBridge()
+        assert "sh" in app.views.original.layers and "sh" not in app.views.stylized.layers  # SH: original view only
+        bridge = app.engine.bridge = _StubBridge()
         geometry = {k: getattr(scene, k) for k in ("means", "log_scales", "quats", "opacity_logits")}
 
         def deliver(colour_version, geometry_version, colours):
@@ -388,8 +388,8 @@ def test_studio_uploads_only_what_changed_and_shows_decisions(ctx, tmp_path):
                                          colors_gt=np.full((200, 3), 0.5, np.float32),
                                          colour_version=colour_version, geometry_version=geometry_version)
             bridge.state.snapshots_received += 1
-            app._apply_engine_updates()
-            return dict(app.stylized.uploads)
+            app.sync.apply_updates()
+            return dict(app.views.stylized.uploads)
 
         first = deliver(0, 0, 0.2)
         assert deliver(0, 0, 0.2) == first  # nothing changed: no upload at all
@@ -398,12 +398,12 @@ def test_studio_uploads_only_what_changed_and_shows_decisions(ctx, tmp_path):
         moved = deliver(1, 1, 0.4)
         assert moved == {"geometry": first["geometry"] + 1, "colors": colour_only["colors"] + 2}  # + c_s and c_gt
         bridge.state.decisions = {"culled": "3 of 200 Gaussians seen by no training camera"}
-        app._fill_panel()
+        app.fill_panel()
         assert app.panel.decisions["culled"].startswith("3 of 200")
         assert app.panel.viewer_notes[0].startswith("viewer SH: evaluated for the original scene only")
         assert "depth sorts" in app.panel.viewer_notes[1]
     finally:
-        app.bridge = None
+        app.engine.bridge = None
         app.close()
 
 

@@ -262,9 +262,11 @@ def test_convert_to_a_directory_or_under_a_file_is_refused_before_reading(tmp_pa
 
 # ====================================================================== the studio
 def test_studio_export_failure_is_one_line_and_leaves_no_take(tmp_path, monkeypatch):
+    from app.events import Events
     from app.export import export_engine, summary_path
-    from app.studio_sync import StudioSync
-    from app.takes import TakeShelf
+    from app.panels import PanelState
+    from app.status_line import StatusLine
+    from app.studio_sync import EngineSync
     from app.takes_view import TakesView
     from app.worker import WorkerState
     from gstyle_core.errors import one_line_error
@@ -283,17 +285,17 @@ def test_studio_export_failure_is_one_line_and_leaves_no_take(tmp_path, monkeypa
     assert line.startswith(f"cannot write {folder}") and "no space left on the device" in line and "\n" not in line
     assert listing(folder) == []
 
-    class Studio(StudioSync, TakesView):
-        def __init__(self):
-            self.panel, self.takes = type("Panel", (), {"status": ""})(), TakeShelf(folder)
-            self._exports_seen = self._export_failures_seen = (0, 0)
-            self.bridge = None  # no engine: a take remembers no view (TakesView.view_key)
-            self.stylized = type("Empty", (), {"count": 0})()  # nothing shown: a take gets no thumbnail
-
-    studio, state = Studio(), WorkerState()
+    panel = PanelState()
+    status = StatusLine(panel)
+    empty = type("Empty", (), {"count": 0})()  # nothing shown: a take gets no thumbnail
+    takes = TakesView(None, panel, status, folder, views=type("Views", (), {"stylized": empty})(), control=None,
+                      view_key=lambda: "", input_path=lambda: None, open_path=lambda path: False)  # no engine: no view
+    studio = EngineSync(panel, status, Events(), engine=None, stylized=empty, showing_result=lambda: False,
+                        shelve=takes.shelve_exports)
+    state = WorkerState()
     state.export_failures.append(f"export: {line}")
     studio._sync_exports(state)
-    assert studio.panel.status == f"export: {line}" and studio.takes.takes == []
+    assert studio.panel.status == f"export: {line}" and takes.shelf.takes == []
 
     faults.disarm()
     assert export_engine(Engine(), path, None, {}) == str(path)
@@ -302,8 +304,8 @@ def test_studio_export_failure_is_one_line_and_leaves_no_take(tmp_path, monkeypa
     faults.arm(folder, errno.EROFS)  # the export made it; takes.json cannot be saved
     state.exported.append(str(path))
     studio._sync_exports(state)
-    studio._show_takes_error()
-    assert [t.path for t in studio.takes.takes] == [str(path)]  # the take is on the shelf for this session
+    takes.show_write_error()
+    assert [t.path for t in takes.shelf.takes] == [str(path)]  # the take is on the shelf for this session
     assert studio.panel.status.startswith(f"exported {path} (kept as take 1); cannot write {folder / 'takes.json'}"
                                           ": read-only file system"), studio.panel.status
     assert load_scene(path)[0].count == 25

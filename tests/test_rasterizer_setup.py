@@ -126,15 +126,16 @@ def test_the_worker_tells_the_studio_before_the_build_and_after_it(monkeypatch):
 
 
 def test_the_studio_shows_a_new_setup_note_and_leaves_later_news_alone():
-    from app.studio_sync import StudioSync
+    from app.events import Events
+    from app.panels import PanelState
+    from app.status_line import StatusLine
+    from app.studio_sync import EngineSync
     from app.worker import WorkerState
 
-    class Studio(StudioSync):
-        def __init__(self) -> None:
-            self.panel = type("Panel", (), {"status": "", "phase": "-"})()
-            self._setup_note_seen = ""
-
-    studio, state = Studio(), WorkerState()
+    panel = PanelState()  # the engine sync alone: no engine, no renderer (the setup note needs neither)
+    studio = EngineSync(panel, StatusLine(panel), Events(), engine=None, stylized=None,
+                        showing_result=lambda: False, shelve=lambda new: "")
+    state = WorkerState()
     studio._sync_setup_note(state)
     assert studio.panel.status == "" and studio.panel.phase == "-"
     state.setup_note = BUILD_NOTE

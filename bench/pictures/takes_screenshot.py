@@ -33,8 +33,8 @@ def run_frames(window, app, until, timeout: float, fps: float = 30.0) -> float:
     while not until() and time.perf_counter() - t0 < timeout:
         start = time.perf_counter()
         window.draw(app.frame)
-        if app.bridge is not None and app.bridge.state.error:
-            raise SystemExit(f"worker failed: {app.bridge.state.error}")
+        if app.engine.bridge is not None and app.engine.bridge.state.error:
+            raise SystemExit(f"worker failed: {app.engine.bridge.state.error}")
         time.sleep(max(0.0, 1.0 / fps - (time.perf_counter() - start)))
     return time.perf_counter() - t0
 
@@ -53,23 +53,24 @@ def main() -> None:
     app = StudioApp(window.ctx, loaded=load_scene_with_cameras(None, None), style_path=str(first),
                     engine_factory=make_stylizer, engine_config={}, output_dir=str(out_dir))
     try:
-        app.set_style(str(second), slot=1, mix=args.first)
-        app.start_engine()
-        done = lambda: app.bridge.state.done  # noqa: E731
+        app.paintings.set_style(str(second), slot=1, mix=args.first)
+        app.engine.start()
+        done = lambda: app.engine.bridge.state.done  # noqa: E731
         print(f"run at mix {args.first}: {run_frames(window, app, done, 900):.0f} s")
-        before = len(app.bridge.state.exported)
-        app.export()
-        run_frames(window, app, lambda: len(app.bridge.state.exported) > before and bool(app.takes.takes), 60)
+        before = len(app.engine.bridge.state.exported)
+        app.outputs.export()
+        bridge = app.engine.bridge
+        run_frames(window, app, lambda: len(bridge.state.exported) > before and bool(app.takes.shelf.takes), 60)
         app.execute(Command("set_params", {"style_mix": args.second}))
-        app.start_engine()
-        run_frames(window, app, lambda: not app.bridge.state.done, 30)
+        app.engine.start()
+        run_frames(window, app, lambda: not app.engine.bridge.state.done, 30)
         print(f"run at mix {args.second}: {run_frames(window, app, done, 900):.0f} s")
         app.execute(Command("show_take", {"index": 0, "compare": True}))
-        app.panel.status = f"comparing with {app.takes.takes[0].name} (style mix {args.first})"
+        app.status.say(f"comparing with {app.takes.shelf.takes[0].name} (style mix {args.first})")
         run_frames(window, app, lambda: False, 6)
         app.progressive = False
         screen = window.draw(app.frame)
-        print(f"wrote {app.save_png(args.out, app.capture(screen))}")
+        print(f"wrote {app.outputs.save_png(args.out, app.outputs.capture(screen))}")
     finally:
         app.close()
         window.close()
