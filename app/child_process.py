@@ -81,3 +81,19 @@ def interrupts_ignored() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def exit_words(code: int, capacity: str = "") -> str:
+    """Why a helper process ended by itself, in words: a signal's name (SIGKILL: most likely the kernel's
+    out-of-memory killer, with ``capacity``, the run's capacity plan, for what it expected), else its exit status."""
+    if code >= 0:
+        return f"the engine process exited with code {code}"
+    try:
+        name = signal.Signals(-code).name
+    except ValueError:
+        name = f"signal {-code}"
+    words = f"the engine process was killed ({name}, exit {code})"
+    if -code == signal.SIGKILL:
+        plan = f"; the run's plan: {capacity.removeprefix('capacity: ')}" if capacity else ""
+        words += f": most likely the system ran out of memory{plan}"
+    return words

@@ -178,6 +178,7 @@ class EngineHost:
         self.send_decisions()
         self.snapshot_pending = True
         self.flush_snapshot()
+        self.saves.autosave()
         if self.done:
             self.send_summary()
 

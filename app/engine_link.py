@@ -93,7 +93,24 @@ class EngineLink:
         if probed != path or now - when > 1.0:  # one stat a second at most
             exists = path is not None and path.is_file()
             self._resume_probe = (now, path, exists)
+        if self.bridge is not None and self.bridge.state.alive and self.bridge.state.autosaved is not None:
+            return False  # the running engine saved it itself: resuming it would go back, not on
         return exists and self.factory is not None and self._resumed_from != path
+
+    def died_at(self) -> int | None:
+        """The step the run can go on from after its worker died (killed, or a crash of the process): the step of
+        the session it saved last, or of the session it resumed from; None while it lives or nothing was saved."""
+        bridge = self.bridge
+        if bridge is None or bridge.state.alive or not bridge.state.error or self.factory is None:
+            return None
+        path, st = self.session_checkpoint(), bridge.state
+        if path is None or not path.is_file():
+            return None
+        if st.autosaved is not None and st.autosaved.get("path") == str(path):
+            return int(st.autosaved["step"])
+        resumed = st.resumed or {}
+        return int(resumed["step"]) if resumed.get("checkpoint") == str(path) and resumed.get("step") is not None \
+            else None
 
     def session_rates(self) -> MachineRates:
         """This machine's step rates for the scene and the device the engine runs with now, kept over the session
@@ -214,14 +231,15 @@ class EngineLink:
             else:
                 what = "the last session" if session is not None and st.resumed.get("checkpoint") == str(session) \
                     else "the saved result's run"
-                self.status.say_of_run(f"resumed {what} at step {st.resumed.get('step')}")
+                self.status.say_of_run(f"resumed {what} at step {st.resumed.get('step')}", in_terminal=True)
         if self._moving is not None and st.reports_received > self._moving[1]:
             self.status.say_of_run(f"started afresh on {device_words(self._moving[0])}")  # no state was taken over
             self._moving = None
 
     def fill_panel(self) -> None:
-        """Whether a saved session could be resumed."""
-        self.panel.resume_available = self.resume_available()
+        """Whether a saved session could be resumed, and from which step after the worker died."""
+        self.panel.resume_step = self.died_at()
+        self.panel.resume_available = self.panel.resume_step is not None or self.resume_available()
 
     def _ask_worker(self, name: str) -> None:
         """Pause, resume or step the running engine (nothing without one)."""

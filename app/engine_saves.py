@@ -1,16 +1,22 @@
-"""The engine worker's saved runs: the session checkpoint written when the studio closes, the run kept with an
-exported result, resuming from either, and handing a run over to another device (``move_to``). ``RunSaves`` is a
-part of ``app.engine_host.EngineHost`` (its ``saves``), built with the host: it reads the host's engine, config,
-params and fingerprint, speaks through its ``send`` and builds engines with its ``build``; it owns the hand-over."""
+"""The engine worker's saved runs: the session checkpoint, written on its own while the run steps (``autosave``:
+a killed worker loses about half a minute of steps) and when the studio closes, the run kept with an exported
+result, resuming from either, and handing a run over to another device (``move_to``). ``RunSaves`` is a part of
+``app.engine_host.EngineHost`` (its ``saves``), built with the host: it reads the host's engine, config, params and
+fingerprint, speaks through its ``send`` and builds engines with its ``build``; it owns the hand-over."""
 
 from __future__ import annotations
 
+import os
 import tempfile
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from gstyle_core.crash import log_crash
+from gstyle_core.engine.save_pacing import AUTOSAVE_SECONDS, SavePacing
 from gstyle_core.errors import one_line_error
+
+AUTOSAVE_ENV = "GSTYLE_AUTOSAVE_SECONDS"  # the seconds between the worker's own saves (tests shorten it)
 
 if TYPE_CHECKING:
     from .engine_host import EngineHost
@@ -23,6 +29,8 @@ class RunSaves:
         self.host = host
         self.handover: str | None = None  # the run's state saved by the last move to another device (``move_to``)
         self._handover_folder: tempfile.TemporaryDirectory | None = None
+        self.pacing = SavePacing(float(os.environ.get(AUTOSAVE_ENV) or AUTOSAVE_SECONDS))
+        self._paced_engine: Any = None  # the engine the pacing's clock started for (a new one starts it again)
 
     def drop_handover(self) -> None:
         """A restart starts from its inputs: no run to move on from."""
@@ -56,6 +64,29 @@ class RunSaves:
         except Exception as exc:  # noqa: BLE001
             self.host.send("error", f"saved, but its run was not kept (it cannot be continued): {one_line_error(exc)}; "
                                     f"{log_crash(exc, 'studio-keep-run', [f'keeping the run of {written}'])}")
+
+    def autosave(self) -> None:
+        """After a step: the session checkpoint when it is due (``SavePacing``: every 30 s of stepping, further apart
+        when a save costs over 3 % of the time) and once more when the run is done; says ``autosaved`` with the
+        step it holds and what the save took. The first step of a new engine starts the clock."""
+        host = self.host
+        if host.engine is None or not host.checkpoint_path or not hasattr(host.engine, "state_dict"):
+            return
+        if host.engine is not self._paced_engine:
+            self._paced_engine = host.engine
+            self.pacing.start()
+        if not (self.pacing.due() or host.done):
+            return
+        started = time.perf_counter()
+        try:
+            self.save_state(host.checkpoint_path)
+        except Exception as exc:  # noqa: BLE001 - a full or read-only cache: said once a save, the run goes on
+            self.pacing.saved(time.perf_counter() - started)
+            host.send("error", f"saving the session: {one_line_error(exc)}; the run goes on unsaved")
+            return
+        seconds = time.perf_counter() - started
+        self.pacing.saved(seconds)
+        host.send("autosaved", {"path": str(host.checkpoint_path), "step": host.steps_done(), "seconds": seconds})
 
     def checkpoint(self) -> None:
         """Save the engine's state, the fingerprint of its inputs and the slider values (cache folder)."""

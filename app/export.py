@@ -57,6 +57,21 @@ def _export_format(path: Path) -> str:
     return fmt
 
 
+def export_view(snapshot: dict[str, Any], path: Path, config: dict[str, Any], params: dict[str, float],
+                last_report: dict[str, Any] | None, died: str) -> str:
+    """Save what the studio shows of a run whose worker died (``died``: why, one line): the geometry and colours the
+    worker streamed last (``snapshot``), with a summary naming the step they are from, the paintings and the scene
+    they came from (``config``: the engine's) and the controls (``params``). Both appear or neither."""
+    fmt = _export_format(path)
+    scene = scene_from_snapshot(snapshot)
+    source = config.get("scene")
+    summary = {"scene": str(path), "source_scene": str(Path(source).resolve()) if source else None,
+               "gaussians": scene.count, "styles": style_entries(None, config.get("style")),
+               "report": last_report, "params": params, "decisions": None, "settings": None,
+               "saved_from_view": f"what the studio showed at step {(last_report or {}).get('step')} after {died}"}
+    return _write_export(path, fmt, scene, summary)
+
+
 def _write_export(path: Path, fmt: str, scene: Any, summary: dict[str, Any]) -> str:
     """The scene at ``path`` and its summary beside it, both or neither (``OutputGroup``)."""
     from gstyle_core.atomic import atomic_write_text

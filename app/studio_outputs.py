@@ -22,7 +22,7 @@ from gstyle_core.outputs import SUMMARY, unused_name
 from gstyle_core.scene import GaussianScene
 
 from .events import Handlers
-from .export import EXPORT_SUFFIXES, export_shown_result
+from .export import EXPORT_SUFFIXES, export_shown_result, export_view
 from .gl_io import read_rgb
 from .panels import PanelState
 from .snapshot import has_scene, scene_from_snapshot
@@ -32,6 +32,7 @@ from .video_job import VideoJob, turntable_path
 if TYPE_CHECKING:
     from .engine_link import EngineLink
     from .session import Session
+    from .worker import WorkerState
 
 TURNTABLE_WIDTH = 640
 
@@ -106,7 +107,8 @@ class Outputs:
         no engine running, the result on show (reopened or brought back by undo) is saved as it is."""
         bridge = self.engine.bridge
         shown_result = self.session.result is not None and self.session.loaded is not None
-        if (bridge is None or not bridge.alive) and not shown_result:
+        view = bridge.state.snapshot if bridge is not None and not bridge.alive and bridge.state.error else {}
+        if (bridge is None or not bridge.alive) and not shown_result and not has_scene(view):
             self.status.say("export: no engine is running and no result is shown")
             return
         suffix = EXPORT_SUFFIXES[fmt]
@@ -115,7 +117,10 @@ class Outputs:
             path = unused_name(stamped, (SUMMARY,))
         path = Path(path)
         if bridge is None or not bridge.alive:
-            self._save_shown_result(path)
+            if shown_result:
+                self._save_shown_result(path)
+            else:
+                self._save_view(path, bridge.state)
             return
         bridge.export(path)
         self.status.say(f"exporting {path} ...")
@@ -134,6 +139,18 @@ class Outputs:
             print(f"gstyle-studio: saved, but its run was not copied: {exc}", flush=True)
         kept = self.shelve([str(path)])
         self.status.say(f"saved {path} (kept as {kept})")
+
+    def _save_view(self, path: Path, st: WorkerState) -> None:
+        """Write what the view shows of a run whose worker died (its last streamed geometry and colours) under
+        ``path`` and shelve it as a take."""
+        try:
+            export_view(st.snapshot, path, self.engine.config, st.params, st.last_report, str(st.error))
+        except GStyleError as exc:
+            self.status.say(f"export: {exc}")
+            return
+        kept = self.shelve([str(path)])
+        self.status.tell(f"saved what the view shows (step {(st.last_report or {}).get('step')}) to "
+                         f"{path} (kept as {kept})")
 
     def export_folder(self) -> Path:
         """Where Ctrl+S and the export buttons write: the folder saved to last (Save As, or ``--output-dir``), else

@@ -23,6 +23,9 @@ GEOMETRY_DUTY = 0.1  # ... and so that its uploads take at most this share of th
 def stopped_reason(st: WorkerState) -> str:
     """Why Pause / Resume and Step cannot work now ("" when they can): a worker that is gone, a finished run, or a run
     an error stopped (the panel names the ways on: Refine, Continue, the CPU, Restart)."""
+    if not st.alive and st.autosaved is not None and st.error:
+        return (f"The engine process is gone: Resume from step {st.autosaved['step']} (or Space) goes on from its "
+                "last save; Restart starts again.")
     if not st.alive:
         return "The engine is not running: Restart starts it again."
     if st.done and not st.failed:

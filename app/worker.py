@@ -19,7 +19,7 @@ from typing import Any
 
 from gstyle_core.engine.plan import MachineRates, StepTimes
 
-from .child_process import interrupts_ignored
+from .child_process import exit_words, interrupts_ignored
 from .engine_host import worker_main
 
 SNAPSHOT_CREDITS = 2
@@ -53,6 +53,7 @@ class WorkerState:
     exported: list[str] = field(default_factory=list)
     export_failures: list[str] = field(default_factory=list)  # one line each ("export: cannot write ...")
     checkpoint: str | None = None
+    autosaved: dict[str, Any] | None = None  # the worker's last own save: {"path", "step", "seconds"}
     resumed: dict[str, Any] | None = None  # {"checkpoint": path, "step": n} once a checkpoint was loaded
     started_at: float = 0.0
     plans: dict[str, Any] = field(default_factory=dict)  # every preset's steps, the preset run, its widths (plans)
@@ -260,10 +261,10 @@ class WorkerBridge:
         """Apply all pending worker messages to ``state``; returns them (oldest first) as (kind, payload).
 
         Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
-        decisions (dict), exported (path), export_failed (one line), checkpoint (path), resumed (dict), plans (dict),
-        summary (dict), refining (width), refine_refused (one line), setup_note (one line), device_failed
-        (None: the GPU failed, ``move_to`` the CPU can go on), failed ({"continue_from": step or None}: an engine
-        error stopped the run, ``continue_run`` goes on), bye.
+        decisions (dict), exported (path), export_failed (one line), checkpoint (path), autosaved (dict: path, step,
+        seconds), resumed (dict), plans (dict), summary (dict), refining (width), refine_refused (one line),
+        setup_note (one line), device_failed (None: the GPU failed, ``move_to`` the CPU can go on), failed
+        ({"continue_from": step or None}: an engine error stopped the run, ``continue_run`` goes on), bye.
         """
         messages: list[tuple[str, Any]] = []
         if self._events is None:
@@ -280,7 +281,7 @@ class WorkerBridge:
                 k == "bye" for k, _ in messages):
             code = getattr(self._process, "exitcode", None)  # a thread (thread mode) has none
             if code not in (0, None):
-                self.state.error = f"the engine process exited with code {code}"
+                self.state.error = exit_words(code, str(self.state.decisions.get("capacity") or ""))
             elif code is None and not hasattr(self._process, "exitcode"):
                 self.state.error = "the engine thread stopped unexpectedly (see the console)"
         return messages
@@ -319,8 +320,9 @@ class WorkerBridge:
             st.exported.append(payload)
         elif kind == "export_failed":  # one line for the panel; the engine goes on (not an engine error)
             st.export_failures.append(payload)
-        elif kind == "checkpoint":
-            st.checkpoint = payload
+        elif kind in ("checkpoint", "autosaved"):  # a save at quit (its path), or on its own while stepping
+            st.checkpoint = payload if kind == "checkpoint" else payload["path"]
+            st.autosaved = payload if kind == "autosaved" else st.autosaved
         elif kind == "resumed":
             st.resumed = dict(payload)
         elif kind == "plans":

@@ -23,7 +23,8 @@ def studio_state(app) -> dict:
                                                    "reports": state.reports_received,
                                                    "snapshot_phase": state.snapshot.get("phase"),
                                                    "colour_version": state.snapshot.get("colour_version"),
-                                                   "resumed": state.resumed},
+                                                   "resumed": state.resumed, "autosaved": state.autosaved,
+                                                   "pid": getattr(bridge._process, "pid", None)},  # noqa: SLF001
             "scene": None if app.session.loaded is None else str(app.session.loaded.path),
             "result": None if app.session.result is None else str(app.session.result.summary),
             "save_folder": str(app.outputs.save_folder), "gaussians": app.views.stylized.count,

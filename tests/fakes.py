@@ -142,6 +142,12 @@ class MarkingEngine(FakeEngine):
         return report
 
 
+def make_slow_engine(**_app_config) -> FakeEngine:
+    """A ``FakeEngine`` that steps for ever at 20 steps a second with the scene always lit (the studio's factory in
+    tests that kill its worker mid-run)."""
+    return FakeEngine(n=64, step_seconds=0.05, min_level=0.3)
+
+
 def make_command_line_engine(**_app_config) -> MarkingEngine:
     """Stands in for ``app.engine_factory.make_stylizer`` in a studio run from its command line (ignores the engine
     config); the file named by ``$GSTYLE_TEST_STEPPED`` appears after five steps."""

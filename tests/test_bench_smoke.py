@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "bench"
 INDEX = BENCH / "README.md"
 ROW = re.compile(r"^\| \[`([\w.]+)`\]\([\w.]+\) \|.*\| `([^`]*)`[^|]*\|\s*$")
-HELPERS = {"tradeoff_report.py", "densify.py"}
+HELPERS = {"tradeoff_report.py", "densify.py", "consistency.py"}
 
 
 def lasting_benches() -> dict[str, str]:

@@ -45,6 +45,8 @@ def _shortcut(state: PanelState, press: KeyPress) -> list[Command]:
         return [Command("screenshot", {"scene_only": press.shift})]
     if not press.plain:
         return []
+    if name == "space" and state.resume_step is not None:  # the worker died: go on from its last save
+        return [Command("resume_session")]
     if name == "space":  # as the Pause / Resume button: nothing while it cannot work (``state.stopped``)
         return [] if state.stopped else [Command("resume" if state.paused else "pause")]
     if name == "c":  # compare with the original (from a take's too), or back

@@ -101,7 +101,11 @@ def progress_section(state: PanelState, out: list[Command]) -> None:
     imgui.progress_bar(min(max(fraction, 0.0), 1.0), imgui.ImVec2(-1, 0),
                        f"{state.step}/{state.total_steps}  ETA {format_eta(state.eta_seconds)}")
     run_buttons(state, out)
-    if state.resume_available and button(
+    if state.resume_step is not None:  # the worker died: its last save, not the last closed session
+        if button(f"Resume from step {state.resume_step}", "The engine process is gone: go on from the run's last "
+                  "save (Space does the same)."):
+            out.append(Command("resume_session"))
+    elif state.resume_available and button(
             "Resume last session", "Continue the stylization saved when the studio last closed with this scene and "
             "style."):
         out.append(Command("resume_session"))

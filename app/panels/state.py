@@ -60,6 +60,7 @@ class PanelState:
     fov_deg: float = 50.0
     show_help: bool = False
     resume_available: bool = False  # a saved session of this scene + style exists (cache folder)
+    resume_step: int | None = None  # the worker died: the step its last save holds, where Resume (and Space) go on
     decisions: dict[str, Any] = field(default_factory=dict)  # the engine's, as forwarded by the worker
     defaults: dict[str, float] = field(default_factory=dict)  # "reset" values: the preset the scene resolved to
     switched_off: dict[str, float] = field(default_factory=dict)  # λ of terms turned off, restored when turned on
