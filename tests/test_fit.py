@@ -124,8 +124,8 @@ def test_a_gpu_out_of_memory_in_fit_is_one_line_that_says_what_to_lower(monkeypa
     from types import SimpleNamespace
 
     from gstyle_core.cameras.cameraset import CameraSet
+    from gstyle_core.cli import fit as fit_cli
     from gstyle_core.device import DeviceChoice, DeviceMemoryError
-    from gstyle_core.fit import cli as fit_cli
 
     cams = ring_cameras(2)
     images = [np.full((c.height, c.width, 3), 0.5, np.float32) for c in cams]

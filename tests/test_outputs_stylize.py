@@ -269,7 +269,7 @@ def test_a_stop_whose_checkpoint_cannot_be_written_says_so(tiny, tmp_path, monke
 
 
 def test_fit_names_its_summary_by_the_same_rule(tmp_path, monkeypatch):
-    from gstyle_core.fit import cli as fit_cli
+    from gstyle_core.cli import fit as fit_cli
 
     args = SimpleNamespace(out=str(tmp_path / "fern.v1.5.compressed.ply"))
     fit_cli._write_outputs(args, blob_scene(30), {"gaussians": 30})
