@@ -18,6 +18,7 @@ from ..engine.build import (
     BuiltEngine,
     build_stylizer,
     display_width_of,
+    evaluation_width,
     request_config,
     style_paths,
 )
@@ -166,7 +167,8 @@ def _run_and_write(args: argparse.Namespace, out: Path, built: BuiltEngine, chec
         if key in engine.decisions:
             print(f"{key.replace('_', ' ')}: {engine.decisions[key]}")
     stylized = engine.stylized_scene()
-    quality = evaluate_run(engine, built.scene, built.style, display_width=display_width_of(args))
+    quality = evaluate_run(engine, built.scene, built.style, width=evaluation_width(),
+                           display_width=display_width_of(args))
     run = {"resumed": resumed, "checkpoints_written": checkpointer.saved}
     try:
         summary, written = _write_outputs(args, out, built, stylized, quality, t0, run)

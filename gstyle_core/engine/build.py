@@ -23,17 +23,24 @@ SETTING_OPTIONS = (*cli_control_names(), "working_width", "clip_weights", "vgg_w
 
 # ``GSTYLE_SMOKE=1``: every engine built here runs the tiniest run that still goes through every phase (one split
 # round, a few steps and refit iterations at 32 px, three views), and ``gstyle stylize`` measures its display figures
-# at 64 px. For the benches' smoke test (``tests/test_bench_smoke.py``), which drives each lasting bench
-# as a whole process; the run says so in ``decisions.smoke``. Never for results.
+# and its quality figures at 64 px. For the benches' smoke test (``tests/test_bench_smoke.py``), which drives each
+# lasting bench as a whole process; the run says so in ``decisions.smoke``. Never for results.
 SMOKE_ENV = "GSTYLE_SMOKE"
 SMOKE_SETTINGS = {"epochs": 1.0, "min_steps": 2, "max_views": 3, "refit_iterations": 2, "preprocess_rounds": 1,
                   "split_at": (0.5,), "working_width": 32, "refine_epochs": 0.5}
 SMOKE_DISPLAY_WIDTH = 64
+EVALUATION_WIDTH = 256  # the width ``gstyle stylize``'s quality figures are measured at (``run_figures.evaluate_run``)
 
 
 def smoke_run() -> bool:
     """Whether ``GSTYLE_SMOKE`` asks for the tiniest runs (the benches' smoke test)."""
     return os.environ.get(SMOKE_ENV, "") not in ("", "0")
+
+
+def evaluation_width() -> int:
+    """The width ``gstyle stylize``'s quality figures are measured at: ``EVALUATION_WIDTH``, ``SMOKE_DISPLAY_WIDTH``
+    in a smoke run (a 32 px run measured at 256 px spent half its time on the figures)."""
+    return SMOKE_DISPLAY_WIDTH if smoke_run() else EVALUATION_WIDTH
 
 
 def display_width_of(args: Any) -> int:
