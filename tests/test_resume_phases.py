@@ -87,7 +87,7 @@ def make_engine(kind: str, unseen: bool, region=None, refine_widths=()) -> Styli
 def interruption(engine: Stylizer) -> str | None:
     """Which of the interruption points the engine is at (before its next step), if any."""
     phase = engine.phase
-    pre, sty = engine.flat_split, engine.stylize
+    pre, sty = engine.preprocess, engine.stylize
     if phase == "preprocess" and pre.refit is not None and pre.refit.steps_done == 2:
         return "inside a pre-processing refit"
     if phase == "preprocess" and pre.refit is not None and pre.refit.steps_done == 0 and pre.round == 1:
