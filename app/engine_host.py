@@ -66,7 +66,7 @@ class EngineHost:
         self.paused, self.done, self.failed = False, False, False
         self.saves = RunSaves(self)  # checkpoints, kept runs, resumes, hand-overs (app/engine_saves.py)
         self.geometry_sends = GeometrySends()
-        self.snapshot_pending = False
+        self.snapshot_pending, self.params_taken = False, 0  # params_taken: set_params commands (the UI's sliders)
         self.last_report: dict[str, Any] | None = None
         self.params: dict[str, float] = {}
         self.build_params: dict[str, float] = {}  # the params the engine was built with (its fingerprint's settings)
@@ -127,8 +127,7 @@ class EngineHost:
                 self.params.pop(key, None)
         self.engine, self.done, self.failed, self.summary_due = None, False, False, None
         self.geometry_sends = GeometrySends()
-        self.sent_decisions = None
-        self.sent_setup_note = ""
+        self.sent_decisions, self.sent_setup_note = None, ""
         saved = self.saves.read(resume_from) if resume_from else None
         if saved is not None:
             self.params, self.level_weights, self.config = self.saves.saved_inputs(saved[1], self.params, self.config)
@@ -155,9 +154,9 @@ class EngineHost:
         choice = getattr(self.engine, "device_choice", None)
         self.send("ready", {"paused": self.paused, "device": getattr(choice, "kind", None),
                             "device_name": getattr(choice, "name", None), "devices": available_devices()})
-        self.send_plans()
         if saved is not None:
             self.saves.load_checkpoint(resume_from, saved)
+        self.send_plans()  # after a loaded run (its levels, the width it is at): what Refine and the ETA go on from
         if self.params:
             self.send("params", dict(self.params))
         self.send_decisions()
@@ -193,15 +192,15 @@ class EngineHost:
             self.send("setup_note", note)
 
     def send_plans(self) -> None:
-        """Every preset's steps on this scene (the panel prices them at the measured step times), if the engine
-        can tell; the preset it runs and the widths it works at."""
+        """Every preset's steps here (the panel prices them), the preset run, its levels and the width it is at."""
         plans = getattr(self.engine, "preset_plans", None)
         if plans is None:
             return
         try:
             self.send("plans", {"plans": plans(), "run": self.engine.run_plan(), "preset": self.engine.settings.preset,
                                 "working_width": int(self.engine.settings.working_width),
-                                "levels": list(self.engine.levels), "next_width": self.engine.next_level_width()})
+                                "levels": list(self.engine.levels), "next_width": self.engine.next_level_width(),
+                                "width": getattr(self.engine, "current_width", None)})
         except Exception as exc:  # noqa: BLE001 - the estimates are a courtesy: say why they are missing
             self.send("error", f"estimating the presets: {one_line_error(exc)}")
 
@@ -318,20 +317,21 @@ class EngineHost:
         return True
 
     def set_params(self, params: dict[str, float]) -> None:
+        """Controls from the next step, echoed with the count taken ("params_taken": ``app/artist_params.py``)."""
         self.params.update(params)
-        if self.engine is None:
-            self.send("params", dict(self.params))
-            return
+        self.params_taken += 1
         colours = getattr(self.engine, "colour_version", None)
         try:
-            self.engine.set_params(**params)
+            if self.engine is not None:
+                self.engine.set_params(**params)
         except Exception as exc:  # noqa: BLE001
             self.fail(exc, "set_params")
             return
         self.send("params", dict(self.params))
+        self.send("params_taken", self.params_taken)
         if getattr(self.engine, "colour_version", None) != colours:  # e.g. keep colours restored the hues at once,
             self.snapshot_pending = True  # the palette match blended a finished run again: shown without waiting for
-            self.flush_snapshot()  # a step (paused, or done)
+            self.flush_snapshot(force=True)  # a step, with the geometry its colours belong to (not held back)
             if self.done:  # its summary describes the colours shown (measured once a slider's drag rests)
                 self.summary_due = time.monotonic() + SUMMARY_DELAY_SECONDS
 

@@ -47,7 +47,10 @@ class EngineLink:
         events.subscribe(SceneShown, self._scene_shown)
 
     def _scene_shown(self, event: SceneShown) -> None:
+        """The config's scene; a result shown: the quality chosen follows its tier (what its restarts run)."""
         self.config["scene"] = event.loaded.path
+        if event.result is not None and event.result.preset:
+            self.set_quality(event.result.preset)
 
     # ----------------------------------------------------------------- config
     def configure(self, **entries: Any) -> None:
@@ -70,7 +73,7 @@ class EngineLink:
         self.config.update(self.region_entries())
 
     def choose_quality(self, preset: str) -> None:
-        """The quality chosen in the panel (a restart applies it)."""
+        """The quality chosen in the panel (the next fresh start runs it: ``start``)."""
         self.panel.quality = preset
 
     def set_quality(self, preset: str) -> None:
@@ -135,6 +138,8 @@ class EngineLink:
         if resume_from is None and resume and path is not None and path.is_file():
             resume_from = path
         self._resumed_from = resume_from
+        if resume_from is None:  # a fresh start runs the quality chosen (a loaded run keeps its own)
+            self.config["preset"] = self.panel.quality
         if self.bridge is None:
             bridge_class = ThreadWorkerBridge if self.worker_mode == "thread" else WorkerBridge
             self.bridge = bridge_class(self.factory, self.config, checkpoint_path=path, resume_from=resume_from,

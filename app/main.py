@@ -190,6 +190,7 @@ def open_studio(window, args: argparse.Namespace):
                                    "vgg_weights": args.vgg_weights, "clip_weights": args.clip_weights,
                                    "precision": args.precision, "device": args.device},
                     output_dir=args.output_dir or "out", show_ui=not args.hide_ui, keys=window.keys)
+    log_given_files(app, args)
     if args.output_dir:  # asked for: exports go there too
         app.outputs.save_to(args.output_dir)
     if not args.style:  # a stylized result shows the painting it was made after
@@ -220,6 +221,17 @@ def open_studio(window, args: argparse.Namespace):
         print("gstyle-studio: no saved session for this scene and style (or the engine is off); starting afresh",
               file=sys.stderr)
     return app
+
+
+def log_given_files(app, args: argparse.Namespace) -> None:
+    """Each file given on the command line, one line in the terminal (and the status) as an open in the studio says
+    it: ``opened NAME (N Gaussians)``, ``opened NAME as the style``, ``opened NAME: N cameras``."""
+    if args.scene:
+        app.status.tell(f"opened {Path(args.scene).name} ({app.panel.gaussians:,} Gaussians)")
+    if args.cameras:
+        app.status.tell(f"opened {Path(args.cameras).name}: {len(app.session.cameras)} cameras")
+    for slot, style in enumerate(args.style or []):
+        app.status.tell(f"opened {Path(style).name} as the {'second ' if slot else ''}style")
 
 
 def first_batch_result(folder: str) -> str:

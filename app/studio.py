@@ -22,6 +22,7 @@ The parts (each a plain class that owns its state; they speak through the panel'
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -71,7 +72,8 @@ class StudioApp:
         self.events = Events()
         self.status = StatusLine(self.panel)
         self.control = CameraControl()
-        self._build_parts(ctx, Path(output_dir), engine_factory, engine_config, worker_mode)
+        output = Path(os.path.abspath(Path(output_dir).expanduser()))  # absolute from the start: exports, takes
+        self._build_parts(ctx, output, engine_factory, engine_config, worker_mode)
         self._handlers: Handlers = {
             "toggle_help": lambda _args: self._toggle_help(), "quit": lambda _args: self._quit()}
         for part in (self.engine, self.runs, self.undo, self.takes, self.framing, self.region, self.outputs,

@@ -64,15 +64,14 @@ class SessionCommands:
         self.undo.choice_step("painting", before, last_step)
 
     def restart_from_original(self) -> None:
-        """A result is on show: open the scene it came from and stylize it with the result's preset and the
-        painting(s) and controls shown (the result's, ``Paintings.show_result``, or what the artist chose since);
-        the weights a studio Refine's level set go back to the preset's unless the artist moved them."""
+        """A result is on show: open the scene it came from and stylize it at the quality the panel shows (the
+        result's when it opened, or another the artist chose since: ``EngineLink.start``) with the painting(s) and
+        controls shown (the result's, ``Paintings.show_result``, or what the artist chose since); the weights a
+        studio Refine's level set go back to the preset's unless the artist moved them."""
         info = self.session.result
         if info is None or info.source is None:
             self.status.say("the original scene of this result was not found")
             return
-        if info.preset:
-            self.engine.configure(preset=info.preset)
         shown = {k: v for k, v in self.panel.params.items() if k in info.params}  # the original resets the panel
         for name, (level, preset) in info.level_weights.items():  # a Refine's level set these: not the preset's
             if shown.get(name) == level:  # (the artist's own value, moved since, stays)

@@ -162,12 +162,12 @@ class Outputs:
         scene = Path(loaded.path) if loaded is not None else None
         if (scene is not None and scene.is_file() and scene.resolve().parent != DEMO_SCENE.resolve().parent
                 and os.access(scene.parent, os.W_OK)):
-            return scene.parent
+            return scene.absolute().parent
         return self.output_dir
 
     def save_to(self, folder: str | Path) -> None:
         """Ctrl+S and the export buttons write into ``folder`` from now on."""
-        self.save_folder = Path(folder)
+        self.save_folder = Path(os.path.abspath(Path(folder).expanduser()))
 
     def save_as(self, path: str | Path) -> None:
         """Save As: export to ``path`` (the engine writes the format its suffix names) and write there from now
@@ -231,7 +231,7 @@ class Outputs:
     def fill_panel(self) -> None:
         """Where Ctrl+S writes now, and the video's progress (its last line to the status when it ends)."""
         p, job = self.panel, self.video_job
-        p.save_folder = str(self.export_folder())
+        p.save_folder, p.output_folder = str(self.export_folder()), str(self.output_dir)
         if job is None:
             p.video_running = False
             return

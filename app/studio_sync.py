@@ -70,8 +70,8 @@ class EngineSync:
         info = event.result
         if info is not None:
             p = self.panel
-            p.phase = "result (nothing running)"
-            p.levels, p.width = list(info.levels), (info.levels[-1] if info.levels else 0)  # the result's own
+            p.phase, p.preset = "result (nothing running)", info.preset  # the result's own tier and widths
+            p.levels, p.width = list(info.levels), (info.levels[-1] if info.levels else 0)
 
     def _run_started(self, _event: RunStarted) -> None:
         """A new engine counts its versions from 0 again; the run before's progress goes with it (the new run's
@@ -80,6 +80,7 @@ class EngineSync:
         self._geometry_version = self._colour_key = None
         p = self.panel
         p.phase, p.step, p.total_steps, p.eta_seconds = "starting", 0, 0, None
+        p.preset = ""  # the tier of what was on show goes with it (the new run's plans say its own)
 
     def _run_stopped(self, _event: RunStopped) -> None:
         """What the stopped run showed goes with it."""
@@ -87,12 +88,13 @@ class EngineSync:
         p.step, p.total_steps, p.eta_seconds, p.loss_history = 0, 0, None, []
         p.phase = "result (nothing running)" if self.showing_result() else "stopped"
         p.summary_line, p.grain, p.refine_note, p.next_width = "", "", "", None
-        if not self.showing_result():  # no run's width to show (a result on show shows its own, ``_scene_shown``)
-            p.width, p.levels = 0, []
+        if not self.showing_result():  # no run's width or tier to show (a result on show shows its own)
+            p.width, p.levels, p.preset = 0, [], ""
 
     def apply_updates(self) -> None:
         """The engine's newest snapshot into the stylized renderer: geometry by its version (streamed geometry at
-        most as often as ``_geometry_due`` allows), colours by theirs."""
+        most as often as ``_geometry_due`` allows; at once the first after a change of the artist's the worker took:
+        ``ArtistParams.view_owed``), colours by theirs."""
         bridge = self.engine.bridge
         if bridge is None:
             return
@@ -101,8 +103,9 @@ class EngineSync:
         snap = st.snapshot
         if not snap:
             return
+        owed = st.artist.view_owed(st.snapshots_received)  # the artist's change: shown at once, not streamed
         geometry_due = (snap.get("geometry_version") != self._geometry_version and "means" in snap
-                        and self._geometry_due(st))
+                        and (owed or self._geometry_due(st)))
         if st.snapshots_received == self._snapshots_seen and not geometry_due:
             return
         self._snapshots_seen = st.snapshots_received
@@ -122,6 +125,8 @@ class EngineSync:
             gt_stale = geometry_due or "gt" not in stylized.layers or self._geometry_version is None
             if gt_stale and "colors_gt" in snap and len(snap["colors_gt"]) == stylized.count:
                 stylized.update_colors(snap["colors_gt"], "gt")
+            if owed:
+                st.artist.view_shown()
         except ValueError as exc:
             self.status.say(f"snapshot ignored: {exc}")
 
@@ -146,8 +151,7 @@ class EngineSync:
         self._fill_run(st)
         p.decisions = st.decisions
         p.loss_history = st.loss_history[-500:]
-        if st.params:
-            p.params.update(st.params)
+        p.params.update(st.artist.engine_values(st.params))  # a control the worker has not taken: the artist's
         self._fill_quality(st)
         self.engine.say_run_news(st)
         p.device, p.device_name, p.devices = st.device or "", st.device_name, st.devices
@@ -171,17 +175,16 @@ class EngineSync:
 
     def _eta(self, st: WorkerState) -> float | None:
         """Seconds left: the run's plan (its steps of each kind) at the session's rate of each kind (the runs
-        before a restart's included), else this run's mean so far (``plan.remaining_seconds``); without a plan, the
-        mean step so far times the steps left."""
+        before a restart's included), else this run's mean so far, else guessed (``plan.remaining_seconds``); without a
+        plan, the mean step so far times the steps left."""
         from gstyle_core.engine.plan import remaining_seconds
 
         plans = st.plans or {}
         plan = plans.get("run")
         if plan:
             rates = self.engine.bridge.rates
-            left = remaining_seconds(plan, st.step_times, int(plans.get("working_width", 256)), rates)
-            if left is not None:
-                return left
+            return remaining_seconds(plan, st.step_times, int(plans.get("working_width", 256)), rates)  # (None:
+            # measuring; the mean step so far would promise a fraction: the first steps are the cheap ones)
         if not st.reports_received:
             return None
         return st.step_seconds / st.reports_received * max(self.panel.total_steps - self.panel.step, 0)
@@ -200,8 +203,8 @@ class EngineSync:
                                    for name, plan in plans.get("plans", {}).items()}
             p.levels = list(plans.get("levels", []))
             p.next_width = plans.get("next_width")
-        rep = st.last_report or {}
-        p.width = int(rep.get("width") or (p.levels[0] if p.levels else 0))
+        p.width = st.width or (p.levels[0] if p.levels else 0)  # the newest of the report's and the plans' (a run
+        # continued or refined says its width before its next step)
         p.refine_note = st.refine_note
         p.summary_line = str((st.summary or {}).get("line", ""))
         display = (st.summary or {}).get("display")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -76,7 +77,7 @@ class TakeShelf:
     """The newest ``limit`` exports of an output folder, newest first, remembered in its ``takes.json``."""
 
     def __init__(self, folder: str | Path, limit: int = DEFAULT_LIMIT) -> None:
-        self.folder = Path(folder)
+        self.folder = Path(os.path.abspath(folder))  # (takes.json's paths are absolute: the studio may start elsewhere)
         self.limit = max(1, int(limit))
         self.takes: list[Take] = self._read()
         self.write_error: str | None = None
@@ -86,7 +87,7 @@ class TakeShelf:
         """The remembered takes whose files still exist (an unreadable list is ignored: takes are a convenience)."""
         try:
             entries = json.loads((self.folder / TAKES_FILE).read_text())
-            takes = [Take(str(e["name"]), str(e["path"]), int(e["gaussians"]), float(e["created"]),
+            takes = [Take(str(e["name"]), os.path.abspath(str(e["path"])), int(e["gaussians"]), float(e["created"]),
                           str(e.get("view_key", "")), str(e.get("settings", "")), str(e.get("batch", "")),
                           str(e.get("scene", "")))
                      for e in entries]
@@ -119,7 +120,8 @@ class TakeShelf:
         """Shelve an export (newest first; the oldest beyond ``limit`` is forgotten, its file kept); ``view_key``:
         what the view showed when it was written; ``settings``: its one-line settings."""
         self._counter += 1
-        take = Take(name or f"take {self._counter}", str(Path(path)), int(gaussians), time.time(), view_key, settings)
+        take = Take(name or f"take {self._counter}", os.path.abspath(path), int(gaussians), time.time(), view_key,
+                    settings)
         self.takes = self._trimmed([take] + [t for t in self.takes if t.path != take.path])
         self._write()
         return take
@@ -160,7 +162,7 @@ class TakeShelf:
 def batch_takes(folder: str | Path) -> list[Take]:
     """A take per finished job in ``folder``'s ``batch.csv`` whose scene file is there: ``SCENE after PAINTING``
     (``, RUN`` with a plan), its Gaussian count and settings line from its OUT.json. ``GStyleError``: no table."""
-    folder = Path(folder)
+    folder = Path(os.path.abspath(folder))  # its takes' paths absolute, as every take's
     table = folder / BATCH_TABLE
     try:
         with open(table, newline="", encoding="utf-8") as fh:

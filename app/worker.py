@@ -19,11 +19,11 @@ from typing import Any
 
 from gstyle_core.engine.plan import MachineRates, StepTimes
 
+from .artist_params import ArtistParams
 from .child_process import exit_words, interrupts_ignored
 from .engine_host import worker_main
 
 SNAPSHOT_CREDITS = 2
-
 
 STEP_KEY = "step"  # in each ``WorkerState.loss_history`` entry: the engine step its losses were recorded at
 
@@ -38,8 +38,7 @@ class WorkerState:
     paused: bool = False
     done: bool = False
     error: str | None = None
-    went_on_after: str | None = None  # an error a step that succeeded since has made stale (the studio's status
-    # shows it once, ``take_went_on_after``; the red error line is cleared)
+    went_on_after: str | None = None  # an error a later step made stale (shown once: ``take_went_on_after``)
     last_report: dict[str, Any] | None = None
     loss_history: list[dict[str, float]] = field(default_factory=list)
     snapshot: dict[str, Any] = field(default_factory=dict)  # merged: geometry kept until a new one arrives
@@ -48,7 +47,8 @@ class WorkerState:
     step_seconds: float = 0.0  # sum of the reports' step times (for the ETA)
     geometry_received: int = 0
     gt_colours_received: int = 0  # snapshots that carried c_gt (only those with new geometry)
-    params: dict[str, float] = field(default_factory=dict)
+    params: dict[str, float] = field(default_factory=dict)  # the worker's (the panel's wait for ``artist``)
+    artist: ArtistParams = field(default_factory=ArtistParams)  # the artist's changes the worker has not taken yet
     decisions: dict[str, Any] = field(default_factory=dict)  # the engine's "what this scene needs" decisions
     exported: list[str] = field(default_factory=list)
     export_failures: list[str] = field(default_factory=list)  # one line each ("export: cannot write ...")
@@ -57,18 +57,17 @@ class WorkerState:
     resumed: dict[str, Any] | None = None  # {"checkpoint": path, "step": n} once a checkpoint was loaded
     started_at: float = 0.0
     plans: dict[str, Any] = field(default_factory=dict)  # every preset's steps, the preset run, its widths (plans)
+    width: int = 0  # the width the run is at: the newest report's, or the plans' (a run loaded or refined) if newer
     step_times: StepTimes = field(default_factory=StepTimes)  # this run's steps of each kind (its ETA)
     summary: dict[str, Any] | None = None  # the finished run's summary (its speckle at a display's size)
     refine_note: str = ""  # why Refine was refused, or the level it started (while that level runs)
     refining: bool = False  # a Refine level runs (``refine_note`` says its width until the run is done)
     setup_note: str = ""  # the engine's one-off setup: a build under way (minutes) or how long it took
-    device_failed: bool = False  # the GPU failed (no device, out of memory, no rasterizer): the run can go on on
-    # the CPU (``WorkerBridge.move_to``)
+    device_failed: bool = False  # the GPU failed (no device, memory, rasterizer): the CPU can go on (``move_to``)
     device: str | None = None  # what the engine computes on ("cpu", "cuda", "mps"; None: no engine built yet)
     device_name: str = ""  # the same in words (the card)
     devices: tuple[str, ...] = ("cpu",)  # the devices the worker can compute on (``device.available_devices``)
-    failed: bool = False  # an engine error stopped the run: nothing steps until Continue (``continue_run``), a move
-    # to another device or a restart
+    failed: bool = False  # an engine error stopped the run: nothing steps until Continue, a move or a restart
     continue_from: int | None = None  # after ``failed``: the last finished step, where Continue goes on (None: no
     # engine to go on from, or the GPU's failure, whose way on is the CPU)
 
@@ -203,7 +202,7 @@ class WorkerBridge:
         st = self.state
         st.error, st.done, st.paused, st.device_failed, st.device = None, False, False, False, None
         st.decisions, st.resumed, st.summary, st.refine_note, st.refining = {}, None, None, "", False
-        st.failed, st.continue_from = False, None
+        st.failed, st.continue_from, st.width = False, None, 0
 
     def move_to(self, config: dict[str, Any], device: str) -> None:
         """Go on on ``device`` ("cpu" after the GPU failed, ``state.device_failed``): the worker builds the engine
@@ -239,6 +238,7 @@ class WorkerBridge:
     def set_params(self, **params: float) -> None:
         """Change engine parameters (the live controls of ``gstyle_core.engine.controls``: λ weights, strength,
         stroke size, keep colours, split rate, lr, style mix) from the next step on."""
+        self.state.artist.sending(params)
         self._send("set_params", dict(params))
 
     def refine(self) -> None:
@@ -263,8 +263,9 @@ class WorkerBridge:
         Kinds: ready, report (dict), snapshot ((credit_taken, dict)), error (str), paused (bool), params (dict),
         decisions (dict), exported (path), export_failed (one line), checkpoint (path), autosaved (dict: path, step,
         seconds), resumed (dict), plans (dict), summary (dict), refining (width), refine_refused (one line),
-        setup_note (one line), device_failed (None: the GPU failed, ``move_to`` the CPU can go on), failed
-        ({"continue_from": step or None}: an engine error stopped the run, ``continue_run`` goes on), bye.
+        setup_note (one line), device_failed (None: the GPU failed, ``move_to`` the CPU goes on), failed
+        ({"continue_from": step or None}: an engine error stopped the run, ``continue_run`` goes on),
+        params_taken (int: set_params commands taken), bye.
         """
         messages: list[tuple[str, Any]] = []
         if self._events is None:
@@ -314,6 +315,8 @@ class WorkerBridge:
             st.paused = bool(payload)
         elif kind == "params":
             st.params = dict(payload)
+        elif kind == "params_taken":  # the set_params commands taken (after the "params" echo of the last one)
+            st.artist.took(int(payload), st.snapshots_received)
         elif kind == "decisions":
             st.decisions = dict(payload)
         elif kind == "exported":
@@ -326,7 +329,7 @@ class WorkerBridge:
         elif kind == "resumed":
             st.resumed = dict(payload)
         elif kind == "plans":
-            st.plans = dict(payload)
+            st.plans, st.width = dict(payload), int(payload.get("width") or st.width)
         elif kind == "summary":
             st.summary = dict(payload)
         elif kind == "refining":
@@ -343,7 +346,7 @@ class WorkerBridge:
         """A step succeeded: its report, step time and losses; an error before it is stale now (``went_on_after``),
         and a Refine level's note ends with the run."""
         st = self.state
-        st.last_report = report
+        st.last_report, st.width = report, int(report.get("width") or st.width)
         st.reports_received += 1
         st.step_times.add(report)
         self.rates.add(report)

@@ -113,3 +113,20 @@ def test_sliders_show_the_preset_of_the_scene_kind_before_any_engine_runs(window
         assert app.panel.params["split_rate"] == 0.02
     finally:
         app.close()
+
+
+def test_the_files_given_on_the_command_line_are_each_a_line_in_the_terminal(tmp_path, monkeypatch, capsys):
+    """Issue #65 item 4: the scene and the paintings given on the command line are logged as an open in the studio
+    is (``opened NAME (N Gaussians)``, ``opened NAME as the style``)."""
+    from app.main import main
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    scene = tmp_path / "given.ply"
+    save_scene(blob_scene(60, seed=2), scene)
+    first, second = _style_png(tmp_path / "one.png", (200, 40, 40)), _style_png(tmp_path / "two.png", (40, 40, 200))
+    assert main([str(scene), "--style", str(first), "--style", str(second), "--headless", "--frames", "1",
+                 "--size", "160x120", "--output-dir", str(tmp_path / "o")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "gstyle-studio: opened given.ply (60 Gaussians)" in lines
+    assert "gstyle-studio: opened one.png as the style" in lines
+    assert "gstyle-studio: opened two.png as the second style" in lines

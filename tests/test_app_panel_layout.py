@@ -123,3 +123,31 @@ def test_the_panel_says_the_grain_and_the_sliders_in_an_artists_words(panel):
     assert [term_label(t) for t in ("nnfm", "content", "refit")] == ["brush strokes", "keep the scene", "refit"]
     legend = [label for label, *_ in loss_series(state.loss_history)]
     assert "brush strokes" in legend and "large patterns" in legend and "NNFM" not in legend
+
+
+def test_a_status_line_never_moves_the_controls_and_the_error_stays_above_the_plot(panel, monkeypatch):
+    """Issue #65 item 4: the status box is at the panel's top at a fixed height: no status, a short one or one longer
+    than the box (it scrolls in it) leave every control where it was; a long error is wrapped above the loss plot."""
+    driver, state, rects = panel
+    drawn = {}
+    for status in ("", "opened scene.ply (59,000 Gaussians)", "could not open broken.ply: truncated " * 12):
+        state.status = status
+        driver.frame()
+        driver.frame()
+        drawn[status] = ({w.path: w.rect for w in driver.recorder.widgets}, rects["status_box"])
+    (first, box), *others = drawn.values()
+    for widgets, other_box in others:
+        assert other_box == box and widgets == first
+    assert box[3] <= first["Open scene..."][1]  # above the controls
+    error_end = {}
+
+    def error_block(*args, _drawn=run_sections.error_block):
+        _drawn(*args)
+        error_end["y"] = imgui.get_item_rect_max().y
+
+    monkeypatch.setattr(run_sections, "error_block", error_block)
+    state.error = "cannot read /data/scenes/a_very_long_folder_name/truncated_capture.ply: " + "it ends early " * 8
+    driver.frame()
+    assert any(t.startswith("Error: cannot read") for t in driver.recorder.texts)
+    assert error_end["y"] <= rects["loss_plot"][1]
+    assert all(w.rect[2] <= W for w in driver.recorder.widgets)

@@ -12,6 +12,7 @@ from fakes import BUILT, small_studio  # noqa: E402
 from imgui_driver import paused_studio_driver  # noqa: E402
 
 from gstyle_core.engine.plan import (  # noqa: E402
+    FALLBACK,
     MIN_SAMPLES,
     WARMUP_STEPS,
     MachineRates,
@@ -182,9 +183,83 @@ def test_the_eta_counts_the_steps_of_each_kind_still_to_come_and_a_restart_start
     now = StepTimes()
     for _ in range(10):
         now.add({"phase": "ground_truth", "seconds": 0.04})
-    assert remaining_seconds(plan, now, 256) is None  # no stylization step known: no figure rather than a wrong one
+    guess = 0.04 / FALLBACK["ground_truth"]  # no stylization step known: guessed from the ground truth's (#65)
+    assert remaining_seconds(plan, now, 256) == pytest.approx(100 * FALLBACK["refit"] * guess + 40 * guess)
+    assert remaining_seconds({"stylize": 4.0}, StepTimes(), 256) is None  # nothing measured: no figure
     left = remaining_seconds(plan, now, 256, before)
     assert left == pytest.approx(100 * 0.1 + 40 * 2.0)  # the ground truth is done; the rest at the session's rates
     now.add({"phase": "stylize", "seconds": 3.0})
     assert remaining_seconds(plan, now, 256, before) == pytest.approx(100 * 0.1 + 39 * 2.0)  # one step moves no rate
     assert remaining_seconds(plan, now, 256) == pytest.approx(100 * 0.15 * 3.0 + 39 * 3.0)  # alone: its own mean
+
+
+def test_a_continued_refined_result_says_the_width_it_is_at_and_refines_to_the_next(window, monkeypatch, tmp_path):
+    """Issue #65 item 2: a run refined to 64 px, saved, reopened and continued says the width it is at (64 px), its
+    levels and Refine's real next width (not the fresh engine's 64 px before its run was loaded), and Refine goes
+    there."""
+    from fakes import make_small_stylizer, ring_studio
+    from imgui_driver import studio_driver
+    from synthetic import blob_scene
+
+    from app.panels import Command
+    from gstyle_core.engine.kept_runs import find_result_state
+    from gstyle_core.io import save_scene
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    original = tmp_path / "original.ply"
+    save_scene(blob_scene(80, seed=5), original)
+    app = ring_studio(window, tmp_path, factory=make_small_stylizer)
+    try:
+        assert app.files.open_path(str(original))
+        bridge = app.engine.bridge
+        assert bridge.wait_until(lambda s: s.done or s.error, 120) and bridge.state.error is None
+        app.execute(Command("refine"))
+        assert bridge.wait_until(lambda s: s.done and s.plans.get("levels") == [32, 64] or s.error, 120)
+        out = tmp_path / "saved" / "kept.ply"
+        out.parent.mkdir()
+        app.outputs.save_as(out)
+        assert bridge.wait_until(lambda s: s.exported or s.error, 60) and bridge.state.error is None
+        assert bridge.wait_until(lambda s: find_result_state(out) is not None, 30), "the run was not kept"
+        assert app.files.open_path(str(out)) and app.engine.bridge is None
+        app.execute(Command("continue_result"))
+        bridge = app.engine.bridge
+        assert bridge.wait_until(lambda s: s.resumed and s.plans.get("levels") == [32, 64] or s.error, 120), \
+            (bridge.state.error, bridge.state.plans.get("levels"))
+        driver = studio_driver(window, monkeypatch, app)
+        driver.frame()
+        p = app.panel
+        assert p.width == 64 and p.levels == [32, 64] and p.next_width and p.next_width > 64, (p.width, p.next_width)
+        assert "Width: 64 px (levels 32 px -> 64 px)" in driver.recorder.texts
+        target = p.next_width
+        assert [c.name for c in driver.click(f"Refine -> {target} px")] == ["refine"]
+        assert bridge.wait_until(lambda s: s.plans.get("levels") == [32, 64, target] or s.error, 60), \
+            bridge.state.refine_note
+        driver.frame()
+        assert p.width == target and p.next_width != target  # the level under way, and the one after it
+    finally:
+        app.close(timeout=60)
+
+
+def test_a_quality_chosen_during_a_run_says_it_applies_at_restart_and_any_restart_runs_it(window, monkeypatch,
+                                                                                          tmp_path):
+    """Issue #65 item 2: the radio marks the tier the run is at ([now]); another chosen says "applies at Restart"
+    beside the restart at it, and the plain Restart runs the chosen tier too."""
+    from fakes import ring_studio
+    from imgui_driver import PanelDriver, install
+
+    from app.panels import Command, PanelState, draw_panel
+
+    state = PanelState(preset="preview", quality="final", device="cpu", width=256, levels=[256], next_width=512)
+    driver = PanelDriver(window, install(monkeypatch), lambda: draw_panel(state))
+    driver.frame()
+    assert "final: applies at Restart (the run is at preview)" in driver.recorder.texts
+    assert [w.path for w in driver.recorder.widgets if "[now]" in w.path][0].endswith("###q_preview")
+    assert [c.args for c in driver.click("Restart at final") if c.name == "restart_quality"] == [{"preset": "final"}]
+    app = ring_studio(window, tmp_path)
+    try:
+        app.execute(Command("set_quality", {"preset": "balanced"}))
+        assert app.engine.bridge.config.get("preset") != "balanced"  # nothing changes until a start
+        app.execute(Command("restart"))
+        assert app.engine.bridge.config["preset"] == "balanced" == app.panel.quality
+    finally:
+        app.close(timeout=30)

@@ -245,3 +245,31 @@ def test_restart_from_the_original_of_a_refined_preview_goes_back_to_the_presets
         assert app.panel.params["lambda_edges"] == 1234.0
     finally:
         app.close(timeout=30)
+
+
+def test_the_quality_radio_follows_a_result_and_restart_from_the_original_runs_it(window, tmp_path, monkeypatch):
+    """Issue #65 item 2: a balanced result opens with the radio on balanced (marked [now]); preview chosen on it says
+    when it applies, and Restart from the original runs preview, the tier the radio shows."""
+    from fakes import ring_studio
+    from imgui_driver import studio_driver
+
+    from app.panels import Command
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    out, original, _, _ = _result(tmp_path)
+    app = ring_studio(window, tmp_path)
+    try:
+        assert app.files.open_path(str(out)) and app.engine.bridge is None
+        assert app.panel.quality == app.panel.preset == "balanced"
+        driver = studio_driver(window, monkeypatch, app)
+        driver.frame()
+        assert [w.path for w in driver.recorder.widgets if "[now]" in w.path] == [
+            w.path for w in driver.recorder.widgets if w.path.endswith("###q_balanced")]
+        app.execute(Command("set_quality", {"preset": "preview"}))
+        driver.frame()
+        assert "preview: applies at Restart from the original (this result is balanced)" in driver.recorder.texts
+        app.execute(Command("restart_from_original"))
+        assert app.session.loaded.path == str(original.resolve())
+        assert app.engine.bridge.config["preset"] == "preview" and app.panel.quality == "preview"
+    finally:
+        app.close(timeout=30)

@@ -22,7 +22,7 @@ from app.studio import StudioApp  # noqa: E402
 from app.takes import TAKES_FILE, TakeShelf  # noqa: E402
 from gstyle_core.io import save_scene  # noqa: E402
 
-W, H = 700, 1300  # tall enough for the whole panel
+W, H = 700, 1400  # tall enough for the whole panel
 
 
 def test_the_shelf_keeps_the_newest_takes_and_remembers_them(tmp_path):
@@ -120,5 +120,31 @@ def test_exports_become_takes_to_compare_side_by_side(window, monkeypatch, tmp_p
         assert np.abs(with_original[right] - compare[right]).max() > 10
         app.takes.forget_take(1)
         assert app.views.take_shown is None and [t.name for t in app.takes.shelf.takes] == ["take 2"]
+    finally:
+        app.close()
+
+
+def test_outputs_and_takes_have_absolute_paths_wherever_the_studio_was_started(window, monkeypatch, tmp_path):
+    """Issue #65 item 4: a relative output folder is made absolute when the studio starts (the panel says it), and
+    ``takes.json`` keeps absolute paths, so a studio started from elsewhere finds the takes."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "out").mkdir()
+    save_scene(blob_scene(40), tmp_path / "out" / "a.ply")
+    shelf = TakeShelf("out")
+    shelf.add("out/a.ply", 40)
+    saved = json.loads((tmp_path / "out" / TAKES_FILE).read_text())
+    assert saved[0]["path"] == str(tmp_path / "out" / "a.ply")
+    monkeypatch.chdir(tmp_path / "out")
+    assert [t.path for t in TakeShelf(tmp_path / "out").takes] == [str(tmp_path / "out" / "a.ply")]
+    monkeypatch.chdir(tmp_path)
+    app = StudioApp(window.ctx, output_dir="out")
+    try:
+        assert app.outputs.output_dir == tmp_path / "out" and app.outputs.output_dir.is_absolute()
+        app.outputs.save_to("saved")
+        app.outputs.fill_panel()
+        assert app.panel.output_folder == str(tmp_path / "out") and app.panel.save_folder == str(tmp_path / "saved")
+        driver = studio_driver(window, monkeypatch, app)
+        driver.frame()
+        assert f"Output folder: {tmp_path / 'out'}" in driver.recorder.texts
     finally:
         app.close()

@@ -15,6 +15,10 @@ def output_section(state: PanelState, out: list[Command]) -> None:
     imgui.text_wrapped(f"Saves into: {state.save_folder}")
     tooltip("Where Ctrl+S and the export buttons write: the folder saved to last (Save As), else beside the scene "
             "you opened, else the output folder.")
+    imgui.text_wrapped(f"Output folder: {state.output_folder}")
+    tooltip("The studio's output folder (--output-dir, else out/ where the studio was started, made absolute when it "
+            "started): screenshots, turntable videos, the takes' list (takes.json) and exports when no other folder "
+            "applies.")
     button_row(out, ("Save As... (Ctrl+Shift+S)", "Save the stylized scene under a name and folder you choose (.ply, "
                                                   ".spz, .compressed.ply or .sog, with a .json summary); Ctrl+S "
                                                   "writes there from then on.", Command("save_as")))

@@ -66,21 +66,34 @@ def refine_button(state: PanelState, out: list[Command]) -> None:
     imgui.end_disabled()
 
 
+def pending_quality(state: PanelState, out: list[Command]) -> None:
+    """A quality chosen that the run (or the result) on show is not at: when it applies, and the restart at it (with
+    a result on show and no engine, Restart from the original applies it)."""
+    if not state.preset or state.quality == state.preset:
+        return
+    if state.result_line and not state.device:
+        imgui.text_wrapped(f"{state.quality}: applies at Restart from the original (this result is {state.preset})")
+        return
+    imgui.text_wrapped(f"{state.quality}: applies at Restart (the run is at {state.preset})")
+    if button(f"Restart at {state.quality}", f"Start the stylization again from the input scene at the "
+                                             f"{state.quality} quality (the run now is {state.preset})."):
+        out.append(Command("restart_quality", {"preset": state.quality}))
+
+
 def quality_section(state: PanelState, out: list[Command]) -> None:
     """Quality radio buttons with their estimates, the run's widths, Refine, and the result once done."""
     imgui.separator()
     imgui.text("Quality")
     for name, tip in QUALITIES.items():
         estimate = state.quality_estimates.get(name)
-        label = f"{name} ({'~' + format_eta(estimate) if estimate is not None else 'time: measuring'})###q_{name}"
+        now = "  [now]" if name == state.preset else ""
+        label = f"{name} ({'~' + format_eta(estimate) if estimate is not None else 'time: measuring'}){now}###q_{name}"
         if imgui.radio_button(label, state.quality == name):
             out.append(Command("set_quality", {"preset": name}))
         tooltip(f"{tip} The time is this scene's on this machine, priced at the median step times measured in "
-                "this session's runs of it (a phase's first steps left out).")
-    if state.quality != state.preset and state.preset:
-        if button(f"Restart at {state.quality}", f"Start the stylization again from the input scene at the "
-                                                 f"{state.quality} quality (the run now is {state.preset})."):
-            out.append(Command("restart_quality", {"preset": state.quality}))
+                "this session's runs of it (a phase's first steps left out). The chosen one is what every start "
+                "runs (Restart, Restart from the original, a scene or painting opened); [now]: what is on show.")
+    pending_quality(state, out)
     if state.width:  # (nothing to say before a run or a result gives one)
         levels = " -> ".join(f"{w} px" for w in state.levels)  # the panel's font has Latin-1 glyphs only
         imgui.text_wrapped(f"Width: {state.width} px" + (f" (levels {levels})" if len(state.levels) > 1 else ""))

@@ -18,8 +18,9 @@ from .widgets import button, button_row, font_safe, thumbnail, tooltip
 
 
 def files_section(state: PanelState, out: list[Command]) -> None:
-    """The scene and the painting(s): their paths, thumbnails and open buttons; for a stylized result, what it is
-    and the ways on from it."""
+    """Under the status box (the panel's top: a fixed place, ``status_box``), the scene and the painting(s): their
+    paths, thumbnails and open buttons; for a stylized result, what it is and the ways on from it."""
+    status_box(state.status)
     imgui.text_wrapped(f"Scene: {state.scene_path or '(none)'}")
     if state.result_line:
         result_block(state, out)
@@ -93,7 +94,7 @@ def second_style(state: PanelState, out: list[Command]) -> None:
 
 
 def progress_section(state: PanelState, out: list[Command]) -> None:
-    """Phase, step and ETA, pause / step / restart / resume, errors, status and the loss plot."""
+    """Phase, step and ETA, pause / step / restart / resume, the error (wrapped) and the loss plot under them."""
     imgui.separator()
     imgui.text(f"Phase: {state.phase}")
     imgui.text(f"Gaussians: {state.gaussians:,}   {state.fps:.1f} fps")
@@ -111,7 +112,6 @@ def progress_section(state: PanelState, out: list[Command]) -> None:
         out.append(Command("resume_session"))
     if state.error:
         error_block(state, out)
-    status_box(state.status)
     loss_plot(state)
 
 
@@ -147,15 +147,15 @@ def error_block(state: PanelState, out: list[Command]) -> None:
         out.append(Command("continue_run"))
 
 
-STATUS_LINES = 2
+STATUS_LINES = 3
 
 
 def status_box(text: str) -> None:
-    """The status in a box of a fixed ``STATUS_LINES`` lines (empty or long, the controls below never move under
-    the mouse); a longer one is cut there and shown whole in its tooltip."""
+    """The status, wrapped, in a box of a fixed ``STATUS_LINES`` lines at the panel's top (empty, new or long, the
+    controls below never move under the mouse); a longer one scrolls in the box (its scroll bar; the wheel stays the
+    panel's) and shows whole in its tooltip."""
     height = STATUS_LINES * imgui.get_text_line_height_with_spacing()
-    flags = imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_scroll_with_mouse
-    imgui.begin_child("##status", imgui.ImVec2(-1, height), 0, flags)
+    imgui.begin_child("##status", imgui.ImVec2(-1, height), 0, imgui.WindowFlags_.no_scroll_with_mouse)
     imgui.text_wrapped(font_safe(text))
     imgui.end_child()
     if text:

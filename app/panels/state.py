@@ -79,6 +79,7 @@ class PanelState:
     take_thumbnails: list[tuple[int, tuple[int, int]] | None] = field(default_factory=list)  # (GL texture, size)
     take_differs: list[bool] = field(default_factory=list)  # per take: it differs from the view now (T starts there)
     save_folder: str = ""  # where Ctrl+S writes now
+    output_folder: str = ""  # the output folder (absolute): screenshots, videos, takes.json, exports by default
     undo_note: str = ""  # the step Ctrl+Z takes back ("" when none), and the one Ctrl+Shift+Z takes again
     redo_note: str = ""
     take_shown: int = -1  # the take loaded in the take view (-1: none)

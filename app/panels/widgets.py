@@ -2,16 +2,37 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from imgui_bundle import imgui
 
+FINE_DRAG = 0.1  # a slider dragged with Shift held moves this much as fast (a tenth: fine tuning)
+
 
 def param_slider(label: str, value: float, low: float, high: float, fmt: str = "%.3g",
                  log: bool = True) -> tuple[bool, float]:
-    """A float slider with a control's range and format, on a logarithmic scale when it has one."""
+    """A float slider with a control's range and format, on a logarithmic scale when it has one. Dragged with Shift
+    held it moves ten times slower (``fine_value``: by the mouse's motion, not to where the mouse is); Ctrl+click
+    (or double-click) types a value (ImGui's own, clamped to the range)."""
     flags = imgui.SliderFlags_.logarithmic if log else imgui.SliderFlags_.none
-    return imgui.slider_float(label, float(value), low, high, fmt, flags)
+    changed, new = imgui.slider_float(label, float(value), low, high, fmt, flags | imgui.SliderFlags_.always_clamp)
+    io = imgui.get_io()
+    if imgui.is_item_active() and io.key_shift and imgui.is_mouse_down(0) and not imgui.is_item_deactivated():
+        moved = io.mouse_delta.x / max(imgui.get_item_rect_size().x, 1.0)
+        new = fine_value(float(value), moved, low, high, log)
+        changed = new != float(value)
+    return changed, new
+
+
+def fine_value(value: float, moved: float, low: float, high: float, log: bool) -> float:
+    """``value`` moved by ``moved`` of a slider's width at ``FINE_DRAG`` of the speed, on its scale (logarithmic
+    when ``log`` and the range is positive), within the range."""
+    step = moved * FINE_DRAG
+    if log and low > 0:
+        t = math.log(max(value, low) / low) / math.log(high / low) + step
+        return float(min(max(low * (high / low) ** t, low), high))
+    return float(min(max(value + step * (high - low), low), high))
 
 
 # The panel's font (ImGui's default) has Latin-1 glyphs only: the engine's words outside it, spelled out.

@@ -95,10 +95,10 @@ class MachineRates:
         """A run starts (a restart): its first steps are a phase's first whatever kind they are."""
         self.phase = (None, 0)
 
-    def median(self, kind: str) -> float | None:
-        """The seconds of a step of ``kind`` (None: fewer than ``MIN_SAMPLES`` measured past their phases' start)."""
+    def median(self, kind: str, least: int = MIN_SAMPLES) -> float | None:
+        """The seconds of a step of ``kind`` (None: fewer than ``least`` measured past their phases' start)."""
         values = self.samples.get(kind)
-        return statistics.median(values) if values is not None and len(values) >= MIN_SAMPLES else None
+        return statistics.median(values) if values is not None and len(values) >= max(1, least) else None
 
 
 STYLIZED_PHASES = ("stylize", "refit", "refine", "finish", "done")  # the phases whose colours are stylized ones
@@ -132,25 +132,34 @@ def remaining_seconds(plan: dict[str, float], times: StepTimes, working_width: i
     steps still to come at the session's rate of its kind (``rates``: the runs before a restart's included), else at
     this run's mean so far, else priced from the stylization step (``fallback_cost``). None while no stylization
     step's cost is known (early in a first run: the ground-truth and refit steps are 10-20x cheaper and would promise
-    far too little)."""
+    far too little) nor guessed from theirs (``guessed_stylize``). A rate counts from its first step past a phase's
+    start (a phase's first steps, slower, would swing the figure)."""
     def cost(kind: str) -> float | None:
-        known = rates.median(kind) if rates is not None else None
+        known = rates.median(kind, least=1) if rates is not None else None
         return known if known is not None else times.mean(kind)
 
-    return _priced(plan, times.counts, cost, working_width)
+    return _priced(plan, times.counts, cost, working_width, guess=True)
+
+
+def guessed_stylize(cost: Callable[[str], float | None]) -> float | None:
+    """A stylization step's cost from the cheaper kinds measured (``FALLBACK``'s ratios; their median), else None."""
+    guesses = [known / ratio for kind, ratio in FALLBACK.items() if (known := cost(kind))]
+    return statistics.median(guesses) if guesses else None
 
 
 def _priced(plan: dict[str, float], done: dict[str, int], cost: Callable[[str], float | None],
-            working_width: int) -> float | None:
+            working_width: int, guess: bool = False) -> float | None:
     """Seconds of ``plan``'s steps beyond ``done`` (per kind), each at ``cost`` of its kind, else ``fallback_cost``;
-    None without a stylization step's cost."""
+    None without a stylization step's cost (``guess``: or one ``guessed_stylize``)."""
     stylize = cost("stylize")
+    if stylize is None and guess:
+        stylize = guessed_stylize(cost)
     if stylize is None:
         return None
     total = 0.0
     for kind, steps in plan.items():
         left = max(0.0, steps - done.get(kind, 0))
-        known = cost(kind)
+        known = stylize if kind == "stylize" else cost(kind)
         total += left * (known if known is not None else fallback_cost(kind, stylize, working_width, cost))
     return total
 
