@@ -231,6 +231,8 @@ def test_a_continued_refined_result_says_the_width_it_is_at_and_refines_to_the_n
         assert p.width == 64 and p.levels == [32, 64] and p.next_width and p.next_width > 64, (p.width, p.next_width)
         assert "Width: 64 px (levels 32 px -> 64 px)" in driver.recorder.texts
         target = p.next_width
+        assert bridge.wait_until(lambda s: s.summary is not None or s.error, 60)  # the last news of the run loaded:
+        driver.frame()  # the panel as it stays (under load the summary came between finding the button and the click)
         assert [c.name for c in driver.click(f"Refine -> {target} px")] == ["refine"]
         assert bridge.wait_until(lambda s: s.plans.get("levels") == [32, 64, target] or s.error, 60), \
             bridge.state.refine_note
