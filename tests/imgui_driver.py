@@ -128,6 +128,23 @@ class PanelDriver:
         return commands
 
 
+def panel_alone(window, monkeypatch, state) -> PanelDriver:
+    """A driver that draws the panel alone for ``state``, its set_params commands applied to it as the studio
+    does."""
+    from app.panels import draw_panel
+
+    recorder = install(monkeypatch)
+
+    def draw():
+        commands = draw_panel(state)
+        for c in commands:
+            if c.name == "set_params":
+                state.params.update(c.args)
+        return commands
+
+    return PanelDriver(window, recorder, draw)
+
+
 def studio_driver(window, monkeypatch, app) -> PanelDriver:
     """A driver that draws the whole studio frame (``app.frame``) into the test window."""
     def draw():

@@ -7,10 +7,10 @@ pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
 from fakes import BUILT, keep_small_stylizer  # noqa: E402
-from imgui_driver import PanelDriver, install, paused_studio_driver, studio_driver  # noqa: E402
+from imgui_driver import panel_alone, paused_studio_driver, studio_driver  # noqa: E402
 from synthetic import blob_scene, ring_cameras  # noqa: E402
 
-from app.panels import PanelState, draw_panel, loss_series, param_rows  # noqa: E402
+from app.panels import PanelState, loss_series, param_rows  # noqa: E402
 from app.studio import LoadedScene, StudioApp  # noqa: E402
 from gstyle_core.engine.controls import control  # noqa: E402
 from gstyle_core.engine.settings import resolve_settings, ui_params  # noqa: E402
@@ -28,17 +28,8 @@ def panel_state(**kw) -> PanelState:
 @pytest.fixture
 def panel(window, monkeypatch):
     """(driver, state): the panel alone, its set_params commands applied to the state as the studio does."""
-    recorder = install(monkeypatch)
     state = panel_state(camera_count=12, camera_names=[f"cam{i + 1}" for i in range(12)])
-
-    def draw():
-        commands = draw_panel(state)
-        for c in commands:
-            if c.name == "set_params":
-                state.params.update(c.args)
-        return commands
-
-    return PanelDriver(window, recorder, draw), state
+    return panel_alone(window, monkeypatch, state), state
 
 
 def test_every_control_button_and_view_mode_has_a_tooltip(panel):

@@ -31,9 +31,9 @@ pytest.importorskip("imgui_bundle")
 pytest.importorskip("moderngl")
 
 from imgui_bundle import imgui  # noqa: E402
-from imgui_driver import PanelDriver, install  # noqa: E402
+from imgui_driver import panel_alone  # noqa: E402
 
-from app.panels import PanelState, draw_panel  # noqa: E402
+from app.panels import PanelState  # noqa: E402
 from gstyle_core.engine.settings import resolve_settings, ui_params  # noqa: E402
 
 W, H = 700, 1300
@@ -41,18 +41,9 @@ W, H = 700, 1300
 
 @pytest.fixture
 def panel(window, monkeypatch):
-    recorder = install(monkeypatch)
     params = ui_params(resolve_settings("preview", "360", 4, clip_available=False))
     state = PanelState(params=dict(params), defaults=dict(params))
-
-    def draw():
-        commands = draw_panel(state)
-        for c in commands:
-            if c.name == "set_params":
-                state.params.update(c.args)
-        return commands
-
-    return PanelDriver(window, recorder, draw), state
+    return panel_alone(window, monkeypatch, state), state
 
 
 def drag(driver, path: str, fx0: float, fx1: float, shift: bool) -> list:
