@@ -39,9 +39,8 @@ class StatusLine:
     def say_of_run(self, line: str, in_terminal: bool = False) -> None:
         """A status line about the running engine: cleared when that run ends (``end_run``) if still shown;
         ``in_terminal``: printed there too."""
-        self.panel.status = self._run_status = line
-        if in_terminal:
-            print(f"gstyle-studio: {line}", flush=True)
+        (self.tell if in_terminal else self.say)(line)
+        self._run_status = line
 
     def end_run(self) -> None:
         """The engine's run ends (a restart, a stop, another scene): a status line that described it goes too."""

@@ -20,12 +20,13 @@ GEOMETRY_MIN_INTERVAL_S = 0.5  # streamed geometry shown at most this often whil
 GEOMETRY_DUTY = 0.1  # ... and so that its uploads take at most this share of the UI's time
 
 
-def stopped_reason(st: WorkerState) -> str:
-    """Why Pause / Resume and Step cannot work now ("" when they can): a worker that is gone, a finished run, or a run
-    an error stopped (the panel names the ways on: Refine, Continue, the CPU, Restart)."""
-    if not st.alive and st.autosaved is not None and st.error:
-        return (f"The engine process is gone: Resume from step {st.autosaved['step']} (or Space) goes on from its "
-                "last save; Restart starts again.")
+def stopped_reason(st: WorkerState, resume_step: int | None = None) -> str:
+    """Why Pause / Resume and Step cannot work now ("" when they can): a worker that is gone (``resume_step``: the
+    step its last save holds, ``EngineLink.died_at``), a finished run, or a run an error stopped (the panel names the
+    ways on: Resume, Refine, Continue, the CPU, Restart)."""
+    if not st.alive and resume_step is not None:
+        return (f"The engine process is gone: Resume from step {resume_step} (or Space) goes on from its last save; "
+                "Restart starts again.")
     if not st.alive:
         return "The engine is not running: Restart starts it again."
     if st.done and not st.failed:
@@ -165,7 +166,7 @@ class EngineSync:
         p.running, p.paused, p.error = st.stepping, st.paused, st.error
         p.device_failed = st.device_failed  # (cleared with the error: a new engine, a restart)
         p.failed, p.continue_from = st.failed, st.continue_from
-        p.stopped = stopped_reason(st)
+        p.stopped = stopped_reason(st, p.resume_step)  # (the engine link filled resume_step first)
         rep = st.last_report
         if rep:
             p.phase = "done" if st.done else str(rep.get("phase", "-"))

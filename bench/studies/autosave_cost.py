@@ -45,8 +45,9 @@ def measure(scene: str, steps: int, width: int | None) -> dict:
             save_checkpoint(path, engine.state_dict(), {"kind": "studio"})
             save_s = time.perf_counter() - t0
         size = path.stat().st_size
-    pacing = SavePacing()
-    interval = max(pacing.interval, save_s / pacing.share)
+    pacing = SavePacing(clock=lambda: 0.0)  # the worker's own pacing after this save: the next one's time from now
+    pacing.saved(save_s)
+    interval = pacing.next_at
     whole = getattr(engine, "full_input", None) or engine.input_scene  # a capture on its level of detail: all of it
     return {"scene": Path(scene).name, "gaussians": whole.count, "held": engine.input_scene.count, "step_s": step_s,
             "save_s": save_s, "mib": size / 2**20, "interval_s": interval, "share": save_s / (interval + save_s),
