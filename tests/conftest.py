@@ -7,7 +7,8 @@ keep hypothesis' defaults. Shared GL fixtures: ``ctx`` (standalone EGL context) 
 window of the module's W x H).
 
 Precision: ``GSTYLE_PRECISION=fp32`` is set for the whole suite, so ``--precision auto`` resolves to fp32 without
-timing anything (``gstyle_core/style/precision.py``).
+timing anything (``gstyle_core/style/precision.py``). ``GSTYLE_FIGURES_WIDTH=64``: ``gstyle stylize``'s quality
+figures are measured 64 px wide (``engine/build.evaluation_width``).
 
 Thread count: ``GSTYLE_TEST_THREADS=N`` runs the suite with N torch threads (intra-op, set before each test, since
 a test may change it) and N numba threads (``NUMBA_NUM_THREADS``, read when numba is imported), and sets
@@ -28,6 +29,9 @@ THREADS_ENV = "GSTYLE_TEST_THREADS"
 # ``--precision auto`` (the default) resolves to fp32 in the suite and in the runs it starts: no result depends on
 # whether the CPU does bf16 faster, and nothing is timed (tests/test_precision.py checks auto with a fake timer).
 os.environ["GSTYLE_PRECISION"] = "fp32"
+# ``gstyle stylize``'s quality figures at 64 px rather than 256 (its runs here are 32 px wide; at 256 px the figures
+# took a third of the command-line tests' time): the same code at a smaller size (tests/test_figures_width.py).
+os.environ.setdefault("GSTYLE_FIGURES_WIDTH", "64")
 
 
 _THREADS_RAW = os.environ.get(THREADS_ENV, "").strip()
@@ -68,6 +72,13 @@ def _thread_count():
     if TEST_THREADS is not None:
         _set_library_threads(TEST_THREADS)
     yield
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    """The tests marked ``slow`` first (in their order), the rest after: with two test processes
+    (``scripts/test.sh``) the long ones start early and the short ones fill in at the end, rather than one process
+    finishing a long test alone."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
 
 
 FUZZ_PROFILE = os.environ.get("GSTYLE_FUZZ_PROFILE", "ci")
