@@ -17,6 +17,7 @@ from app.panels import Command  # noqa: E402
 W, H = 700, 1300  # tall enough for the whole panel
 
 
+@pytest.mark.slow
 def test_the_panel_offers_the_cpu_after_the_gpu_failed_and_the_run_goes_on_there(window, monkeypatch, tmp_path):
     app = small_studio(window, monkeypatch, tmp_path, factory=stand_in_gpu_stylizer)
     try:

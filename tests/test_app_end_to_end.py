@@ -131,6 +131,7 @@ def differs(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.abs(a - b)[lit].mean())
 
 
+@pytest.mark.slow
 def test_run_keep_colours_restart_undo_save_as_and_reopen(display, tmp_path):  # noqa: F811
     from PIL import Image
 

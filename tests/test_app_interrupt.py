@@ -95,6 +95,7 @@ def _terminate_after(proc: subprocess.Popen, ready) -> str:
             proc.wait()
 
 
+@pytest.mark.slow
 def test_sigterm_saves_the_session_and_resume_continues_from_the_step_reached(tmp_path, monkeypatch):
     """Issue #27 item 5: SIGTERM (logout, a closing terminal) saves the session as closing the window does, and
     ``--resume`` continues from the step it reached, not from step 0."""

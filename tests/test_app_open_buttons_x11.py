@@ -205,6 +205,7 @@ def check_scene_and_style(studio: Studio, inputs: dict, open_file) -> None:
         f"the thumbnail did not turn green: {studio.thumbnail_colour()}"
 
 
+@pytest.mark.slow
 def test_open_buttons_with_the_studio_file_browser(xserver, tmp_path, inputs):
     studio = Studio(xserver, tmp_path, inputs, GSTYLE_FILE_DIALOG="studio")
     try:
@@ -214,6 +215,7 @@ def test_open_buttons_with_the_studio_file_browser(xserver, tmp_path, inputs):
         studio.close()
 
 
+@pytest.mark.slow
 def test_open_buttons_with_zenity(xserver, tmp_path, inputs):
     if shutil.which("zenity") is None:
         pytest.skip("zenity is not installed (scripts/setup.sh installs it with apt); the studio browser's test "

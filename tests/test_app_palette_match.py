@@ -21,6 +21,7 @@ def _shows(state, colours) -> bool:
     return "colors" in snap and np.array_equal(snap["colors"], colours.clamp(0, 1).numpy())
 
 
+@pytest.mark.slow
 def test_a_finished_runs_palette_match_reaches_the_snapshot_the_summary_and_the_session(tmp_path):
     BUILT.clear()
     session = tmp_path / "session.ckpt"

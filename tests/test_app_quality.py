@@ -193,6 +193,7 @@ def test_the_eta_counts_the_steps_of_each_kind_still_to_come_and_a_restart_start
     assert remaining_seconds(plan, now, 256) == pytest.approx(100 * 0.15 * 3.0 + 39 * 3.0)  # alone: its own mean
 
 
+@pytest.mark.slow
 def test_a_continued_refined_result_says_the_width_it_is_at_and_refines_to_the_next(window, monkeypatch, tmp_path):
     """Issue #65 item 2: a run refined to 64 px, saved, reopened and continued says the width it is at (64 px), its
     levels and Refine's real next width (not the fresh engine's 64 px before its run was loaded), and Refine goes

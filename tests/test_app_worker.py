@@ -245,6 +245,7 @@ def test_real_stylizer_resumes_from_its_checkpoint_through_the_bridge(tmp_path):
         again.quit()
 
 
+@pytest.mark.slow
 def test_real_stylizer_runs_to_the_end_through_the_bridge():
     pytest.importorskip("gstyle_core.engine.stylizer")
     from fakes import make_small_stylizer

@@ -69,6 +69,7 @@ def resumed_line(proc: subprocess.Popen, timeout: float) -> str:
     return found[0] if found else ""
 
 
+@pytest.mark.slow
 def test_a_killed_worker_keeps_the_run_and_the_view(display, tmp_path, monkeypatch):  # noqa: F811
     from PIL import Image
 

@@ -51,6 +51,7 @@ def outputs_of(out: Path) -> dict[str, bytes]:
             and p.name != "contact_sheet.png"}
 
 
+@pytest.mark.slow
 def test_a_batch_on_ray_writes_what_the_local_pool_writes(cluster, stand_in, inputs, capsys):
     local, remote = inputs["out"].with_name("local"), inputs["out"]
     assert run(batch_args(dict(inputs, out=local), "--jobs", "2", "--threads", "1", "--strength", "2")) == 0
@@ -99,6 +100,7 @@ def test_a_killed_batch_keeps_its_finished_jobs_and_a_lost_worker_runs_again(clu
     assert sorted(r["status"] for r in rows_of(out)) == ["done", "done", "done already", "done already"]
 
 
+@pytest.mark.slow
 def test_a_failed_job_on_ray_is_one_line_and_a_rerun_does_the_rest(cluster, stand_in, inputs, capsys):
     assert run(batch_args(inputs, "--ray", "auto", "--max-gaussians", "0")) == 1  # the options reach the jobs
     assert capsys.readouterr().err.count("failed: gstyle stylize: error: --max-gaussians must be at least 1") == 4

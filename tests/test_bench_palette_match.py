@@ -4,11 +4,13 @@ strength."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 from bench_cli import load_bench, tiny_bench_inputs
 from PIL import Image
 
 
+@pytest.mark.slow
 def test_one_run_gives_a_picture_and_a_row_per_strength(vgg, no_clip_weights, monkeypatch, tmp_path, capsys):
     bench = load_bench("studies/palette_match")
     style = (np.random.default_rng(1).uniform(size=(16, 16, 3)) * np.array([0.9, 0.3, 0.6])).astype(np.float32)

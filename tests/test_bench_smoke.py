@@ -37,6 +37,7 @@ def test_the_index_lists_every_bench_and_study():
     assert smoke_free == [], "every lasting bench needs smoke arguments"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(lasting_benches()))
 def test_a_lasting_bench_runs_at_a_tiny_size(name, tmp_path):
     args = lasting_benches()[name]

@@ -33,6 +33,7 @@ def _gstyle(*args: str) -> subprocess.CompletedProcess:
                           check=False, cwd=ROOT)
 
 
+@pytest.mark.slow
 def test_memory_per_gaussian_stays_within_the_caps_model_at_200k():
     """The slope of peak memory over the Gaussians held, between 50k and 200k made from the demo, is below the model
     ``resources.bytes_per_gaussian`` that the default cap divides the available memory by: the cap never promises
@@ -63,6 +64,7 @@ def test_a_cap_below_one_is_refused_before_anything_loads(tmp_path, cap):
     assert done.returncode == 2 and "Traceback" not in done.stderr and "--max-gaussians" in done.stderr
 
 
+@pytest.mark.slow
 def test_a_capture_over_the_cap_is_stylized_in_part_and_written_whole(tmp_path):
     """``--max-gaussians`` below the demo's count: the plan is printed before the first step and kept in OUT.json;
     the result holds every input Gaussian."""
@@ -81,6 +83,7 @@ def test_a_capture_over_the_cap_is_stylized_in_part_and_written_whole(tmp_path):
     assert load_scene(out)[0].count == record["gaussians_after"]
 
 
+@pytest.mark.slow
 def test_a_200k_capture_on_the_level_of_detail_writes_every_gaussian_with_figures_in_bounds(tmp_path):
     """200k Gaussians densified from the demo, stylized on a cut (``--lod on``): the cut is said before the first
     step and kept in OUT.json, the run holds fewer Gaussians than came in, every input Gaussian is written, and the

@@ -231,6 +231,7 @@ def test_strength_multiplies_the_style_terms_against_content():
         resolve_settings("preview", "forward", 4, strength=-1.0)
 
 
+@pytest.mark.slow
 def test_cli_records_strength_palette_match_and_prints_structure(tiny_scene, fake_vgg_file, tmp_path, capsys,
                                                                  no_clip_weights):
     import json

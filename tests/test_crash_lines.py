@@ -79,6 +79,7 @@ CHAIN = [
 CONTROLS = "controls: strength=2 (the others the preview preset's)"
 
 
+@pytest.mark.slow
 def test_a_failure_in_each_phase_is_one_line_and_the_run_resumes_to_the_end(cache, tmp_path, monkeypatch, capsys):
     out = tmp_path / "out" / "demo.ply"
     args = ["stylize", "--working-width", "64", "--refine-widths", "80", "--display-width", "0", "--strength", "2",

@@ -119,6 +119,7 @@ def test_keep_colours_ticked_before_the_run_goes_through_the_stylization(worker)
     assert_hues_of_the_scene(bridge.state.snapshot)
 
 
+@pytest.mark.slow
 def test_keep_colours_ticked_during_the_run_and_after_it(worker):
     bridge, steps = worker(), StylizeSteps()
     assert bridge.wait_until(lambda s: finished_or_failed(s) or steps(s) >= 2, 240), "no stylization step"

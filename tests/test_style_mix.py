@@ -197,6 +197,7 @@ def _save_png(path, img):
     Image.fromarray((img * 255).astype(np.uint8)).save(path)
 
 
+@pytest.mark.slow
 def test_cli_mixes_two_styles_and_names_them_with_weights(tmp_path, no_clip_weights):
     from gstyle_core.cli import stylize as cli
     from gstyle_core.io import save_scene
