@@ -32,6 +32,6 @@ rm -rf "$warm_dir"
 workers=${GSTYLE_TEST_WORKERS:-2}
 if [[ $workers != 0 ]]; then
   export GSTYLE_TEST_THREADS=${GSTYLE_TEST_THREADS:-1}
-  set -- -n "$workers" --dist worksteal "$@"
+  set -- -n "$workers" --dist load --maxschedchunk 2 "$@"  # handed out a test or two at a time, the slow first
 fi
 env -u DISPLAY .venv/bin/python -m pytest -q -p no:cacheprovider "$@"

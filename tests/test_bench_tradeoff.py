@@ -13,6 +13,8 @@ import pytest
 import torch
 from bench_cli import load_bench, tiny_bench_inputs
 
+from gstyle_core.engine.build import evaluation_width
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -53,7 +55,7 @@ def test_the_atlas_runs_through_the_batch_and_fills_every_column(vgg, no_clip_we
     assert [k for k, v in row.items() if v == ""] == []  # every column filled
     assert (row["tier"], row["device"], row["scene"], row["painting"], row["knob"]) == (
         "preview", "cpu-fp32", "tiny", "noise", "as shipped")
-    assert int(row["repeats"]) == 2 and int(row["working_width"]) == 32 and int(row["end_width"]) == 256
+    assert int(row["repeats"]) == 2 and int(row["working_width"]) == 32 and int(row["end_width"]) == evaluation_width()
     assert 0 < float(row["seconds_min"]) <= float(row["seconds"]) <= float(row["seconds_max"])
     for key in ("nnfm_drop", "structure", "nnfm_drop_end", "structure_end", "nnfm_drop_1024", "speckle_1024",
                 "structure_1024", "coarse_ratio", "colour", "consistency", "consistency_input", "load_before",
