@@ -81,7 +81,8 @@ def worker_alone(config: dict, steps: int, warmup_timeout: float, mode: str = "p
             time.sleep(0.03)
         start_steps, t0 = bridge.state.reports_received, time.perf_counter()
         cpu0 = worker_cpu_seconds(bridge)
-        while bridge.state.reports_received - start_steps < steps and time.perf_counter() - t0 < warmup_timeout:
+        while (bridge.state.reports_received - start_steps < steps and not bridge.state.done
+               and time.perf_counter() - t0 < warmup_timeout):
             bridge.poll()
             time.sleep(0.01)
         wall = time.perf_counter() - t0
