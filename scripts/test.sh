@@ -11,6 +11,12 @@ warm_dir=$(mktemp -d)
 GSTYLE_SMOKE=1 GSTYLE_PRECISION=fp32 .venv/bin/python -m gstyle_core.cli stylize --out "$warm_dir/warm.ply" \
   --checkpoint-every 0 >"$warm_dir/log" 2>&1 &
 warm_pid=$!
+warm_done() {
+  wait "$warm_pid" || { echo "test: the warm-up run failed (the tests compiled the kernels themselves):"; tail -5 \
+    "$warm_dir/log"; }
+  rm -rf "$warm_dir"
+}
+trap warm_done EXIT
 # PlayCanvas's splat-transform for the interoperability tests (tests/test_io_sog_interop.py, test_io_web_export.py),
 # pinned, into .cache where npm is there (about 10 s the first time); without it those tests skip. 2.7.1 runs on
 # node >= 18 (3.x asks for node 22) and agrees with our .spz axes (3.10.2 reads .spz without the y/z flip).
@@ -23,9 +29,8 @@ if [[ -z ${GSTYLE_SPLAT_TRANSFORM:-} ]] && command -v npm >/dev/null 2>&1; then
   fi
 fi
 .venv/bin/ruff check gstyle_core app tests bench
-wait "$warm_pid" || { echo "test: the warm-up run failed (the tests compile the kernels themselves):"; tail -5 \
-  "$warm_dir/log"; }
-rm -rf "$warm_dir"
+# The test processes start and collect meanwhile, and wait for it before their first test (tests/conftest.py).
+export GSTYLE_WARMUP_PID=$warm_pid
 # Two test processes (pytest-xdist), one torch/numba thread each: one process alone kept the 2-core VM 45 % busy (a test
 # waits on its subprocesses, windows and sockets much of the time); two of one thread each took the suite from
 # 1,013 to 657 s (docs/notes/performance.md). GSTYLE_TEST_WORKERS=0 runs it in one process.

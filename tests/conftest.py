@@ -19,7 +19,9 @@ thread per core). E.g. ``GSTYLE_TEST_THREADS=1 bash scripts/test.sh``. The heade
 from __future__ import annotations
 
 import os
+import time
 from datetime import timedelta
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -77,6 +79,24 @@ def _thread_count():
     if TEST_THREADS is not None:
         _set_library_threads(TEST_THREADS)
     yield
+
+
+def _running(pid: str) -> bool:
+    """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+def pytest_collection_finish(session) -> None:
+    """Before the first test, wait (at most 5 minutes) for scripts/test.sh's warm-up run (``GSTYLE_WARMUP_PID``: the
+    demo's smoke run that compiles numba's kernels once), so that the test processes, started and collected
+    meanwhile, do not compile the same kernels beside it."""
+    pid = os.environ.get("GSTYLE_WARMUP_PID", "")
+    deadline = time.monotonic() + 300
+    while pid.isdigit() and _running(pid) and time.monotonic() < deadline:
+        time.sleep(0.2)
 
 
 def pytest_collection_modifyitems(config, items) -> None:
