@@ -3,8 +3,8 @@
 Hypothesis profiles for the fuzz tests (``tests/test_fuzz_readers.py``), chosen with ``GSTYLE_FUZZ_PROFILE``:
 "ci" (the default: few examples, derandomized so CI runs are repeatable) and "soak" (many random examples,
 failures kept in the ``.hypothesis`` database). The fuzz tests apply the profile themselves, so other tests
-keep hypothesis' defaults. Shared GL fixtures: ``ctx`` (standalone EGL context) and ``window`` (headless studio
-window of the module's W x H).
+keep hypothesis' defaults. Shared GL fixtures: ``ctx`` (standalone EGL context), ``window`` (headless studio
+window of the module's W x H) and ``studio`` (a ring scene's studio in that window).
 
 Precision: ``GSTYLE_PRECISION=fp32`` is set for the whole suite, so ``--precision auto`` resolves to fp32 without
 timing anything (``gstyle_core/style/precision.py``). ``GSTYLE_FIGURES_WIDTH=64``: ``gstyle stylize``'s quality
@@ -139,6 +139,18 @@ def window(request):
         pytest.skip(f"no headless GL window (glfw NULL + EGL): {exc}")
     yield win
     win.close()
+
+
+@pytest.fixture
+def studio(window, monkeypatch, tmp_path):
+    """``fakes.ring_studio`` in the module's headless window (the fake engine in a worker thread, its cache folder in
+    the test's), closed at the end. A module that needs another studio defines its own ``studio`` fixture."""
+    from fakes import ring_studio
+
+    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
+    app = ring_studio(window, tmp_path)
+    yield app
+    app.close(timeout=30)
 
 
 @pytest.fixture

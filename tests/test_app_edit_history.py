@@ -32,16 +32,6 @@ def test_the_history_keeps_at_most_its_limit():
     assert [e.before["lr"] for e in h.done] == [2.0, 3.0, 4.0]
 
 
-@pytest.fixture
-def studio(window, monkeypatch, tmp_path):
-    from fakes import ring_studio
-
-    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
-    app = ring_studio(window, tmp_path)
-    yield app
-    app.close(timeout=30)
-
-
 W, H = 160, 120
 
 

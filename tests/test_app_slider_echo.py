@@ -90,16 +90,6 @@ def test_ctrl_click_types_a_value(panel):
     assert [c.args for c in out if c.name == "set_params"][-1] == {"palette_match": pytest.approx(0.25)}
 
 
-@pytest.fixture
-def studio(window, monkeypatch, tmp_path):
-    from fakes import ring_studio
-
-    monkeypatch.setenv("GSTYLE_CACHE", str(tmp_path / "cache"))
-    app = ring_studio(window, tmp_path)
-    yield app
-    app.close(timeout=30)
-
-
 def test_a_stale_echo_does_not_move_the_slider_back_and_undo_shows_at_once(studio, window):
     from app.panels import Command
 

@@ -64,19 +64,15 @@ def share_third_party_packages(venv: Path) -> None:
     (target / "suite_packages.pth").write_text("\n".join(site.getsitepackages()) + "\n", encoding="utf-8")
 
 
-def share_compiled_kernels(installed: Path) -> int:
+def share_compiled_kernels(installed: Path) -> None:
     """Copy the checkout's numba cache (``__pycache__/*.nbi``, ``*.nbc``) beside the installed copy's kernels: numba
     keys it by the source file's contents, which the wheel carries unchanged, so the installed copy loads the kernels
-    instead of compiling them again (about 40 s on the 2-core VM). Where the checkout has none, it compiles them.
-    Returns the number of files copied."""
-    copied = 0
+    instead of compiling them again (about 40 s on the 2-core VM). Where the checkout has none, it compiles them."""
     for cached in (ROOT / "gstyle_core").rglob("__pycache__/*.nb[ic]"):
         target = installed / cached.parent.parent.relative_to(ROOT / "gstyle_core") / "__pycache__" / cached.name
         if target.parent.parent.is_dir():
             target.parent.mkdir(exist_ok=True)
             shutil.copy2(cached, target)
-            copied += 1
-    return copied
 
 
 @pytest.mark.slow
